@@ -1,0 +1,1 @@
+"""The ``hairlut`` command line (import name ``hairlut_cli``): parses, calls hairlut, prints."""

@@ -1,0 +1,48 @@
+"""``hairlut inspect``: what is in a table or image, and a PNG preview of it."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from hairlut.assets import preview, summarize
+
+from .format import render
+
+
+@click.command("inspect")
+@click.argument("paths", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout instead of text.")
+@click.option("--png", "png", type=click.Path(dir_okay=False), help="Also write a tone-mapped PNG preview (one input only).")
+@click.option("--channel", help="EXR channel or layer to preview (default: R,G,B, else Y, else the only channel).")
+@click.option("--part", help="EXR part to preview in a multi-part file (default: the first).")
+@click.option("--dataset", help="HDF5 dataset to preview.")
+@click.option("--slice", "index", default="", help='Index that makes the dataset 2-D, NumPy style: "0,:,:" or "2,10:20,:".')
+@click.option("--exposure", type=float, default=0.0, show_default=True, help="Preview scale 2**E before the sRGB curve.")
+@click.option("--normalize", is_flag=True, help="Preview maps the finite min..max to black..white (for signed tables).")
+def inspect_cmd(paths, as_json, png, channel, part, dataset, index, exposure, normalize):
+    """Summarise hairlut tables (.h5) and images (.exr).
+
+    Shows kind, schema, the recipe, and for each dataset or channel its shape,
+    dtype, axes and units, min/max/mean and NaN/Inf counts.  Every checksum is
+    verified on the way.  EXR files from other tools are read too.
+
+    \b
+    Examples:
+      hairlut inspect tables/kk_lobes.h5
+      hairlut inspect --json out/*.exr
+      hairlut inspect env.exr --png env.png --exposure -2
+      hairlut inspect lobes.h5 --dataset specular --slice "1,:,:" --png p49.png
+    """
+    if png and len(paths) != 1:
+        raise click.UsageError("--png takes exactly one input file")
+    summaries = [summarize(p) for p in paths]
+    if png:
+        preview(paths[0], png, channel=channel, part=part, dataset=dataset, index=index, exposure=exposure, normalize=normalize)
+    if as_json:
+        click.echo(json.dumps(summaries[0] if len(summaries) == 1 else summaries, indent=2))
+    else:
+        click.echo("\n\n".join(render(s) for s in summaries))
+        if png:
+            click.echo(f"preview written to {png}")

@@ -1,0 +1,74 @@
+"""Entry point of the ``hairlut`` command and the shared error handling.
+
+Any :class:`hairlut.errors.HairlutError` becomes one line on stderr and exit
+status 2 (the same status click uses for usage errors); no traceback.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+
+import click
+
+from hairlut import __version__
+from hairlut.errors import HairlutError
+
+
+class Failure(click.ClickException):
+    """A hairlut error, shown as ``hairlut: error: <file or field>: <fault>``."""
+
+    exit_code = 2
+
+    def show(self, file=None) -> None:
+        click.echo(f"hairlut: error: {self.message}", err=True)
+
+
+class Group(click.Group):
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except HairlutError as exc:
+            raise Failure(str(exc)) from exc
+        except OSError as exc:  # disk full, permission denied, ...
+            where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+            raise Failure(f"{where}{exc.strerror or exc}") from exc
+
+
+@click.group(cls=Group, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.version_option(__version__, "-V", "--version", prog_name="hairlut")
+@click.option("-v", "--verbose", count=True, help="More log output on stderr (-vv for debug).")
+@click.option("-q", "--quiet", is_flag=True, help="Only errors on stderr.")
+def cli(verbose: int, quiet: bool) -> None:
+    """Bake, inspect and query lookup tables for real-time hair rendering.
+
+    \b
+    Tables are HDF5 files, images are OpenEXR; both carry the recipe that made
+    them.  Start with `hairlut demo`, then `hairlut inspect FILE`.
+    """
+    level = logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose, 2)]
+    logger = logging.getLogger("hairlut")
+    logger.setLevel(level)
+    if not any(getattr(h, "_hairlut", False) for h in logger.handlers):
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("hairlut: %(levelname)s: %(message)s"))
+        handler._hairlut = True
+        logger.addHandler(handler)
+
+
+def _register() -> None:
+    from . import demo, inspect
+
+    cli.add_command(inspect.inspect_cmd)
+    cli.add_command(demo.demo_cmd)
+
+
+_register()
+
+
+def main() -> None:
+    cli(prog_name="hairlut")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,349 @@
+"""HDF5 table files: self-describing, checksummed, readable by HDF5 1.10 tools.
+
+Layout of a table file::
+
+    /                      attrs: hairlut_schema, kind, hairlut_version, created,
+                                  recipe (canonical JSON), recipe_hash (SHA-256)
+    /axes/<axis>           1-D dimension scale; attrs units, long_name, periodic[, period]
+    /<variable>            N-D table; attrs units, long_name; dims labelled and
+                           attached to their /axes scales
+
+Every dataset (scales included) is chunked with gzip + shuffle + fletcher32, and
+the file is written with ``libver=("earliest", "v110")``.  Nothing time-dependent
+is stored except ``created``, which honours ``SOURCE_DATE_EPOCH``; so the same
+recipe gives a bitwise-identical file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import json
+import os
+import re
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from .. import errors
+from .._version import __version__
+from .atomic import atomic_path
+from .kinds import KINDS, SCHEMA, SUPPORTED_SCHEMAS
+from .recipe import canonical_json, recipe_hash
+
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+LIBVER = ("earliest", "v110")
+AXES_GROUP = "axes"
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$")
+
+
+@dataclass(frozen=True)
+class Axis:
+    """A coordinate axis: one value per index along a table dimension."""
+
+    name: str
+    values: np.ndarray
+    units: str
+    long_name: str
+    period: float | None = None  # set for periodic axes (angles wrap around)
+
+    @property
+    def periodic(self) -> bool:
+        return self.period is not None
+
+
+@dataclass(frozen=True)
+class Variable:
+    """An N-D table whose dimensions are named axes."""
+
+    name: str
+    data: np.ndarray
+    dims: tuple[str, ...]
+    units: str
+    long_name: str
+    chunks: tuple[int, ...] | None = None  # None: let h5py choose
+    attrs: Mapping[str, object] = field(default_factory=dict)
+
+
+@dataclass
+class Table:
+    """A validated table file read into memory."""
+
+    path: Path
+    kind: str
+    schema: int
+    version: str
+    created: str
+    recipe: dict
+    recipe_hash: str
+    attrs: dict
+    axes: dict[str, Axis]
+    variables: dict[str, Variable]
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.variables[name].data
+
+
+# ----------------------------------------------------------------------------- writing
+
+
+def _created() -> str:
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    when = _dt.datetime.fromtimestamp(int(epoch), _dt.timezone.utc) if epoch else _dt.datetime.now(_dt.timezone.utc)
+    return when.replace(microsecond=0).isoformat()
+
+
+def _check_name(field_name: str, name: str) -> None:
+    if not isinstance(name, str) or not _NAME.match(name) or name.split("/")[0] == AXES_GROUP:
+        raise errors.ValidationError(field_name, name, "use letters, digits, '_' and '/' (not the reserved 'axes')")
+
+
+def _dataset_kwargs(shape: tuple[int, ...], chunks) -> dict:
+    return dict(
+        chunks=chunks if chunks is not None else True,
+        compression="gzip",
+        compression_opts=4,
+        shuffle=True,
+        fletcher32=True,
+        track_times=False,
+    )
+
+
+def _validate(axes: Iterable[Axis], variables: Iterable[Variable]) -> tuple[dict, list]:
+    by_name: dict[str, Axis] = {}
+    for ax in axes:
+        _check_name("axis.name", ax.name)
+        values = np.asarray(ax.values)
+        if values.ndim != 1 or values.size == 0 or not np.issubdtype(values.dtype, np.number):
+            raise errors.ValidationError(f"axes.{ax.name}.values", values.shape, "an axis is a non-empty 1-D numeric array")
+        if ax.name in by_name:
+            raise errors.ValidationError("axis.name", ax.name, "duplicate axis")
+        by_name[ax.name] = ax
+    seen, out = set(), []
+    for var in variables:
+        _check_name("variable.name", var.name)
+        data = np.asarray(var.data)
+        if var.name in seen:
+            raise errors.ValidationError("variable.name", var.name, "duplicate variable")
+        seen.add(var.name)
+        if not (np.issubdtype(data.dtype, np.number) or data.dtype == np.bool_):
+            raise errors.ValidationError(f"{var.name}.dtype", str(data.dtype), "tables hold numbers")
+        if data.ndim == 0 or data.size == 0:
+            raise errors.ValidationError(f"{var.name}.shape", data.shape, "a table has at least one dimension and one element")
+        if len(var.dims) != data.ndim:
+            raise errors.ValidationError(f"{var.name}.dims", var.dims, f"need one axis name per dimension of shape {data.shape}")
+        for i, dim in enumerate(var.dims):
+            if dim not in by_name:
+                raise errors.ValidationError(f"{var.name}.dims[{i}]", dim, "no such axis")
+            if len(by_name[dim].values) != data.shape[i]:
+                raise errors.ValidationError(
+                    f"{var.name}.dims[{i}]", dim, f"axis has {len(by_name[dim].values)} values, table dimension has {data.shape[i]}"
+                )
+        if var.chunks is not None and (len(var.chunks) != data.ndim or any(c < 1 for c in var.chunks)):
+            raise errors.ValidationError(f"{var.name}.chunks", var.chunks, f"need {data.ndim} positive chunk sizes")
+        out.append((var, data))
+    return by_name, out
+
+
+def write_table(
+    path: str | os.PathLike,
+    kind: str,
+    recipe: Mapping,
+    axes: Iterable[Axis],
+    variables: Iterable[Variable],
+    attrs: Mapping[str, object] | None = None,
+) -> Path:
+    """Write a table file atomically and return its path.
+
+    ``recipe`` is every parameter that produced the tables; it is stored as
+    canonical JSON beside its SHA-256.  ``attrs`` adds further root attributes.
+    """
+    if kind not in KINDS:
+        raise errors.ValidationError("kind", kind, f"unknown asset kind; known: {', '.join(sorted(KINDS))}")
+    recipe_text = canonical_json(recipe)
+    by_name, checked = _validate(axes, variables)
+    missing = [name for name in KINDS[kind].required if name not in {v.name for v, _ in checked}]
+    if missing:
+        raise errors.ValidationError("variables", missing, f"kind {kind!r} requires them")
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        with h5py.File(tmp, "w", libver=LIBVER, track_order=True) as f:
+            f.attrs["hairlut_schema"] = np.int32(SCHEMA)
+            f.attrs["kind"] = kind
+            f.attrs["hairlut_version"] = __version__
+            f.attrs["created"] = _created()
+            f.attrs["recipe"] = recipe_text
+            f.attrs["recipe_hash"] = recipe_hash(recipe_text)
+            for key, value in (attrs or {}).items():
+                f.attrs[key] = value
+            scales = {}
+            group = f.create_group(AXES_GROUP, track_order=True)
+            for ax in by_name.values():
+                values = np.asarray(ax.values)
+                ds = group.create_dataset(ax.name, data=values, **_dataset_kwargs(values.shape, None))
+                ds.attrs["units"] = ax.units
+                ds.attrs["long_name"] = ax.long_name
+                ds.attrs["periodic"] = np.int8(ax.periodic)
+                if ax.periodic:
+                    ds.attrs["period"] = float(ax.period)
+                ds.make_scale(ax.name)
+                scales[ax.name] = ds
+            for var, data in checked:
+                ds = f.create_dataset(var.name, data=data, **_dataset_kwargs(data.shape, var.chunks))
+                ds.attrs["units"] = var.units
+                ds.attrs["long_name"] = var.long_name
+                for key, value in var.attrs.items():
+                    ds.attrs[key] = value
+                for i, dim in enumerate(var.dims):
+                    ds.dims[i].label = dim
+                    ds.dims[i].attach_scale(scales[dim])
+    return path
+
+
+# ----------------------------------------------------------------------------- reading
+
+
+def _text(value) -> str:
+    return value.decode("utf-8") if isinstance(value, bytes) else str(value)
+
+
+def check_file(path: str | os.PathLike, signature: bytes, what: str) -> Path:
+    """Raise unless ``path`` is an existing regular file that starts with ``signature``."""
+    path = Path(path)
+    if not path.exists():
+        raise errors.AssetNotFoundError(path, "no such file")
+    if not path.is_file():
+        raise errors.FormatError(path, f"not a regular file, so not {what}")
+    with path.open("rb") as fh:
+        head = fh.read(len(signature))
+    if head != signature:
+        shown = "empty file" if not head else f"starts with {head[:8]!r}"
+        raise errors.FormatError(path, f"not {what} ({shown})")
+    return path
+
+
+def data_fault(path, name: str, exc: Exception) -> errors.CorruptAssetError:
+    """Map an h5py read failure to the hairlut error that describes it."""
+    msg = str(exc)
+    if "fletcher32" in msg.lower() or "checksum" in msg.lower():
+        return errors.ChecksumError(path, f"dataset {name!r} fails its fletcher32 checksum")
+    return errors.CorruptAssetError(path, f"dataset {name!r} cannot be read ({msg.splitlines()[0] if msg else type(exc).__name__})")
+
+
+def _open(path: Path) -> h5py.File:
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        msg = str(exc)
+        if "truncated" in msg:
+            raise errors.TruncatedAssetError(path, "truncated HDF5 file (shorter than its superblock says)") from None
+        raise errors.CorruptAssetError(path, f"cannot open HDF5 file ({msg.splitlines()[0] if msg else 'unknown error'})") from None
+
+
+def _validate_root(path: Path, f: h5py.File, kind: str | None, required: Iterable[str]) -> None:
+    attrs = f.attrs
+    if "hairlut_schema" not in attrs:
+        raise errors.FormatError(path, "not a hairlut table (no hairlut_schema attribute)")
+    try:
+        schema = int(attrs["hairlut_schema"])
+    except (TypeError, ValueError):
+        raise errors.SchemaError(path, f"hairlut_schema {attrs['hairlut_schema']!r} is not an integer") from None
+    if schema not in SUPPORTED_SCHEMAS:
+        raise errors.SchemaError(
+            path, f"unknown hairlut_schema {schema} (this hairlut {__version__} reads {sorted(SUPPORTED_SCHEMAS)})"
+        )
+    for key in ("kind", "recipe", "recipe_hash"):
+        if key not in attrs:
+            raise errors.MissingDatasetError(path, f"root attribute {key!r} is missing")
+    file_kind = _text(attrs["kind"])
+    if kind is not None and file_kind != kind:
+        raise errors.KindError(path, f"holds kind {file_kind!r}, expected {kind!r}")
+    if file_kind not in KINDS:
+        raise errors.KindError(path, f"unknown kind {file_kind!r}")
+    if recipe_hash(_text(attrs["recipe"])) != _text(attrs["recipe_hash"]):
+        raise errors.ChecksumError(path, "recipe_hash does not match the stored recipe")
+    for name in (*KINDS[file_kind].required, *required):
+        if name not in f or not isinstance(f[name], h5py.Dataset):
+            raise errors.MissingDatasetError(path, f"required dataset {name!r} is missing")
+
+
+@contextlib.contextmanager
+def open_table(path: str | os.PathLike, kind: str | None = None, required: Iterable[str] = ()):
+    """Open a table file lazily after validating its root; yields the ``h5py.File``.
+
+    Use for large tables read piecewise.  Reads that hit corrupt chunks should be
+    wrapped with :func:`data_fault`.
+    """
+    path = check_file(path, HDF5_SIGNATURE, "an HDF5 file")
+    f = _open(path)
+    try:
+        _validate_root(path, f, kind, required)
+        yield f
+    finally:
+        f.close()
+
+
+def _read_axis(path: Path, ds: h5py.Dataset) -> Axis:
+    name = ds.name.rsplit("/", 1)[-1]
+    try:
+        values = ds[()]
+    except OSError as exc:
+        raise data_fault(path, ds.name, exc) from None
+    period = float(ds.attrs["period"]) if int(ds.attrs.get("periodic", 0)) else None
+    return Axis(name, values, _text(ds.attrs.get("units", "")), _text(ds.attrs.get("long_name", name)), period)
+
+
+def dims_of(ds: h5py.Dataset) -> tuple[str, ...]:
+    """Axis names of a dataset's dimensions (its attached scales, else the labels)."""
+    names = []
+    for i, dim in enumerate(ds.dims):
+        scale = dim[0].name.rsplit("/", 1)[-1] if len(dim) else ""
+        names.append(scale or dim.label or f"dim{i}")
+    return tuple(names)
+
+
+def read_table(path: str | os.PathLike, kind: str | None = None, required: Iterable[str] = ()) -> Table:
+    """Read and validate a whole table file.
+
+    Every dataset is read, so every fletcher32 checksum is verified.  Raises a
+    :mod:`hairlut.errors` exception naming the file and the fault.
+    """
+    with open_table(path, kind, required) as f:
+        path = Path(path)
+        axes = {}
+        if AXES_GROUP in f:
+            for ds in f[AXES_GROUP].values():
+                ax = _read_axis(path, ds)
+                axes[ax.name] = ax
+        variables = {}
+
+        def visit(name, obj):
+            if isinstance(obj, h5py.Dataset) and not name.startswith(AXES_GROUP + "/"):
+                try:
+                    data = obj[()]
+                except OSError as exc:
+                    raise data_fault(path, name, exc) from None
+                extra = {k: v for k, v in obj.attrs.items() if k not in {"units", "long_name", "DIMENSION_LIST"}}
+                variables[name] = Variable(
+                    name, data, dims_of(obj), _text(obj.attrs.get("units", "")), _text(obj.attrs.get("long_name", name)),
+                    obj.chunks, extra,
+                )
+
+        f.visititems(visit)
+        a = f.attrs
+        known = {"hairlut_schema", "kind", "hairlut_version", "created", "recipe", "recipe_hash"}
+        return Table(
+            path=path,
+            kind=_text(a["kind"]),
+            schema=int(a["hairlut_schema"]),
+            version=_text(a.get("hairlut_version", "")),
+            created=_text(a.get("created", "")),
+            recipe=json.loads(_text(a["recipe"])),
+            recipe_hash=_text(a["recipe_hash"]),
+            attrs={k: v for k, v in a.items() if k not in known},
+            axes=axes,
+            variables=variables,
+        )

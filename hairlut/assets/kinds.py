@@ -1,0 +1,38 @@
+"""The registry of asset kinds: what each kind must hold.
+
+A reader that is told the kind checks the file's ``kind`` attribute and the
+presence of every required variable before it trusts the file.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: The ``hairlut_schema`` this version writes, and the ones it can read.
+SCHEMA = 1
+SUPPORTED_SCHEMAS = frozenset({1})
+
+
+@dataclass(frozen=True)
+class Kind:
+    name: str
+    required: tuple[str, ...]
+    description: str
+
+
+KINDS: dict[str, Kind] = {}
+
+
+def register_kind(name: str, required: tuple[str, ...], description: str) -> Kind:
+    """Declare a kind (idempotent for an identical declaration)."""
+    kind = Kind(name, tuple(required), description)
+    if KINDS.setdefault(name, kind) != kind:
+        raise RuntimeError(f"asset kind {name!r} declared twice with different contents")
+    return kind
+
+
+register_kind(
+    "kk_lobes",
+    ("diffuse", "specular"),
+    "Kajiya-Kay diffuse and specular kernels sampled on (theta, theta') grids",
+)

@@ -1,0 +1,80 @@
+"""Typed exceptions raised by hairlut.
+
+Every error names what was wrong: a parameter error names the field and the
+value, an asset error names the file and the fault.  The CLI turns any
+:class:`HairlutError` into one line on stderr and exit status 2.
+"""
+
+from __future__ import annotations
+
+import os
+
+
+class HairlutError(Exception):
+    """Base class of every error hairlut raises on purpose."""
+
+
+class ValidationError(HairlutError, ValueError):
+    """A parameter is out of range, of the wrong type or missing."""
+
+    def __init__(self, field: str, value: object, reason: str):
+        self.field, self.value, self.reason = field, value, reason
+        shown = repr(value)
+        if len(shown) > 80:
+            shown = shown[:77] + "..."
+        super().__init__(f"{field}={shown}: {reason}")
+
+
+class AssetError(HairlutError):
+    """A table or image file cannot be used; the message names file and fault."""
+
+    def __init__(self, path: str | os.PathLike, fault: str):
+        self.path, self.fault = os.fspath(path), fault
+        super().__init__(f"{self.path}: {fault}")
+
+
+class AssetNotFoundError(AssetError, FileNotFoundError):
+    """The file does not exist."""
+
+
+class FormatError(AssetError):
+    """The file is not HDF5 / not OpenEXR (wrong signature)."""
+
+
+class CorruptAssetError(AssetError):
+    """The file has the right signature but its contents cannot be trusted."""
+
+
+class TruncatedAssetError(CorruptAssetError):
+    """The file is shorter than its own header says."""
+
+
+class ChecksumError(CorruptAssetError):
+    """Stored data fail their checksum (HDF5 fletcher32 or hairlut pixel hash)."""
+
+
+class SchemaError(AssetError):
+    """The file's ``hairlut_schema`` is not one this version can read."""
+
+
+class KindError(AssetError):
+    """The file holds a different kind of table than the caller asked for."""
+
+
+class MissingDatasetError(AssetError):
+    """A dataset, axis or channel that the kind requires is absent."""
+
+
+__all__ = [
+    "HairlutError",
+    "ValidationError",
+    "AssetError",
+    "AssetNotFoundError",
+    "FormatError",
+    "CorruptAssetError",
+    "TruncatedAssetError",
+    "ChecksumError",
+    "SchemaError",
+    "KindError",
+    "MissingDatasetError",
+]

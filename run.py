@@ -1,0 +1,57 @@
+#!/usr/bin/env python3
+"""Set-up and run, with nothing but python3 on the machine.
+
+    python3 run.py demo [ARGS...]   create .venv, install hairlut, run `hairlut demo ARGS`
+    python3 run.py test [ARGS...]   create .venv, install hairlut[test], run the whole test suite
+    python3 run.py hairlut ARGS...  any hairlut command inside the venv
+
+The venv is (re)installed only when pyproject.toml changes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+import venv
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent
+VENV = Path(os.environ.get("HAIRLUT_VENV", ROOT / ".venv"))
+BIN = VENV / ("Scripts" if os.name == "nt" else "bin")
+
+
+def ensure_venv(extras: str) -> None:
+    stamp = VENV / ".hairlut-install"
+    want = hashlib.sha256((ROOT / "pyproject.toml").read_bytes() + extras.encode()).hexdigest()
+    if stamp.exists() and stamp.read_text() == want:
+        return
+    if not (BIN / "python").exists():
+        print(f"run.py: creating virtual environment {VENV}", file=sys.stderr)
+        venv.EnvBuilder(with_pip=True).create(VENV)
+    spec = f".[{extras}]" if extras else "."
+    print(f"run.py: installing hairlut{('[' + extras + ']') if extras else ''} (editable)", file=sys.stderr)
+    subprocess.run([str(BIN / "python"), "-m", "pip", "install", "-q", "--disable-pip-version-check", "-e", spec],
+                   cwd=ROOT, check=True)
+    stamp.write_text(want)
+
+
+def main(argv: list[str]) -> int:
+    if not argv or argv[0] not in {"demo", "test", "hairlut"}:
+        print(__doc__, file=sys.stderr)
+        return 2
+    task, rest = argv[0], argv[1:]
+    # Both tasks share one environment, with the test extras, so switching never reinstalls.
+    ensure_venv("test")
+    if task == "test":
+        cmd = [str(BIN / "python"), "-m", "pytest", *rest]
+    elif task == "demo":
+        cmd = [str(BIN / "hairlut"), "demo", *rest]
+    else:
+        cmd = [str(BIN / "hairlut"), *rest]
+    return subprocess.run(cmd, cwd=ROOT).returncode
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
