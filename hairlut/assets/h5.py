@@ -225,12 +225,20 @@ def check_file(path: str | os.PathLike, signature: bytes, what: str) -> Path:
     return path
 
 
-def data_fault(path, name: str, exc: Exception) -> errors.CorruptAssetError:
-    """Map an h5py read failure to the hairlut error that describes it."""
+def data_fault(path, ds: h5py.Dataset, exc: Exception) -> errors.CorruptAssetError:
+    """Map an h5py read failure of ``ds`` to the hairlut error that describes it.
+
+    hairlut's filter pipeline is shuffle → gzip → fletcher32, so on read the
+    checksum is the first filter to run: a filter failure on such a dataset is a
+    checksum failure.
+    """
     msg = str(exc)
-    if "fletcher32" in msg.lower() or "checksum" in msg.lower():
-        return errors.ChecksumError(path, f"dataset {name!r} fails its fletcher32 checksum")
-    return errors.CorruptAssetError(path, f"dataset {name!r} cannot be read ({msg.splitlines()[0] if msg else type(exc).__name__})")
+    plist = ds.id.get_create_plist()
+    last = plist.get_filter(plist.get_nfilters() - 1)[0] if plist.get_nfilters() else None
+    if "checksum" in msg.lower() or ("filter" in msg and last == h5py.h5z.FILTER_FLETCHER32):
+        return errors.ChecksumError(path, f"dataset {ds.name.lstrip('/')!r} fails its fletcher32 checksum")
+    first = msg.splitlines()[0] if msg else type(exc).__name__
+    return errors.CorruptAssetError(path, f"dataset {ds.name.lstrip('/')!r} cannot be read ({first})")
 
 
 def _open(path: Path) -> h5py.File:
@@ -291,7 +299,7 @@ def _read_axis(path: Path, ds: h5py.Dataset) -> Axis:
     try:
         values = ds[()]
     except OSError as exc:
-        raise data_fault(path, ds.name, exc) from None
+        raise data_fault(path, ds, exc) from None
     period = float(ds.attrs["period"]) if int(ds.attrs.get("periodic", 0)) else None
     return Axis(name, values, _text(ds.attrs.get("units", "")), _text(ds.attrs.get("long_name", name)), period)
 
@@ -325,7 +333,7 @@ def read_table(path: str | os.PathLike, kind: str | None = None, required: Itera
                 try:
                     data = obj[()]
                 except OSError as exc:
-                    raise data_fault(path, name, exc) from None
+                    raise data_fault(path, obj, exc) from None
                 extra = {k: v for k, v in obj.attrs.items() if k not in {"units", "long_name", "DIMENSION_LIST"}}
                 variables[name] = Variable(
                     name, data, dims_of(obj), _text(obj.attrs.get("units", "")), _text(obj.attrs.get("long_name", name)),

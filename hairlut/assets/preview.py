@@ -122,7 +122,7 @@ def preview(
             try:
                 img = np.asarray(ds[key])
             except OSError as exc:
-                raise data_fault(path, dataset, exc) from None
+                raise data_fault(path, ds, exc) from None
             except (IndexError, ValueError) as exc:
                 raise errors.ValidationError("slice", index, f"{exc} for shape {ds.shape}") from None
         if img.ndim == 1:

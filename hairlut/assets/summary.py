@@ -73,7 +73,7 @@ def _dataset_stats(path: Path, ds: h5py.Dataset) -> dict:
                 for start in range(0, ds.shape[0], rows):
                     s.add(ds[start : start + rows])
         except OSError as exc:
-            raise data_fault(path, ds.name, exc) from None
+            raise data_fault(path, ds, exc) from None
     return s.as_dict()
 
 

@@ -1,0 +1,28 @@
+"""Small real tables shared by the asset-store tests."""
+
+import numpy as np
+
+from hairlut.assets import Axis, Variable, write_table
+
+RECIPE = {"n_theta": 33, "n_theta_v": 17, "exponents": [8.0, 49.0], "storage": "float32", "nested": {"a": [1, 2], "b": None}}
+
+
+def lobes_table(path, recipe=RECIPE, rng=None, size=(2, 33, 17)):
+    """Write a kk_lobes table with random contents of the given size; return (path, arrays)."""
+    rng = rng or np.random.default_rng(0)
+    p, nt, nv = size
+    theta = np.linspace(0, np.pi, nt)
+    theta_v = np.linspace(0, np.pi, nv)
+    diffuse = np.sin(theta).astype(np.float32)
+    specular = rng.random((p, nt, nv)).astype(np.float32)
+    axes = [
+        Axis("theta", theta, "rad", "angle(light, tangent)"),
+        Axis("theta_v", theta_v, "rad", "angle(tangent, view)", period=None),
+        Axis("exponent", np.arange(1.0, p + 1), "1", "specular exponent"),
+    ]
+    variables = [
+        Variable("diffuse", diffuse, ("theta",), "1", "sin theta"),
+        Variable("specular", specular, ("exponent", "theta", "theta_v"), "1", "KK specular", chunks=(1, nt, nv)),
+    ]
+    write_table(path, "kk_lobes", recipe, axes, variables, attrs={"note": "test"})
+    return path, {"diffuse": diffuse, "specular": specular, "theta": theta, "theta_v": theta_v}

@@ -1,0 +1,26 @@
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def shared_dir() -> Path:
+    """The shared/ folder beside the checkout (or $HAIRLUT_SHARED)."""
+    return Path(os.environ.get("HAIRLUT_SHARED", ROOT.parent / "shared"))
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(1234)
+
+
+@pytest.fixture
+def hairlut_exe() -> str:
+    exe = Path(sys.executable).with_name("hairlut")
+    if not exe.exists():
+        pytest.skip(f"console script not installed beside {sys.executable}")
+    return str(exe)

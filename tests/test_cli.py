@@ -1,0 +1,173 @@
+"""The command line: inspect (text, JSON, PNG), demo, errors as one line with status 2."""
+
+import json
+import struct
+import subprocess
+import zlib
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from hairlut import __version__
+from hairlut.assets import ExrPart, write_exr
+from hairlut_cli.main import cli
+
+from ._tables import lobes_table
+
+
+def run(*args):
+    return CliRunner().invoke(cli, [str(a) for a in args], catch_exceptions=False)
+
+
+def decode_png(data: bytes) -> np.ndarray:
+    """Minimal PNG decoder for 8-bit grey/RGB images with filter 0 (what hairlut writes)."""
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    pos, idat, header = 8, b"", None
+    while pos < len(data):
+        (length,) = struct.unpack(">I", data[pos : pos + 4])
+        tag, body = data[pos + 4 : pos + 8], data[pos + 8 : pos + 8 + length]
+        (crc,) = struct.unpack(">I", data[pos + 8 + length : pos + 12 + length])
+        assert crc == zlib.crc32(tag + body) & 0xFFFFFFFF
+        if tag == b"IHDR":
+            header = struct.unpack(">IIBBBBB", body)
+        elif tag == b"IDAT":
+            idat += body
+        pos += 12 + length
+    w, h, depth, colour = header[:4]
+    channels = {0: 1, 2: 3}[colour]
+    rows = np.frombuffer(zlib.decompress(idat), np.uint8).reshape(h, 1 + w * channels)
+    assert np.all(rows[:, 0] == 0)
+    return rows[:, 1:].reshape(h, w, channels).squeeze()
+
+
+def test_version_and_help():
+    assert __version__ in run("--version").output
+    out = run("--help").output
+    assert "inspect" in out and "demo" in out
+    assert "Examples" in run("inspect", "--help").output
+
+
+def test_inspect_table_text_and_json(tmp_path):
+    path, ref = lobes_table(tmp_path / "t.h5")
+    res = run("inspect", path)
+    assert res.exit_code == 0
+    for word in ("kk_lobes", "schema    1", "specular", "2×33×17 float32", "dims (exponent, theta, theta_v)", "fletcher32 on", "n_theta"):
+        assert word in res.output, word
+    doc = json.loads(run("inspect", "--json", path).output)
+    spec = next(d for d in doc["datasets"] if d["name"] == "specular")
+    assert spec["shape"] == [2, 33, 17] and spec["dims"] == ["exponent", "theta", "theta_v"]
+    assert spec["min"] == pytest.approx(float(ref["specular"].min()))
+    assert spec["max"] == pytest.approx(float(ref["specular"].max()))
+    assert spec["mean"] == pytest.approx(float(ref["specular"].astype(np.float64).mean()), rel=1e-9)
+    assert spec["nan"] == 0 and spec["inf"] == 0
+    assert doc["axes"]["theta"]["units"] == "rad" and doc["axes"]["theta"]["max"] == pytest.approx(np.pi)
+    assert doc["recipe"]["exponents"] == [8.0, 49.0]
+
+
+def test_inspect_counts_nan_and_inf(tmp_path):
+    y = np.arange(12, dtype=np.float32).reshape(3, 4)
+    y[0, 0], y[1, 1], y[2, 2] = np.nan, np.inf, -np.inf
+    write_exr(tmp_path / "n.exr", {"Y": y})
+    doc = json.loads(run("inspect", "--json", tmp_path / "n.exr").output)
+    ch = doc["parts"][0]["channels"][0]
+    assert (ch["nan"], ch["inf"]) == (1, 2)
+    finite = y[np.isfinite(y)]
+    assert (ch["min"], ch["max"], ch["mean"]) == pytest.approx((finite.min(), finite.max(), finite.mean()))
+
+
+def test_inspect_multi_part_exr_and_several_files(tmp_path, rng):
+    write_exr(tmp_path / "m.exr", [ExrPart("a", {"Y": rng.random((4, 4))}), ExrPart("b", {"Y": rng.random((2, 3))})])
+    path, _ = lobes_table(tmp_path / "t.h5")
+    doc = json.loads(run("inspect", "--json", tmp_path / "m.exr", path).output)
+    assert [d["format"] for d in doc] == ["openexr", "hdf5"]
+    assert [p["shape"] for p in doc[0]["parts"]] == [[4, 4], [2, 3]]
+    assert "part b  3×2" in run("inspect", tmp_path / "m.exr").output
+
+
+def test_png_preview_of_exr_layer_and_table_slice(tmp_path, rng):
+    ramp = np.tile(np.linspace(0, 1, 16, dtype=np.float32), (8, 1))
+    write_exr(tmp_path / "i.exr", {"R": ramp, "G": ramp, "B": ramp, "layer1.Y": ramp[:, ::-1]})
+    assert run("inspect", tmp_path / "i.exr", "--png", tmp_path / "rgb.png").exit_code == 0
+    rgb = decode_png((tmp_path / "rgb.png").read_bytes())
+    assert rgb.shape == (8, 16, 3) and rgb[0, 0, 0] == 0 and rgb[0, -1, 0] == 255
+    assert np.all(np.diff(rgb[0, :, 0].astype(int)) > 0)
+    run("inspect", tmp_path / "i.exr", "--png", tmp_path / "l.png", "--channel", "layer1", "--exposure", "-1")
+    grey = decode_png((tmp_path / "l.png").read_bytes())
+    assert grey.shape == (8, 16) and grey[0, 0] == round(255 * (1.055 * 0.5 ** (1 / 2.4) - 0.055))
+
+    path, ref = lobes_table(tmp_path / "t.h5")
+    res = run("inspect", path, "--png", tmp_path / "s.png", "--dataset", "specular", "--slice", "1,:,:")
+    assert res.exit_code == 0, res.output
+    img = decode_png((tmp_path / "s.png").read_bytes())
+    assert img.shape == (33, 17)
+    brightest = np.unravel_index(np.argmax(ref["specular"][1]), (33, 17))
+    assert img[brightest] == img.max()
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--dataset", "nothing"], "no dataset 'nothing'"),
+        (["--dataset", "specular", "--slice", "0,0,0"], "a preview needs 2-D"),
+        (["--dataset", "specular", "--slice", "a,b"], "slice="),
+        (["--dataset", "specular", "--slice", "9,:,:"], "slice="),
+    ],
+)
+def test_png_bad_options_one_line(tmp_path, args, message):
+    path, _ = lobes_table(tmp_path / "t.h5")
+    res = CliRunner().invoke(cli, ["inspect", str(path), "--png", str(tmp_path / "x.png"), *args])
+    assert res.exit_code == 2
+    assert message in res.output and len(res.output.strip().splitlines()) == 1 and "Traceback" not in res.output
+
+
+def _bad_files(tmp_path):
+    path, _ = lobes_table(tmp_path / "t.h5")
+    raw = path.read_bytes()
+    (tmp_path / "trunc.h5").write_bytes(raw[: len(raw) // 2])
+    (tmp_path / "text.h5").write_text("hello")
+    write_exr(tmp_path / "ok.exr", {"Y": np.ones((8, 8))})
+    exr = (tmp_path / "ok.exr").read_bytes()
+    (tmp_path / "trunc.exr").write_bytes(exr[: len(exr) - 10])
+    return {
+        "missing.h5": "no such file",
+        "trunc.h5": "truncated",
+        "text.h5": "neither HDF5 nor OpenEXR",
+        "trunc.exr": "truncated or damaged EXR",
+    }
+
+
+def test_bad_files_give_one_line_and_status_2(tmp_path):
+    for name, fault in _bad_files(tmp_path).items():
+        res = CliRunner().invoke(cli, ["inspect", str(tmp_path / name)])
+        assert res.exit_code == 2, name
+        lines = res.output.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("hairlut: error: ") and name in lines[0] and fault in lines[0], res.output
+
+
+def test_usage_errors_are_status_2(tmp_path):
+    assert CliRunner().invoke(cli, ["inspect"]).exit_code == 2
+    assert CliRunner().invoke(cli, ["inspect", "--bogus", "x"]).exit_code == 2
+    assert CliRunner().invoke(cli, ["nonsense"]).exit_code == 2
+
+
+def test_demo_writes_and_inspects(tmp_path):
+    res = run("demo", "--out", tmp_path / "d", "--json")
+    assert res.exit_code == 0
+    doc = json.loads(res.output)
+    kinds = [a["kind"] for a in doc["assets"]]
+    assert kinds == ["kk_lobes", "kk_lobes"]
+    spec = next(d for d in doc["assets"][0]["datasets"] if d["name"] == "specular")
+    assert spec["max"] == pytest.approx(1.0) and spec["min"] == 0.0 and spec["nan"] == 0
+    assert decode_png((tmp_path / "d" / "kk_lobes_p49.png").read_bytes()).shape == (181, 181)
+
+
+def test_real_subprocess(tmp_path, hairlut_exe):
+    path, _ = lobes_table(tmp_path / "t.h5")
+    ok = subprocess.run([hairlut_exe, "inspect", "--json", str(path)], capture_output=True, text=True, timeout=120)
+    assert ok.returncode == 0 and json.loads(ok.stdout)["kind"] == "kk_lobes"
+    bad = subprocess.run([hairlut_exe, "inspect", str(tmp_path / "none.exr")], capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2 and bad.stdout == ""
+    assert bad.stderr.strip() == f"hairlut: error: {tmp_path / 'none.exr'}: no such file"
+    quiet = subprocess.run([hairlut_exe, "-q", "--version"], capture_output=True, text=True, timeout=120)
+    assert quiet.returncode == 0 and __version__ in quiet.stdout
