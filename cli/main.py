@@ -57,10 +57,11 @@ def cli(verbose: int, quiet: bool) -> None:
 
 
 def _register() -> None:
-    from . import demo, inspect
+    from . import demo, inspect, strands
 
     cli.add_command(inspect.inspect_cmd)
     cli.add_command(demo.demo_cmd)
+    cli.add_command(strands.strands_group)
 
 
 _register()

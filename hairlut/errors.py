@@ -61,6 +61,10 @@ class KindError(AssetError):
     """The file holds a different kind of table than the caller asked for."""
 
 
+class MissingDependencyError(AssetError):
+    """Reading or writing this file needs an optional package that is not installed."""
+
+
 class MissingDatasetError(AssetError):
     """A dataset, axis or channel that the kind requires is absent."""
 
@@ -77,4 +81,5 @@ __all__ = [
     "SchemaError",
     "KindError",
     "MissingDatasetError",
+    "MissingDependencyError",
 ]
