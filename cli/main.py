@@ -57,10 +57,12 @@ def cli(verbose: int, quiet: bool) -> None:
 
 
 def _register() -> None:
-    from . import demo, inspect, strands
+    from . import bake, demo, inspect, sh, strands
 
-    cli.add_command(inspect.inspect_cmd)
+    cli.add_command(bake.bake_group)
     cli.add_command(demo.demo_cmd)
+    cli.add_command(inspect.inspect_cmd)
+    cli.add_command(sh.sh_group)
     cli.add_command(strands.strands_group)
 
 

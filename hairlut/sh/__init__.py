@@ -1,0 +1,42 @@
+"""Real spherical harmonics for the SH convolution tables (xing §4).
+
+Convention (DESIGN.md): real, orthonormal on the unit sphere, flat index
+``i = l*l + l + m``, no Condon–Shortley phase, m > 0 ↔ cos(mφ), m < 0 ↔ sin(|m|φ):
+
+    Y₀₀ = 0.282095;  Y₁₋₁, Y₁₀, Y₁₁ = 0.488603·(y, z, x);
+    Y₂₋₂ = 1.092548·xy, Y₂₋₁ = 1.092548·yz, Y₂₀ = 0.315392·(3z²−1),
+    Y₂₁ = 1.092548·xz, Y₂₂ = 0.546274·(x²−y²).
+
+Public API:
+
+* :func:`real_sh` — the basis at directions (one jitted kernel per lmax; float32/float64).
+* :func:`n_coeffs`, :func:`lm_index`, :func:`index_lm`, :func:`lm_arrays` — index helpers.
+* :func:`sphere_grid` / :class:`GaussLegendreGrid` — product quadrature exact to degree 2L.
+* :func:`project`, :func:`project_function`, :func:`evaluate` — coefficients ↔ values.
+* :func:`gaunt`, :func:`gaunt_sparse` — real Gaunt coefficients ∫ Y_i Y_j Y_k dω.
+* :func:`real_sh_reference`, :func:`real_sh_scipy` — slow float64 references (tests, benchmarks).
+"""
+
+from ._basis import MAX_LMAX, index_lm, lm_arrays, lm_index, n_coeffs, normalize_dirs, real_sh
+from ._gaunt import gaunt, gaunt_sparse, selection_mask
+from ._quadrature import GaussLegendreGrid, evaluate, project, project_function, sphere_grid
+from ._reference import real_sh_reference, real_sh_scipy
+
+__all__ = [
+    "MAX_LMAX",
+    "GaussLegendreGrid",
+    "evaluate",
+    "gaunt",
+    "gaunt_sparse",
+    "index_lm",
+    "lm_arrays",
+    "lm_index",
+    "n_coeffs",
+    "normalize_dirs",
+    "project",
+    "project_function",
+    "real_sh",
+    "real_sh_reference",
+    "real_sh_scipy",
+    "selection_mask",
+]

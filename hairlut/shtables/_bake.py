@@ -1,0 +1,203 @@
+"""Baking the SH convolution tables: recipe → compact exact form (+ dense grids).
+
+The bake computes, in float64, the diffuse k_l, the specular k_l(θ′) at the
+Chebyshev–Lobatto nodes of both θ′ halves (doubling the node count until the
+series' tail is below ``CHEB_TOL`` of its largest coefficient), and takes the
+Gaunt tensor.  Dense Rd/Rs on cube-map tangents and a θ′ grid are optional,
+for shaders that want textures.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import errors
+from ..kernels import check_exponent
+from ..recipes import Field, resolve
+from ..sh import gaunt
+from ._tables import Bands, SHTables
+from ._zonal import cheb_coeffs, diffuse_coeffs, diffuse_nodes, lobatto_nodes, specular_coeffs, specular_nodes
+
+CHEB_TOL = 1e-14
+CHEB_START, CHEB_MAX = 16, 512
+METHOD = "legendre-gaunt/1"
+
+
+def _positive_int(v):
+    return None if v >= 1 else "must be ≥ 1"
+
+
+def _bands(v):
+    if v == "auto":
+        return None
+    if isinstance(v, str) or v < 1:
+        return "use an integer ≥ 1 (number of bands, lmax + 1) or 'auto'"
+    return None
+
+
+def _exponent(v):
+    return None if math.isfinite(v) and v > 0 else "the specular exponent p must be finite and > 0"
+
+
+def _cheb(v):
+    if v == "auto":
+        return None
+    return None if not isinstance(v, str) and 2 <= v <= 4096 else "use 'auto' or an integer in [2, 4096]"
+
+
+def _storage(v):
+    return None if v in ("float16", "float32", "float64") else "use float16, float32 or float64"
+
+
+SCHEMA = {
+    "kernel": {
+        "p": Field(49.0, (float, int), _exponent, "specular exponent p"),
+        "diffuse": Field(True, (bool,), None, "bake Rd"),
+        "specular": Field(True, (bool,), None, "bake Rs"),
+    },
+    "bands": {
+        "light_diffuse": Field(3, (int,), _positive_int, "light bands for Rd (9 coefficients)"),
+        "light_specular": Field("auto", (int, str), _bands, "light bands for Rs; auto = ceil(√p) + 1"),
+        "transmittance": Field(3, (int,), _positive_int, "transmittance bands"),
+    },
+    "quadrature": {
+        "chebyshev": Field("auto", (int, str), _cheb, "Chebyshev nodes per θ′ half (auto: until converged)"),
+    },
+    "dense": {
+        "t_resolution": Field(0, (int,), lambda v: None if v >= 0 else "must be ≥ 0 (0: no dense tables)",
+                              "cube-map face size of the tangent grid"),
+        "theta_v_steps": Field(9, (int,), lambda v: None if v >= 2 else "must be ≥ 2", "θ′ samples over [0, π]"),
+        "storage": Field("float32", (str,), _storage, "dtype of the dense tables"),
+    },
+}
+
+
+def specular_band_rule(p: float) -> int:
+    """Light bands for the specular term: ceil(√p) + 1, i.e. (√p + 1)² coefficients (xing §4, after King)."""
+    return int(math.ceil(math.sqrt(p) - 1e-12)) + 1
+
+
+def resolve_recipe(given: dict | None = None) -> dict:
+    """Validated recipe with every default and 'auto' made explicit."""
+    r = resolve(SCHEMA, given)
+    if not (r["kernel"]["diffuse"] or r["kernel"]["specular"]):
+        raise errors.ValidationError("kernel", r["kernel"], "bake at least one of diffuse and specular")
+    r["kernel"]["p"] = check_exponent(r["kernel"]["p"], "kernel.p")
+    if r["bands"]["light_specular"] == "auto":
+        r["bands"]["light_specular"] = specular_band_rule(r["kernel"]["p"])
+    for key, limit in (("light_diffuse", 33), ("light_specular", 65), ("transmittance", 33)):
+        if r["bands"][key] > limit:
+            raise errors.ValidationError(f"bands.{key}", r["bands"][key], f"at most {limit} bands")
+    r["method"] = METHOD
+    return r
+
+
+@functools.partial(jax.jit, static_argnames=("lmax_d", "lmax_s", "n_d", "n_s"))
+def _zonal_kernel(p, nodes, lmax_d, lmax_s, n_d, n_s):
+    """The bake's one jitted kernel: diffuse k_l and specular k_l at the θ′ nodes."""
+    kd = diffuse_coeffs(lmax_d, n_d) if lmax_d >= 0 else None
+    ks = specular_coeffs(lmax_s, n_s, p, nodes) if lmax_s >= 0 else None
+    return kd, ks
+
+
+def _zonal(p, nodes, lmax_d, lmax_s):
+    with jax.enable_x64(True):
+        kd, ks = _zonal_kernel(
+            jnp.float64(p), jnp.asarray(nodes, jnp.float64), lmax_d, lmax_s,
+            diffuse_nodes(max(lmax_d, 0)), specular_nodes(max(lmax_s, 0), p),
+        )
+        return (None if kd is None else np.asarray(kd)), (None if ks is None else np.asarray(ks))
+
+
+def bake_compact(recipe: dict) -> tuple[SHTables, dict]:
+    """Bake the exact compact tables for a resolved recipe; returns (tables, bake info)."""
+    kern, bands = recipe["kernel"], recipe["bands"]
+    b = Bands(bands["light_diffuse"], bands["light_specular"], bands["transmittance"])
+    lmax_d = b.light_diffuse + b.transmittance - 2 if kern["diffuse"] else -1
+    lmax_s = b.light_specular + b.transmittance - 2 if kern["specular"] else -1
+    p = kern["p"]
+    fixed = recipe["quadrature"]["chebyshev"]
+    n = fixed if fixed != "auto" else CHEB_START
+    info = {"lmax_diffuse": lmax_d, "lmax_specular": lmax_s}
+    while True:
+        kd, ks = _zonal(p, lobatto_nodes(n), lmax_d, lmax_s)
+        if ks is None:
+            tail = 0.0
+            break
+        coeffs = cheb_coeffs(ks)
+        scale = float(np.abs(coeffs).max()) or 1.0
+        tail = float(np.abs(coeffs[:, -3:, :]).max()) / scale
+        if fixed != "auto" or tail < CHEB_TOL or n >= CHEB_MAX:
+            break
+        n *= 2
+    info.update({"chebyshev_nodes": n, "chebyshev_tail": tail, "specular_nodes": ks})
+    l_out = max(lmax_d, lmax_s)
+    g = gaunt(l_out, max(b.light_diffuse if kern["diffuse"] else 0, b.light_specular if kern["specular"] else 0) - 1,
+              b.transmittance - 1)
+    tables = SHTables(b, p, kd, None if ks is None else cheb_coeffs(ks), g, recipe)
+    return tables, info
+
+
+def truncation_error(tables: SHTables, theta_v) -> float:
+    """Relative L2 energy of the specular lobe above the light band limit, max over θ′.
+
+    For a zonal f, ‖f‖² = Σ_l k_l² (2l+1)/4π (Funk–Hecke and the addition
+    theorem), and the total ‖f‖² = 2π ∫ f² sin θ dθ is the l = 0 coefficient of
+    the same kernel with exponent 2p; the light keeps the bands l < light_specular.
+    """
+    p, lk = tables.p, tables.bands.light_specular - 1
+    theta_v = jnp.asarray(np.atleast_1d(np.asarray(theta_v, np.float64)))
+    with jax.enable_x64(True):
+        k = np.asarray(specular_coeffs(lk, specular_nodes(lk, p), p, theta_v))
+        total = np.asarray(specular_coeffs(0, specular_nodes(0, 2 * p), 2 * p, theta_v))[..., 0]
+    kept = (k**2 * (2 * np.arange(lk + 1) + 1) / (4 * np.pi)).sum(-1)
+    return float(np.sqrt(np.clip(1 - kept / total, 0, None)).max())
+
+
+def bake(recipe: dict | None = None, light=None) -> dict:
+    """Bake everything a recipe asks for; ``light`` is an :class:`hairlut.envlight.EnvLight` or None.
+
+    Returns a dict with the resolved ``recipe``, the exact ``tables``, bake
+    ``info`` (Chebyshev nodes and tail, truncation error), optional ``dense``
+    grids and optional ``light`` products (a, Cd, Cs).
+    """
+    from ..envlight import cube_dirs
+
+    r = resolve_recipe(recipe)
+    if light is not None:
+        r["light"] = {"lmax": int(light.lmax), "channels": list(light.channels), "layout": light.layout,
+                      "source_sha256": light.source_sha256, "coeffs_sha256": _sha(light.coeffs)}
+    tables, info = bake_compact(r)
+    info["theta_v_nodes"] = lobatto_nodes(info["chebyshev_nodes"])
+    if tables.has_specular:
+        info["truncation_error"] = truncation_error(tables, np.linspace(0.0, np.pi, 65))
+    dense = None
+    n = r["dense"]["t_resolution"]
+    if n > 0:
+        t_dirs, _ = cube_dirs(n)
+        theta_v = np.linspace(0.0, np.pi, r["dense"]["theta_v_steps"])
+        dense = {"t_dirs": t_dirs, "theta_v": theta_v, "n": n}
+        if tables.has_diffuse:
+            dense["rd"] = np.asarray(tables.rd(t_dirs))
+        if tables.has_specular:
+            dense["rs"] = np.asarray(tables.rs(t_dirs[:, None, :], theta_v[None, :]))
+    products = None
+    if light is not None:
+        contracted = tables.contract(light.coeffs)
+        products = {"a": light.coeffs, "channels": list(light.channels), "contracted": contracted}
+        if dense is not None:
+            if tables.has_diffuse:
+                products["cd"] = np.asarray(contracted.cd(dense["t_dirs"]))
+            if tables.has_specular:
+                products["cs"] = np.asarray(contracted.cs(dense["t_dirs"][:, None, :], dense["theta_v"][None, :]))
+    return {"recipe": r, "tables": tables, "info": info, "dense": dense, "light": products}
+
+
+def _sha(array) -> str:
+    return hashlib.sha256(np.ascontiguousarray(array, np.float64).tobytes()).hexdigest()
