@@ -152,14 +152,18 @@ def test_usage_errors_are_status_2(tmp_path):
 
 
 def test_demo_writes_and_inspects(tmp_path):
-    res = run("demo", "--out", tmp_path / "d", "--json")
-    assert res.exit_code == 0
+    res = run("demo", "--out", tmp_path / "d", "--shared", tmp_path / "none", "--json")
+    assert res.exit_code == 0, res.output
     doc = json.loads(res.output)
     kinds = [a["kind"] for a in doc["assets"]]
-    assert kinds == ["kk_lobes", "kk_lobes"]
+    assert kinds == ["kk_lobes", "kk_lobes", "sh_light", "sh_tables", "sh_textures"]
     spec = next(d for d in doc["assets"][0]["datasets"] if d["name"] == "specular")
     assert spec["max"] == pytest.approx(1.0) and spec["min"] == 0.0 and spec["nan"] == 0
     assert decode_png((tmp_path / "d" / "kk_lobes_p49.png").read_bytes()).shape == (181, 181)
+    assert doc["hair"]["source"].startswith("procedural") and doc["hair"]["radiance_min"] > 0
+    hair = decode_png((tmp_path / "d" / "hair.png").read_bytes())
+    assert hair.shape == (320, 320, 3) and (hair.sum(-1) > 0).mean() > 0.02
+    assert doc["sh"]["chebyshev_tail"] < 1e-13
 
 
 def test_real_subprocess(tmp_path, hairlut_exe):

@@ -48,20 +48,39 @@ def _rs_kernel(t, theta_v, cheb, gaunt, lmax, l_of_k):
     return jnp.einsum("...k,kij->...ij", y, gaunt)
 
 
-@functools.partial(jax.jit, static_argnames=("lmax_d", "lmax_s"))
-def _radiance_kernel(t, theta_v, b, kd, ks, kd_k, hd, cheb, hs, l_of_k_s, lmax_d, lmax_s):
-    """I = Σ_j b_j (Kd·Cd(j,t) + Ks·Cs(j,t,θ′)) per vertex and channel (xing eq. 2 via 4–5)."""
-    lmax = max(lmax_d, lmax_s)
-    y = _sh(t, lmax)
+BLOCK = 2048  # vertices per block: keeps the (block, (L+1)²) working set in cache
+
+
+def _radiance_block(t, theta_v, b, kd, ks, kd_k, hd, cheb, hs, l_of_k_s, lmax_d, lmax_s):
+    """I = Σ_j b_j (Kd·Cd(j,t) + Ks·Cs(j,t,θ′)) for one block of vertices (xing eq. 2 via 4–5)."""
+    y = _sh(t, max(lmax_d, lmax_s))
     out = 0.0
     if hd is not None:
-        cd = jnp.einsum("...k,kjc->...jc", y[..., : hd.shape[0]] * kd_k, hd)
-        out = out + kd[..., None] * jnp.einsum("...j,...jc->...c", b[..., : hd.shape[1]], cd)
+        cd = jnp.einsum("nk,kjc->njc", y[:, : hd.shape[0]] * kd_k, hd)
+        out = out + kd[:, None] * jnp.einsum("nj,njc->nc", b[:, : hd.shape[1]], cd)
     if hs is not None:
         k_l = jnp.take(cheb_eval(cheb, theta_v), l_of_k_s, axis=-1)
-        cs = jnp.einsum("...k,kjc->...jc", y[..., : hs.shape[0]] * k_l, hs)
-        out = out + ks[..., None] * jnp.einsum("...j,...jc->...c", b[..., : hs.shape[1]], cs)
+        cs = jnp.einsum("nk,kjc->njc", y[:, : hs.shape[0]] * k_l, hs)
+        out = out + ks[:, None] * jnp.einsum("nj,njc->nc", b[:, : hs.shape[1]], cs)
     return out
+
+
+@functools.partial(jax.jit, static_argnames=("lmax_d", "lmax_s"))
+def _radiance_kernel(t, theta_v, b, kd, ks, kd_k, hd, cheb, hs, l_of_k_s, lmax_d, lmax_s):
+    """Radiance for flat (N,) vertices, evaluated block by block with ``lax.map``."""
+    n = t.shape[0]
+    nb = -(-n // BLOCK)
+    pad = nb * BLOCK - n
+
+    def blocks(x):
+        x = jnp.pad(x, [(0, pad)] + [(0, 0)] * (x.ndim - 1), mode="edge")
+        return x.reshape(nb, BLOCK, *x.shape[1:])
+
+    def one(args):
+        return _radiance_block(*args, kd_k, hd, cheb, hs, l_of_k_s, lmax_d, lmax_s)
+
+    out = jax.lax.map(one, tuple(blocks(x) for x in (t, theta_v, b, kd, ks)))
+    return out.reshape(nb * BLOCK, -1)[:n]
 
 
 def _l_of_k(lmax: int) -> np.ndarray:
@@ -229,12 +248,15 @@ class Contracted:
         for name, v in (("kd", kd), ("ks", ks)):
             if not np.all(np.isfinite(np.asarray(v, np.float64))):
                 raise errors.ValidationError(name, v, "must be finite")
+        shape = np.broadcast_shapes(t.shape[:-1], tv.shape, b.shape[:-1], np.shape(kd), np.shape(ks))
+        flat = lambda x, tail=(): np.broadcast_to(x, shape + tail).reshape(-1, *tail)  # noqa: E731
         with jax.enable_x64(True):
             out = _radiance_kernel(
-                jnp.asarray(t), jnp.asarray(tv), jnp.asarray(b), jnp.asarray(kd, jnp.float64), jnp.asarray(ks, jnp.float64),
+                jnp.asarray(flat(t, (3,))), jnp.asarray(flat(tv)), jnp.asarray(flat(b, b.shape[-1:])),
+                jnp.asarray(flat(np.asarray(kd, np.float64))), jnp.asarray(flat(np.asarray(ks, np.float64))),
                 None if self.hd is None else jnp.asarray(tb.kd_l[_l_of_k(tb.lmax_d)]), self.hd,
                 None if self.hs is None else jnp.asarray(tb.ks_cheb), self.hs,
                 None if self.hs is None else jnp.asarray(_l_of_k(tb.lmax_s)),
                 max(tb.lmax_d, 0), max(tb.lmax_s, 0),
-            )
+            ).reshape(*shape, -1)
             return self._out(out)

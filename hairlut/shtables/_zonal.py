@@ -111,14 +111,17 @@ def cheb_coeffs(values: np.ndarray) -> np.ndarray:
 
 
 def cheb_eval(coeffs, theta_v):
-    """Evaluate per-half Chebyshev series (2, n+1, L) at θ′ (...,) → (..., L), by Clenshaw."""
+    """Evaluate per-half Chebyshev series (2, n+1, L) at θ′ (...,) → (..., L).
+
+    T_k(x) comes from the three-term recurrence (one vector per node count, not
+    per l); the series is then two small matrix products, one per half.
+    """
     theta_v = jnp.asarray(theta_v)
     upper = theta_v > np.pi / 2
-    x = jnp.where(upper, (theta_v - np.pi / 2), theta_v) * (4 / np.pi) - 1.0
-    c = jnp.where(upper[..., None, None], coeffs[1], coeffs[0])  # (..., n+1, L)
+    x = jnp.where(upper, theta_v - np.pi / 2, theta_v) * (4 / np.pi) - 1.0
     n = coeffs.shape[1] - 1
-    b1 = jnp.zeros(c.shape[:-2] + c.shape[-1:], c.dtype)
-    b2 = b1
-    for k in range(n, 0, -1):
-        b1, b2 = c[..., k, :] + 2 * x[..., None] * b1 - b2, b1
-    return c[..., 0, :] + x[..., None] * b1 - b2
+    cols = [jnp.ones_like(x), x]
+    for _ in range(2, n + 1):
+        cols.append(2 * x * cols[-1] - cols[-2])
+    basis = jnp.stack(cols[: n + 1], axis=-1)  # (..., n+1)
+    return jnp.where(upper[..., None], basis @ coeffs[1], basis @ coeffs[0])
