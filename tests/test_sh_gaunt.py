@@ -55,7 +55,8 @@ def real_to_complex(l, m):
 def real_gaunt_exact(i, j, k) -> float:
     (l1, m1), (l2, m2), (l3, m3) = index_lm(i), index_lm(j), index_lm(k)
     acc = 0j
-    for (u1, c1), (u2, c2), (u3, c3) in itertools.product(real_to_complex(l1, m1), real_to_complex(l2, m2), real_to_complex(l3, m3)):
+    terms = itertools.product(real_to_complex(l1, m1), real_to_complex(l2, m2), real_to_complex(l3, m3))
+    for (u1, c1), (u2, c2), (u3, c3) in terms:
         acc += c1 * c2 * c3 * complex_gaunt(l1, l2, l3, u1, u2, u3)
     assert abs(acc.imag) < 1e-14
     return acc.real
@@ -97,7 +98,7 @@ def test_permutation_symmetry():
     # Unequal band limits: symmetric on the common block.
     h = gaunt(4, 6, 5)
     n = n_coeffs(4)
-    assert np.abs(h[:, :n, :n] - g[:n, :n, :n]).max() <= 1e-15
+    assert np.abs(h[:, :n, :n] - g[:n, :n, :n]).max() <= 1e-14  # different grid orders: rounding only
     assert np.abs(h[:, :n, :n] - h[:, :n, :n].transpose(0, 2, 1)).max() <= 1e-15
 
 

@@ -21,8 +21,10 @@ recurrence ::
 
 The kernel runs the recurrence along the diagonals k = l − m, vectorised over m (lmax+1
 array steps, so compile time stays small: ~2 s at lmax = 30), then gathers into flat order.
-All coefficients are O(√l) and precomputed in NumPy float64; every intermediate stays
-bounded (|Q_l^m| ≲ 1e5 at l = 30), so float32 and float64 are both stable well past l = 30.
+All coefficients are O(√l) and precomputed in NumPy float64; every intermediate stays far
+inside the float32 range (|Q_l^m| ≤ 8e5 at l = 30, 1e13 at l = 64, its largest at z = ±1 where
+the sin^m θ factor is small), so float32 and float64 are both stable up to MAX_LMAX = 64
+(tested: relative gap to the float64 reference ≤ 1e-4, measured 5e-6, at l = 64).
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ import numpy as np
 
 from ..errors import ValidationError
 
-# Largest lmax we agree to build a kernel for: the unrolled kernel has (lmax+1)² outputs.
+# Largest band limit accepted (tested up to here in float32 and float64).
 MAX_LMAX = 64
 
 # How far from unit length a direction may be (without normalize=True), per dtype.

@@ -31,7 +31,8 @@ MAX_ENTRIES = 2**27
 
 def selection_mask(lmax1: int, lmax2: int, lmax3: int) -> np.ndarray:
     """Boolean (n1, n2, n3): True where the selection rules allow a nonzero real Gaunt."""
-    (l1, m1), (l2, m2), (l3, m3) = (lm_arrays(check_lmax(v, f)) for v, f in ((lmax1, "lmax1"), (lmax2, "lmax2"), (lmax3, "lmax3")))
+    named = ((lmax1, "lmax1"), (lmax2, "lmax2"), (lmax3, "lmax3"))
+    (l1, m1), (l2, m2), (l3, m3) = (lm_arrays(check_lmax(v, f)) for v, f in named)
     l1, m1 = l1[:, None, None], m1[:, None, None]
     l2, m2 = l2[None, :, None], m2[None, :, None]
     l3, m3 = l3[None, None, :], m3[None, None, :]

@@ -136,7 +136,7 @@ def project(values, grid: GaussLegendreGrid, lmax: int):
     if not isinstance(values, jax.core.Tracer):
         values = _concrete_finite("values", values)
     if values.ndim < 1 or values.shape[-1] != grid.size:
-        raise ValidationError("values", values, f"the last axis must have the grid's {grid.size} samples, got shape {values.shape}")
+        raise ValidationError("values", values, f"the last axis must have the grid's {grid.size} samples, got {values.shape}")
     dt = _float_dtype(values.dtype)
     wbasis = _weighted_basis(grid.L, lmax)
     if isinstance(values, jax.core.Tracer):
@@ -191,7 +191,8 @@ def evaluate(coeffs, dirs, *, normalize: bool = False):
     try:
         np.broadcast_shapes(tuple(coeffs.shape[:-1]), tuple(dirs.shape[:-1]))
     except ValueError:
-        raise ValidationError("coeffs", coeffs, f"batch shape {coeffs.shape[:-1]} does not broadcast with dirs {dirs.shape[:-1]}") from None
+        reason = f"batch shape {coeffs.shape[:-1]} does not broadcast with dirs {dirs.shape[:-1]}"
+        raise ValidationError("coeffs", coeffs, reason) from None
     if isinstance(coeffs, jax.core.Tracer) or isinstance(dirs, jax.core.Tracer):
         return _evaluate_kernel(jnp.asarray(coeffs), jnp.asarray(dirs))
     dt = _float_dtype(coeffs.dtype, dirs.dtype)
