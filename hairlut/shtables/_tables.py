@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ..sh._basis import _real_sh_kernel, check_dirs
+from ..sh._basis import _real_sh_kernel, check_dirs, real_sh_soa
 from ._zonal import cheb_eval
 
 Array = jax.Array
@@ -52,16 +52,20 @@ BLOCK = 2048  # vertices per block: keeps the (block, (L+1)²) working set in ca
 
 
 def _radiance_block(t, theta_v, b, kd, ks, kd_k, hd, cheb, hs, l_of_k_s, lmax_d, lmax_s):
-    """I = Σ_j b_j (Kd·Cd(j,t) + Ks·Cs(j,t,θ′)) for one block of vertices (xing eq. 2 via 4–5)."""
-    y = _sh(t, max(lmax_d, lmax_s))
+    """I = Σ_k Y_k(t) Σ_j b_j (Kd·kd_l Hd[k,j] + Ks·ks_l(θ′) Hs[k,j]) for one block (xing eq. 2 via 4–5).
+
+    Y is computed unrolled with the SH index leading, so the block's work stays
+    in cache; per vertex it costs (l_s + l_t + 1)²·n_trans·C multiply-adds.
+    """
+    y = real_sh_soa(t[:, 0], t[:, 1], t[:, 2], max(lmax_d, lmax_s))  # (K, n)
     out = 0.0
     if hd is not None:
-        cd = jnp.einsum("nk,kjc->njc", y[:, : hd.shape[0]] * kd_k, hd)
-        out = out + kd[:, None] * jnp.einsum("nj,njc->nc", b[:, : hd.shape[1]], cd)
+        w = y[: hd.shape[0]] * kd_k[:, None] * kd[None, :]
+        out = out + jnp.einsum("kn,nj,kjc->nc", w, b[:, : hd.shape[1]], hd)
     if hs is not None:
-        k_l = jnp.take(cheb_eval(cheb, theta_v), l_of_k_s, axis=-1)
-        cs = jnp.einsum("nk,kjc->njc", y[:, : hs.shape[0]] * k_l, hs)
-        out = out + ks[:, None] * jnp.einsum("nj,njc->nc", b[:, : hs.shape[1]], cs)
+        k_l = jnp.take(cheb_eval(cheb, theta_v), l_of_k_s, axis=-1)  # (n, K)
+        w = y[: hs.shape[0]] * k_l.T * ks[None, :]
+        out = out + jnp.einsum("kn,nj,kjc->nc", w, b[:, : hs.shape[1]], hs)
     return out
 
 
