@@ -12,7 +12,7 @@ import click
 from hairlut import errors
 from hairlut.envlight import LAYOUTS, load_light
 from hairlut.recipes import load_toml, set_path
-from hairlut.shtables import bake_sh, write_sh_tables, write_textures
+from hairlut.shtables import bake_sh, resolve_recipe, write_sh_tables, write_textures
 
 from .format import num
 
@@ -65,18 +65,16 @@ def bake_sh_cmd(recipe, out, sets, p, light, layout, up, textures, as_json):
         sets = (*sets, f"kernel.p={p!r}")
     given = _overrides(given, sets)
     start = time.perf_counter()
+    r = resolve_recipe(given)  # validate everything before any work or output
+    if textures and (not light or r["dense"]["t_resolution"] == 0):
+        raise errors.ValidationError("textures", textures, "needs --light and dense.t_resolution > 0")
     env = None
     if light:
-        from hairlut.shtables import resolve_recipe
-
-        r = resolve_recipe(given)
         env = load_light(light, max(r["bands"]["light_diffuse"], r["bands"]["light_specular"]) - 1, layout, up)
     result = bake_sh(given, env)
     path = write_sh_tables(out, result["tables"], result["info"], result["dense"], result["light"])
     tex = None
     if textures:
-        if result["light"] is None or result["dense"] is None:
-            raise errors.ValidationError("textures", textures, "needs --light and dense.t_resolution > 0")
         lp = result["light"]
         tex = write_textures(textures, lp.get("cd"), lp.get("cs"), result["dense"]["n"], lp["channels"], result["recipe"])
     info = result["info"]
