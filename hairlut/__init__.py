@@ -1,6 +1,32 @@
-"""hairlut: precomputation and lookup tables for real-time hair rendering."""
+"""hairlut: precomputation and lookup tables for real-time hair rendering.
 
-from . import assets, errors
+The public API, imported on first use (so ``import hairlut`` stays light):
+
+``hairlut.SHTables``          exact SH convolution tables (xing §4): ``SHTables.load(path)``
+``hairlut.assets``            HDF5 tables and OpenEXR images, atomic and validated
+``hairlut.sh``                real spherical harmonics, quadrature, Gaunt coefficients
+``hairlut.shtables``          baking the SH tables
+``hairlut.envlight``          environment maps → SH light coefficients
+``hairlut.geometry``          strands, strand files, generalized disk clusters
+``hairlut.errors``            every exception hairlut raises on purpose
+"""
+
+from __future__ import annotations
+
+import importlib
+
+from . import errors
 from ._version import __version__
 
-__all__ = ["__version__", "assets", "errors"]
+_SUBMODULES = {"assets", "demo", "envlight", "geometry", "kernels", "recipes", "sh", "shtables"}
+_ATTRIBUTES = {"SHTables": "shtables"}
+
+__all__ = ["__version__", "errors", *sorted(_SUBMODULES), *sorted(_ATTRIBUTES)]
+
+
+def __getattr__(name: str):
+    if name in _SUBMODULES:
+        return importlib.import_module(f".{name}", __name__)
+    if name in _ATTRIBUTES:
+        return getattr(importlib.import_module(f".{_ATTRIBUTES[name]}", __name__), name)
+    raise AttributeError(f"module 'hairlut' has no attribute {name!r}")

@@ -26,3 +26,12 @@ def test_library_does_not_import_click_or_print():
                 assert not any(n.split(".")[0] in {"click", "hairlut_cli"} for n in names), path
             if isinstance(node, ast.Call) and getattr(node.func, "id", None) in {"print", "exit"}:
                 raise AssertionError(f"{path}:{node.lineno} calls {node.func.id}")
+
+
+def test_lazy_public_api():
+    import subprocess
+    import sys
+
+    code = "import sys, hairlut; assert 'jax' not in sys.modules; from hairlut import SHTables; print(SHTables.__module__)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "hairlut.shtables._tables", out.stderr
