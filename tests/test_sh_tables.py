@@ -192,3 +192,18 @@ def test_bad_queries(paper):
         paper.contract(np.ones(9))
     with pytest.raises(errors.ValidationError, match="b="):
         paper.radiance(np.ones(64), np.ones(4), Z, 0.5)
+
+
+def test_float32_radiance_is_close(paper, rng):
+    a = rng.normal(size=(64, 3))
+    b = rng.normal(size=(200, 9))
+    t = rng.normal(size=(200, 3))
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    tv = rng.uniform(0, PI, 200)
+    c = paper.contract(a)
+    exact = np.asarray(c.radiance(b, t, tv, 0.5, 0.5))
+    fast = np.asarray(c.radiance(b, t, tv, 0.5, 0.5, dtype="float32"))
+    assert fast.dtype == np.float32
+    assert np.abs(fast - exact).max() <= 1e-5 * np.abs(exact).max()
+    with pytest.raises(errors.ValidationError, match="dtype"):
+        c.radiance(b, t, tv, dtype="float16")

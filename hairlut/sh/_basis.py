@@ -175,12 +175,13 @@ def real_sh_soa(x, y, z, lmax: int):
         q2 = q1 = None
         for l in range(m, lmax + 1):
             k = l - m
+            # Python floats are weakly typed: float32 input stays float32
             if k == 0:
-                q = jnp.full_like(z, c[m])
+                q = jnp.full_like(z, float(c[m]))
             elif k == 1:
-                q = A[1, m] * z * q1
+                q = float(A[1, m]) * z * q1
             else:
-                q = A[k, m] * z * q1 - B[k, m] * q2
+                q = float(A[k, m]) * z * q1 - float(B[k, m]) * q2
             q2, q1 = q1, q
             if m == 0:
                 out[l * l + l] = q
