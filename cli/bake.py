@@ -12,7 +12,7 @@ import click
 from hairlut import errors
 from hairlut.envlight import LAYOUTS, load_light
 from hairlut.recipes import load_toml, set_path
-from hairlut.shtables import bake_sh, resolve_recipe, write_sh_tables, write_textures
+from hairlut.shtables import bake_sh, full_recipe, resolve_recipe, write_sh_tables, write_textures
 
 from .format import num
 
@@ -37,7 +37,8 @@ def bake_group():
 
 @bake_group.command("sh")
 @click.option("--recipe", type=click.Path(dir_okay=False), help="TOML recipe (default: the built-in defaults).")
-@click.option("--out", required=True, type=click.Path(dir_okay=False), help="Output HDF5 file (kind sh_tables).")
+@click.option("--out", type=click.Path(dir_okay=False),
+              help="Output HDF5 file (kind sh_tables); default: the table cache, reused when the recipe hash matches.")
 @click.option("--set", "sets", multiple=True, metavar="KEY=VALUE",
               help="Override a recipe key, e.g. --set kernel.p=100 --set dense.t_resolution=16.")
 @click.option("--p", "p", type=float, help="Shortcut for --set kernel.p=P.")
@@ -71,8 +72,28 @@ def bake_sh_cmd(recipe, out, sets, p, light, layout, up, textures, as_json):
     env = None
     if light:
         env = load_light(light, max(r["bands"]["light_diffuse"], r["bands"]["light_specular"]) - 1, layout, up)
-    result = bake_sh(given, env)
-    path = write_sh_tables(out, result["tables"], result["info"], result["dense"], result["light"])
+    status = "baked"
+    if out is None:
+        if textures:
+            raise errors.ValidationError("textures", textures, "give --out too (textures are not cached)")
+        from hairlut.cache import ensure
+
+        result = {}
+
+        def produce(target):
+            result.update(bake_sh(given, env))
+            write_sh_tables(target, result["tables"], result["info"], result["dense"], result["light"])
+
+        r = full_recipe(given, env)
+        path, status = ensure("sh_tables", r, produce)
+        if status == "reused":
+            click.echo(f"reused {path} (recipe hash matches)", err=True)
+            if as_json:
+                click.echo(json.dumps({"out": str(path), "status": status, "recipe": r}, indent=2))
+            return
+    else:
+        result = bake_sh(given, env)
+        path = write_sh_tables(out, result["tables"], result["info"], result["dense"], result["light"])
     tex = None
     if textures:
         lp = result["light"]
@@ -80,6 +101,7 @@ def bake_sh_cmd(recipe, out, sets, p, light, layout, up, textures, as_json):
     info = result["info"]
     report = {
         "out": str(path),
+        "status": status,
         "textures": None if tex is None else str(tex),
         "seconds": time.perf_counter() - start,
         "bytes": Path(path).stat().st_size,

@@ -57,9 +57,10 @@ def cli(verbose: int, quiet: bool) -> None:
 
 
 def _register() -> None:
-    from . import bake, demo, inspect, sh, strands
+    from . import bake, cache, demo, inspect, sh, strands
 
     cli.add_command(bake.bake_group)
+    cli.add_command(cache.cache_group)
     cli.add_command(demo.demo_cmd)
     cli.add_command(inspect.inspect_cmd)
     cli.add_command(sh.sh_group)

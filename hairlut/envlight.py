@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from . import errors
-from .assets import Axis, Variable, read_exr, read_table, register_kind, write_table
+from .assets import Axis, Variable, read_exr, read_table, write_table
 from .sh import real_sh
 
 FACES = ("+x", "-x", "+y", "-y", "+z", "-z")
@@ -230,7 +230,6 @@ def load_env_light(path: str | os.PathLike, lmax: int, layout: str = "auto", up:
 # ----------------------------------------------------------------------------- the sh_light asset
 
 LIGHT_KIND = "sh_light"
-register_kind(LIGHT_KIND, ("a",), "SH coefficients of an environment light (xing §4)")
 
 
 def write_light(path: str | os.PathLike, light: EnvLight, recipe: dict) -> Path:

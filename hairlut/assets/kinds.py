@@ -31,8 +31,8 @@ def register_kind(name: str, required: tuple[str, ...], description: str) -> Kin
     return kind
 
 
-register_kind(
-    "kk_lobes",
-    ("diffuse", "specular"),
-    "Kajiya-Kay diffuse and specular kernels sampled on (theta, theta') grids",
-)
+# Every kind hairlut writes is declared here, so that any reader (inspect, the
+# cache) knows it without importing the module that bakes it.
+register_kind("kk_lobes", ("diffuse", "specular"), "Kajiya-Kay diffuse and specular kernels sampled on (theta, theta') grids")
+register_kind("sh_tables", ("gaunt",), "exact SH convolution tables for Kajiya-Kay hair (xing §4)")
+register_kind("sh_light", ("a",), "SH coefficients of an environment light (xing §4)")

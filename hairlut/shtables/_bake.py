@@ -160,6 +160,15 @@ def truncation_error(tables: SHTables, theta_v) -> float:
     return float(np.sqrt(np.clip(1 - kept / total, 0, None)).max())
 
 
+def full_recipe(recipe: dict | None, light=None) -> dict:
+    """The resolved recipe plus, when a light is folded in, that light's identity (the cache key)."""
+    r = resolve_recipe(recipe)
+    if light is not None:
+        r["light"] = {"lmax": int(light.lmax), "channels": list(light.channels), "layout": light.layout,
+                      "source_sha256": light.source_sha256, "coeffs_sha256": _sha(light.coeffs)}
+    return r
+
+
 def bake(recipe: dict | None = None, light=None) -> dict:
     """Bake everything a recipe asks for; ``light`` is an :class:`hairlut.envlight.EnvLight` or None.
 
@@ -169,10 +178,7 @@ def bake(recipe: dict | None = None, light=None) -> dict:
     """
     from ..envlight import cube_dirs
 
-    r = resolve_recipe(recipe)
-    if light is not None:
-        r["light"] = {"lmax": int(light.lmax), "channels": list(light.channels), "layout": light.layout,
-                      "source_sha256": light.source_sha256, "coeffs_sha256": _sha(light.coeffs)}
+    r = full_recipe(recipe, light)
     tables, info = bake_compact(r)
     info["theta_v_nodes"] = lobatto_nodes(info["chebyshev_nodes"])
     if tables.has_specular:

@@ -26,12 +26,11 @@ from pathlib import Path
 import numpy as np
 
 from .. import errors
-from ..assets import Axis, ExrPart, Variable, read_table, register_kind, write_exr, write_table
+from ..assets import Axis, ExrPart, Variable, read_table, write_exr, write_table
 from ._tables import Bands, SHTables
 from ._zonal import cheb_coeffs
 
 KIND = "sh_tables"
-register_kind(KIND, ("gaunt",), "exact SH convolution tables for Kajiya-Kay hair (xing §4)")
 
 
 def _index_axis(name, n, long_name):

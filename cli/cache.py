@@ -1,0 +1,46 @@
+"""``hairlut cache``: list and prune the content-addressed table cache."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from hairlut.cache import cache_dir, entries, prune
+
+
+@click.group("cache")
+def cache_group():
+    """The table cache ($HAIRLUT_CACHE, default ./tables): assets keyed by recipe hash."""
+
+
+@cache_group.command("ls")
+@click.option("--dir", "root", type=click.Path(file_okay=False), help="Cache folder (default: $HAIRLUT_CACHE or ./tables).")
+@click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
+def ls_cmd(root, as_json):
+    """List cached assets, newest first."""
+    rows = entries(root)
+    if as_json:
+        click.echo(json.dumps([{"path": str(e.path), "kind": e.kind, "recipe_hash": e.recipe_hash, "created": e.created,
+                                "bytes": e.bytes} for e in rows], indent=2))
+        return
+    if not rows:
+        click.echo(f"no cached assets in {cache_dir(root)}")
+        return
+    for e in rows:
+        click.echo(f"{e.kind:<12} {e.recipe_hash[:16]}  {e.bytes / 1024:>9.1f} KiB  {e.created}  {e.path}")
+    click.echo(f"{len(rows)} assets, {sum(e.bytes for e in rows) / 2**20:.2f} MiB")
+
+
+@cache_group.command("prune")
+@click.option("--dir", "root", type=click.Path(file_okay=False), help="Cache folder (default: $HAIRLUT_CACHE or ./tables).")
+@click.option("--kind", "kinds", multiple=True, help="Remove assets of this kind (repeatable).")
+@click.option("--older-than", "days", type=float, help="Remove assets older than this many days.")
+@click.option("--all", "everything", is_flag=True, help="Remove every cached asset.")
+@click.option("--dry-run", is_flag=True, help="Only show what would be removed.")
+def prune_cmd(root, kinds, days, everything, dry_run):
+    """Remove cached assets; always removes temporaries left by killed bakes (older than an hour)."""
+    gone = prune(root, kinds=kinds or None, older_than_days=days, everything=everything, dry_run=dry_run)
+    for p in gone:
+        click.echo(("would remove " if dry_run else "removed ") + str(p))
+    click.echo(f"{len(gone)} file(s) {'to remove' if dry_run else 'removed'}")

@@ -1,0 +1,117 @@
+"""A content-addressed table cache: one asset per recipe hash.
+
+Assets live in ``$HAIRLUT_CACHE`` (default ``tables/``) as
+``<kind>-<first 16 hex of recipe_hash>.h5``.  :func:`ensure` returns the cached
+asset when one with the same kind and full recipe hash validates, and bakes it
+otherwise.  Concurrent callers with the same recipe serialise on an advisory
+lock (``fcntl.flock``) beside the asset: one bakes, the others wait and reuse
+its file.  Writes are atomic, so no reader ever sees a half-written asset.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from . import errors
+from .assets import open_table, recipe_hash, stale_temporaries
+
+ENV = "HAIRLUT_CACHE"
+STALE_SECONDS = 3600
+
+
+def cache_dir(root: str | os.PathLike | None = None) -> Path:
+    """The cache folder: ``root``, else ``$HAIRLUT_CACHE``, else ``./tables``."""
+    return Path(root if root is not None else os.environ.get(ENV, "tables"))
+
+
+def asset_path(kind: str, recipe: dict, root=None) -> Path:
+    return cache_dir(root) / f"{kind}-{recipe_hash(recipe)[:16]}.h5"
+
+
+@dataclass(frozen=True)
+class Entry:
+    path: Path
+    kind: str
+    recipe_hash: str
+    created: str
+    bytes: int
+
+
+def _valid(path: Path, kind: str, digest: str) -> bool:
+    try:
+        with open_table(path, kind) as f:
+            stored = f.attrs["recipe_hash"]
+            return (stored.decode() if isinstance(stored, bytes) else str(stored)) == digest
+    except errors.AssetError:
+        return False
+
+
+@contextlib.contextmanager
+def _locked(path: Path):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path.with_name(path.name + ".lock"), "a+") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def ensure(kind: str, recipe: dict, bake: Callable[[Path], object], root=None) -> tuple[Path, str]:
+    """The cached asset for (kind, recipe), baking it with ``bake(path)`` if needed.
+
+    Returns (path, status) with status ``"reused"`` or ``"baked"``.  ``bake`` must
+    write the complete asset to ``path`` (atomically, as hairlut writers do).
+    """
+    path = asset_path(kind, recipe, root)
+    digest = recipe_hash(recipe)
+    if _valid(path, kind, digest):
+        return path, "reused"
+    with _locked(path):
+        if _valid(path, kind, digest):  # another process baked it while we waited
+            return path, "reused"
+        bake(path)
+        if not _valid(path, kind, digest):
+            raise errors.CorruptAssetError(path, f"the bake did not produce a valid {kind} with recipe hash {digest[:16]}")
+        return path, "baked"
+
+
+def entries(root=None) -> list[Entry]:
+    """Valid cached assets, newest first; files that fail validation are skipped."""
+    out = []
+    for path in sorted(cache_dir(root).glob("*-*.h5")):
+        try:
+            with open_table(path) as f:
+                attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
+        except errors.AssetError:
+            continue
+        out.append(Entry(path, str(attrs["kind"]), str(attrs["recipe_hash"]), str(attrs.get("created", "")), path.stat().st_size))
+    return sorted(out, key=lambda e: e.created, reverse=True)
+
+
+def prune(root=None, *, kinds=None, older_than_days: float | None = None, everything: bool = False,
+          dry_run: bool = False) -> list[Path]:
+    """Remove cached assets (by kind and/or age, or all), stale temporaries and unused locks."""
+    if not (everything or kinds or older_than_days is not None):
+        victims = []
+    else:
+        now = time.time()
+        victims = [e.path for e in entries(root)
+                   if (everything or not kinds or e.kind in kinds)
+                   and (older_than_days is None or now - e.path.stat().st_mtime > older_than_days * 86400)]
+    folder = cache_dir(root)
+    now = time.time()
+    # a temporary younger than STALE_SECONDS may belong to a bake that is still running
+    victims += [p for p in (stale_temporaries(folder) if folder.is_dir() else []) if now - p.stat().st_mtime > STALE_SECONDS]
+    victims += [p for p in folder.glob("*.h5.lock") if not p.with_suffix("").exists() or p.with_suffix("") in victims]
+    if not dry_run:
+        for p in victims:
+            with contextlib.suppress(FileNotFoundError):
+                p.unlink()
+    return victims
