@@ -1,6 +1,41 @@
-"""Hair geometry: strands as ragged polylines, and their file formats (.tfx, .hair, USD)."""
+"""Hair geometry: strands and their file formats (.tfx, .hair, USD), generalized disk clusters
+(satf §3: frames, positions, layer meshes, HSVs and sectors), strand generation and
+assignment, sector density fields, features and the random sector sampler.
+
+Strand I/O is imported eagerly; the cluster and density modules (which load JAX and
+SciPy) on first use of one of their names, so ``hairlut strands info`` stays light.
+"""
+
+from importlib import import_module
 
 from .formats import SUFFIXES, format_of, read_strands, write_strands
 from .strands import Strands
 
-__all__ = ["SUFFIXES", "Strands", "format_of", "read_strands", "write_strands"]
+_LAZY = {
+    "BSpline": "_bspline", "fit_bspline": "_bspline",
+    "ClusterBatch": "cluster", "ClusterSpec": "cluster", "MacroCluster": "cluster",
+    "ClusterGeometry": "sweep", "Section": "sweep",
+    "LayerMeshes": "mesh", "layer_meshes": "mesh",
+    "SectorTable": "sectors", "build_sectors": "sectors",
+    "SIGMA_PER_RADIUS": "splats", "SplatBatch": "splats",
+    "PROFILES": "strandgen", "assign_strands": "strandgen", "generate_strands": "strandgen",
+    "sector_density": "density", "sector_density_numpy": "density",
+    "FEATURE_SETS": "features", "FeatureStats": "features", "PCABasis": "features",
+    "feature_names": "features", "sector_features": "features",
+    "fit_clusters": "fit", "resample_strands": "fit",
+    "SampledSectors": "sampler", "SectorSpace": "sampler", "groom_sectors": "sampler", "sample_sectors": "sampler",
+}
+
+__all__ = ["SUFFIXES", "Strands", "format_of", "read_strands", "write_strands", *sorted(_LAZY)]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

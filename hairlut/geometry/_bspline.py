@@ -4,19 +4,21 @@ A :class:`BSpline` holds control points (n, d), a knot vector (n + p + 1) and th
 degree p.  Knots are validated (finite, non-decreasing, interior multiplicity ≤ p so
 the curve is continuous, non-empty domain) and the domain [knots[p], knots[n]] is
 rescaled to [0, 1].  The default knot vector is clamped and uniform, so the curve
-starts at the first control point and ends at the last.
+starts at the first control point and ends at the last; :func:`uniform_knots` gives the
+unclamped uniform vector.
 
-Evaluation is Cox–de Boor in JAX: :func:`basis` gives the (M, n) matrix of basis
-functions (or of their ``deriv``-th derivatives) at M parameters, so values are
-``basis(x) @ control``.  It traces with the knots as data, so one compiled kernel
-serves every cluster of a batch (vmap over the knots).
+Evaluation is Cox–de Boor, written once for NumPy and JAX: :func:`basis` gives the
+(M, n) matrix of basis functions (or of their ``deriv``-th derivatives) at M
+parameters, so values are ``basis(x) @ control``; under JAX it traces with the knots
+as data.  The cluster kernels use the cheaper polynomial-piece form
+(:func:`piecewise`, evaluated by :func:`eval_piecewise` in JAX with Horner's rule):
+one compiled kernel serves every cluster of a batch, whose pieces are stacked.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -29,6 +31,12 @@ def clamped_uniform_knots(n: int, degree: int) -> np.ndarray:
     """Clamped uniform knots on [0, 1] for ``n`` control points: p+1 zeros, uniform interior, p+1 ones."""
     interior = np.linspace(0.0, 1.0, n - degree + 1)[1:-1]
     return np.concatenate([np.zeros(degree + 1), interior, np.ones(degree + 1)])
+
+
+def uniform_knots(n: int, degree: int) -> np.ndarray:
+    """Unclamped uniform knots for ``n`` control points, rescaled so the domain is [0, 1]."""
+    k = np.arange(n + degree + 1, dtype=np.float64)
+    return (k - degree) / (n - degree)
 
 
 def _finite_array(field: str, value, dim: int | None) -> np.ndarray:
@@ -99,10 +107,7 @@ class BSpline:
     def __call__(self, x, deriv: int = 0) -> np.ndarray:
         """(M, d) values (or derivatives) at parameters ``x`` in [0, 1], float64."""
         xs = np.atleast_1d(np.asarray(x, dtype=np.float64))
-        with jax.enable_x64(True):
-            out = _eval_jit(jnp.asarray(xs), jnp.asarray(self.knots), jnp.asarray(self.control),
-                            self.degree, int(deriv))
-            return np.asarray(out)
+        return evaluate(xs, self.knots, self.control, self.degree, int(deriv), xp=np)
 
 
 def _check_knots(field: str, knots, n: int, degree: int) -> np.ndarray:
@@ -127,21 +132,25 @@ def _check_knots(field: str, knots, n: int, degree: int) -> np.ndarray:
     return (kv - lo) / (hi - lo)
 
 
-def _safe_div(num, den):
+def _safe_div(num, den, xp):
     ok = den > 0
-    return jnp.where(ok, num / jnp.where(ok, den, 1.0), 0.0)
+    return xp.where(ok, num / xp.where(ok, den, 1.0), 0.0)
 
 
-def basis(x, knots, degree: int, n: int, deriv: int = 0):
+def basis(x, knots, degree: int, n: int, deriv: int = 0, xp=jnp):
     """(M, n) B-spline basis functions (or their ``deriv``-th derivatives) at ``x`` ∈ [0, 1].
 
     Cox–de Boor with half-open spans, except that x = 1 falls in the last non-empty
-    span; 0/0 terms are 0.  ``degree``, ``n`` and ``deriv`` are static.
+    span; 0/0 terms are 0.  ``xp`` is ``jax.numpy`` (traceable; ``degree``, ``n`` and
+    ``deriv`` static) or ``numpy``.
     """
-    x = jnp.clip(jnp.asarray(x), 0.0, 1.0)
+    x = xp.clip(xp.asarray(x), 0.0, 1.0)
     k = knots.shape[0]
-    span = jnp.clip(jnp.searchsorted(knots, x, side="right") - 1, degree, n - 1)
-    nb = (jnp.arange(k - 1)[None, :] == span[:, None]).astype(x.dtype)
+    kw = {"method": "compare_all"} if xp is jnp else {}
+    span = xp.clip(xp.searchsorted(knots, x, side="right", **kw) - 1, degree, n - 1)
+    nb = (xp.arange(k - 1)[None, :] == span[:, None]).astype(x.dtype)
+    if deriv > degree:
+        return xp.zeros((x.shape[0], n), x.dtype)
     xx = x[:, None]
     top = degree - deriv
     for p in range(1, degree + 1):
@@ -149,20 +158,15 @@ def basis(x, knots, degree: int, n: int, deriv: int = 0):
         ui, uip, ui1, uip1 = knots[:m], knots[p:p + m], knots[1:m + 1], knots[p + 1:p + 1 + m]
         left, right = nb[:, :m], nb[:, 1:m + 1]
         if p <= top:
-            nb = _safe_div(xx - ui, uip - ui) * left + _safe_div(uip1 - xx, uip1 - ui1) * right
+            nb = _safe_div(xx - ui, uip - ui, xp) * left + _safe_div(uip1 - xx, uip1 - ui1, xp) * right
         else:
-            nb = p * (_safe_div(left, uip - ui) - _safe_div(right, uip1 - ui1))
-    if deriv > degree:
-        return jnp.zeros((x.shape[0], n), x.dtype)
+            nb = p * (_safe_div(left, uip - ui, xp) - _safe_div(right, uip1 - ui1, xp))
     return nb
 
 
-def evaluate(x, knots, control, degree: int, deriv: int = 0):
-    """(M, d) values or derivatives of the spline at ``x`` (traceable; vmappable over knots/control)."""
-    return basis(x, knots, degree, control.shape[0], deriv) @ control
-
-
-_eval_jit = jax.jit(evaluate, static_argnames=("degree", "deriv"))
+def evaluate(x, knots, control, degree: int, deriv: int = 0, xp=jnp):
+    """(M, d) values or derivatives of the spline at ``x`` (jnp: traceable, vmappable over knots/control)."""
+    return basis(x, knots, degree, control.shape[0], deriv, xp) @ control
 
 
 def fit_bspline(x, values, n_control: int, degree: int = 3, *, field: str = "values") -> BSpline:
@@ -176,7 +180,62 @@ def fit_bspline(x, values, n_control: int, degree: int = 3, *, field: str = "val
     if n_control < degree + 1 or xs.size < n_control:
         raise ValidationError("n_control", n_control, f"need degree + 1 ≤ n_control ≤ {xs.size} samples")
     knots = clamped_uniform_knots(n_control, degree)
-    with jax.enable_x64(True):
-        mat = np.asarray(basis(jnp.asarray(xs), jnp.asarray(knots), degree, n_control))
+    mat = basis(xs, knots, degree, n_control, xp=np)
     ctrl, *_ = np.linalg.lstsq(mat, vals2, rcond=None)
     return BSpline.make(ctrl[:, 0] if flat else ctrl, knots, degree, field=field, dim=None if flat else vals2.shape[1])
+
+
+def piecewise(spline: BSpline, n_span: int | None = None) -> dict[str, np.ndarray]:
+    """The spline as polynomial pieces, for cheap kernels.
+
+    ``breaks`` (n_span + 1,) are the knots; ``coeffs`` (n_span, 4, d) hold, for each
+    non-empty span [a, b), the power coefficients in y = (x − a)/(b − a) (zeros for empty
+    spans and above the degree); ``inv_width`` (n_span,) is 1/(b − a) (0 for empty
+    spans); ``spans`` (2,) the first and last non-empty span, where x = 0 and x = 1 fall.
+    ``n_span`` ≥ K − 1 pads with unused spans starting at 2 (beyond the domain), so
+    splines of any size and degree can share one compiled kernel.
+    """
+    kv, p = spline.knots, spline.degree
+    n_span = kv.size - 1 if n_span is None else int(n_span)
+    if n_span < kv.size - 1:
+        raise ValidationError("n_span", n_span, f"need at least {kv.size - 1} spans")
+    coeffs = np.zeros((n_span, MAX_DEGREE + 1, spline.dim))
+    inv_width = np.zeros(n_span)
+    nonempty = np.flatnonzero(np.diff(kv) > 0)
+    y = np.linspace(0.0, 1.0, p + 1)
+    vander = y[:, None] ** np.arange(p + 1)[None, :]
+    a, b = kv[nonempty], kv[nonempty + 1]
+    xs = (a[:, None] + (b - a)[:, None] * y[None, :]).ravel()
+    vals = spline(np.clip(xs, 0.0, 1.0)).reshape(nonempty.size, p + 1, spline.dim)
+    coeffs[nonempty, :p + 1] = np.linalg.solve(vander[None], vals)
+    inv_width[nonempty] = 1.0 / (b - a)
+    breaks = np.concatenate([kv, np.full(n_span + 1 - kv.size, 2.0)])
+    return {"breaks": breaks, "coeffs": coeffs, "inv_width": inv_width,
+            "spans": np.array([nonempty[0], nonempty[-1]], dtype=np.int32)}
+
+
+def eval_piecewise(x, breaks, coeffs, inv_width, spans, deriv=0):
+    """Values or derivatives from :func:`piecewise` arrays (Horner; traceable).
+
+    ``deriv`` an int gives (M, d); a tuple of orders gives a tuple of them, sharing
+    the span search.
+    """
+    x = jnp.asarray(x)
+    n_span, q, d = coeffs.shape
+    k = jnp.sum(breaks[None, 1:-1] <= x[:, None], axis=1)  # searchsorted(breaks, x, "right") - 1
+    k = jnp.clip(k, spans[0], spans[1])
+    # one matmul against a one-hot row replaces three gathers (much cheaper to compile)
+    table = jnp.concatenate([coeffs.reshape(n_span, q * d), breaks[:-1, None], inv_width[:, None]], axis=1)
+    row = (k[:, None] == jnp.arange(n_span)[None, :]).astype(x.dtype) @ table
+    c = row[:, :q * d].reshape(-1, q, d)
+    y = (x - row[:, q * d]) * row[:, q * d + 1]
+    iw = row[:, q * d + 1:q * d + 2]
+    p = coeffs.shape[1] - 1
+    outs = []
+    for order in ((deriv,) if isinstance(deriv, int) else tuple(deriv)):
+        acc = jnp.zeros(c.shape[:1] + c.shape[2:], x.dtype)
+        for j in range(p, order - 1, -1):
+            fall = float(np.prod(np.arange(j - order + 1, j + 1))) if order else 1.0
+            acc = acc * y[:, None] + fall * c[:, j]
+        outs.append(acc * iw**order if order else acc)
+    return outs[0] if isinstance(deriv, int) else tuple(outs)

@@ -1,0 +1,137 @@
+"""Clusters fitted to given strands (e.g. the .tfx grooms), for cutting real sectors.
+
+Recipe (:func:`fit_clusters`), all deterministic by seed:
+
+1. resample every strand at ``n_resample`` points equally spaced in arc length;
+2. group the strands by k-means (k-means++ start, Lloyd iterations) on those points;
+3. the trajectory of a group is a least-squares cubic B-spline (``n_control`` control
+   points) through the mean of its resampled strands, parametrised by relative arc length;
+4. the half-axes: at ``n_fit`` cross-sections the group's strands are cut by the normal
+   plane (rotation-minimising frame), A and B start at twice the standard deviations of
+   the crossings' frame coordinates x and y, then both are scaled so that a fraction
+   ``coverage`` of the crossings lies inside the ellipse (v ≤ 1); A(t), B(t) are
+   least-squares B-splines with ``n_axis`` control values through those samples, kept
+   ≥ ``min_half_axis`` (default 2 % of the group's trajectory length).  No twist (q = 0).
+
+A group whose mean strand has no length (the grooms hold a few near-zero strands) is
+dropped and its strands are labelled −1.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ValidationError
+from ._bspline import fit_bspline
+from .cluster import ClusterBatch, ClusterSpec
+from .sectors import _crossings
+from .strands import Strands
+from .sweep import ClusterGeometry
+
+
+def resample_strands(strands: Strands, n: int) -> np.ndarray:
+    """(S, n, 3) points at n fractions of each strand's arc length (0 and 1 included)."""
+    pts = strands.points.astype(np.float64)
+    off = strands.offsets
+    seg_len = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    owner = np.repeat(np.arange(strands.n_strands), strands.counts)
+    seg_len[off[1:-1] - 1] = 0.0  # no segment across strands
+    cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+    start = cum[off[:-1]]
+    total = cum[off[1:] - 1] - start
+    tot = total[owner]
+    frac = np.zeros_like(cum)
+    np.divide(cum - start[owner], tot, out=frac, where=tot > 0)
+    key = owner * 2.0 + frac  # strands' keys never overlap
+    want = (np.arange(strands.n_strands)[:, None] * 2.0 + np.linspace(0.0, 1.0, n)[None, :]).ravel()
+    out = np.empty((want.size, 3))
+    for d in range(3):
+        out[:, d] = np.interp(want, key, pts[:, d])
+    return out.reshape(strands.n_strands, n, 3)
+
+
+def kmeans(x: np.ndarray, k: int, seed: int, iters: int = 50) -> np.ndarray:
+    """Labels of k-means (k-means++ start); deterministic by seed."""
+    rng = np.random.default_rng(seed)
+    centres = [x[rng.integers(len(x))]]
+    d2 = np.sum((x - centres[0]) ** 2, axis=1)
+    for _ in range(1, k):
+        p = d2 / d2.sum() if d2.sum() > 0 else np.full(len(x), 1.0 / len(x))
+        centres.append(x[rng.choice(len(x), p=p)])
+        d2 = np.minimum(d2, np.sum((x - centres[-1]) ** 2, axis=1))
+    c = np.array(centres)
+    labels = np.zeros(len(x), dtype=np.int64)
+    for it in range(iters):
+        dist = np.sum(x**2, 1)[:, None] - 2 * x @ c.T + np.sum(c**2, 1)[None, :]
+        new = np.argmin(dist, axis=1)
+        if it > 0 and (new == labels).all():
+            break
+        labels = new
+        for j in range(k):
+            members = labels == j
+            if members.any():
+                c[j] = x[members].mean(axis=0)
+    return labels
+
+
+def fit_clusters(strands: Strands, n_clusters: int, *, layer_radii=(0.5, 0.75, 1.0), core_radius: float = 0.25,
+                 s_t: int = 16, s_v: int = 1, s_u: int = 16, n_control: int = 6, n_axis: int = 4, n_fit: int = 12,
+                 n_resample: int = 16, coverage: float = 0.95, min_half_axis: float | None = None,
+                 seed: int = 0) -> tuple[ClusterBatch, np.ndarray]:
+    """Clusters following groups of nearby strands (module docstring); returns (batch, label per strand).
+
+    Groups left empty by k-means, or whose mean strand has no length, are dropped (their
+    strands get label −1); labels index the returned batch.
+    """
+    if isinstance(n_clusters, bool) or not isinstance(n_clusters, (int, np.integer)) or not 1 <= n_clusters <= strands.n_strands:
+        raise ValidationError("n_clusters", n_clusters, f"need 1 ≤ n_clusters ≤ {strands.n_strands} strands")
+    if not 0 < coverage <= 1:
+        raise ValidationError("coverage", coverage, "a fraction in (0, 1]")
+    res = resample_strands(strands, n_resample)
+    raw = kmeans(res.reshape(len(res), -1), int(n_clusters), seed)
+    # a group whose mean strand has (almost) no length cannot carry a trajectory: dropped
+    size = np.linalg.norm(np.ptp(res.reshape(-1, 3), axis=0))
+    for j in np.unique(raw):
+        mean = res[raw == j].mean(axis=0)
+        if np.linalg.norm(np.diff(mean, axis=0), axis=1).sum() <= 1e-6 * size:
+            raw[raw == j] = -1
+    used = np.unique(raw[raw >= 0])
+    labels = np.where(raw >= 0, np.searchsorted(used, raw), -1)
+    if not used.size:
+        raise ValidationError("strands", strands.n_strands, "no group of strands has a usable length")
+    common = dict(layer_radii=layer_radii, core_radius=core_radius, s_t=s_t, s_v=s_v, s_u=s_u)
+    trajs, probes = [], []
+    for j in range(used.size):
+        mean = res[labels == j].mean(axis=0)
+        seg = np.linalg.norm(np.diff(mean, axis=0), axis=1)
+        t = np.concatenate([[0.0], np.cumsum(seg)]) / max(seg.sum(), 1e-300)
+        traj = fit_bspline(t, mean, n_control, 3, field="trajectory")
+        reach = np.linalg.norm(res[labels == j] - mean[None], axis=2).max()
+        trajs.append(traj)
+        probes.append(ClusterSpec(traj, 2.0 * reach + 1e-6, 2.0 * reach + 1e-6, layer_radii=(1.0,), core_radius=0.0,
+                                  s_t=s_t, s_v=1, s_u=s_u))
+    probe = ClusterGeometry(probes)
+    t_fit = np.linspace(0.0, 1.0, n_fit)
+    x = _crossings(probe, strands, labels, np.zeros(strands.n_points), probe.sections(t_fit))
+    specs = []
+    for j in range(used.size):
+        floor = min_half_axis if min_half_axis is not None else 0.02 * probe.lengths[j]
+        a_s, b_s = np.full(n_fit, np.nan), np.full(n_fit, np.nan)
+        for i in range(n_fit):
+            sel = (x["cluster"] == j) & (x["t_index"] == i)
+            if sel.sum() < 2:
+                continue
+            xa, ya = x["x"][sel], x["y"][sel]
+            a0 = max(2.0 * xa.std(), floor)
+            b0 = max(2.0 * ya.std(), floor)
+            scale = np.quantile(np.hypot(xa / a0, ya / b0), coverage)
+            a_s[i], b_s[i] = max(a0 * scale, floor), max(b0 * scale, floor)
+        ok = np.isfinite(a_s)
+        if ok.sum() >= n_axis:
+            fa = np.maximum(fit_bspline(t_fit[ok], a_s[ok], n_axis, 3).control[:, 0], floor)
+            fb = np.maximum(fit_bspline(t_fit[ok], b_s[ok], n_axis, 3).control[:, 0], floor)
+        else:
+            fa = np.full(n_axis, np.nanmax(a_s) if ok.any() else floor)
+            fb = np.full(n_axis, np.nanmax(b_s) if ok.any() else floor)
+        specs.append(ClusterSpec(trajs[j], fa, fb, **common))
+    return ClusterBatch.stack(specs), labels.astype(np.int64)

@@ -1,0 +1,167 @@
+"""Random generalized sectors for building the HRIR database (satf §5), and real ones from grooms.
+
+§5 "initialize[s] control parameters of a generalized sector using random values"; the
+:class:`SectorSpace` makes those parameters explicit.  A sampled sector is a (v, u)
+patch of an ellipse with major half-axis A = 1 (features are scale-free: ρ is an area
+fraction, centroids are parametric), minor half-axis B = ``aspect``, radial range
+[v0, v0 + thickness] ∩ [0, 1], phase extent Δu = 2π/s_u, whose s = 0 edge sits at
+polar angle ``phase``.  The strand radius is ``radius`` · √(sector area), so the
+coverage n·π·radius² does not depend on the sector's size.  ``strands`` strands cross
+the sector or a margin of 3σ around it (as in a real cross-section, where neighbours'
+Gaussians reach in), at (s, r) drawn by profile:
+
+- ``uniform``: uniform over the window's metric area;
+- ``gaussian``: one blob at a uniform centre in [0, 1]², standard deviation ``spread``
+  (sector units, both axes), truncated to the window (exact inverse CDF per axis);
+- ``clumped``: ``clumps`` blob centres, each strand in one, standard deviation
+  ``spread``/2, truncated likewise.
+
+Ranges are sampled uniformly, or log-uniformly where they span decades (radius, spread,
+and strand count + 1).  Everything is drawn from ``numpy.random.default_rng(seed)`` in a
+fixed order: the same seed gives identical sectors.  :func:`groom_sectors` cuts the
+sectors of a real groom (clusters fitted by :func:`hairlut.geometry.fit.fit_clusters`),
+so the space's coverage of real features can be checked.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy.special import ndtr, ndtri
+
+from ..errors import ValidationError
+from .fit import fit_clusters
+from .sectors import SectorTable, build_sectors
+from .splats import SIGMA_PER_RADIUS, SplatBatch, pack, param_sigma
+from .strands import Strands
+from .sweep import ClusterGeometry
+
+SECTOR_PROFILES = ("uniform", "gaussian", "clumped")
+
+
+@dataclass(frozen=True)
+class SectorSpace:
+    """The parameter space of random sectors: each entry a (low, high) range."""
+
+    strands: tuple[int, int] = (0, 48)            # strands crossing the sector
+    radius: tuple[float, float] = (0.002, 0.1)    # strand radius / √(sector area)
+    spread: tuple[float, float] = (0.05, 1.0)     # blob standard deviation, sector units
+    clumps: tuple[int, int] = (2, 5)              # blobs of a clumped sector
+    aspect: tuple[float, float] = (0.3, 1.0)      # B / A
+    v_inner: tuple[float, float] = (0.0, 0.9)     # inner radius v0 (ellipse fraction)
+    thickness: tuple[float, float] = (0.05, 0.5)  # radial extent (ellipse fraction)
+    s_u: tuple[int, int] = (4, 32)                # phase steps: Δu = 2π / s_u
+    profile_weights: tuple[float, float, float] = (1.0, 1.0, 1.0)  # uniform, gaussian, clumped
+
+    def __post_init__(self) -> None:
+        for name, pair in asdict(self).items():
+            if name == "profile_weights":
+                continue
+            if len(pair) != 2:
+                raise ValidationError(f"space.{name}", pair, "need a (low, high) pair")
+            lo, hi = pair
+            if not (np.isfinite(lo) and np.isfinite(hi) and 0 <= lo <= hi):
+                raise ValidationError(f"space.{name}", (lo, hi), "need a range 0 ≤ low ≤ high")
+        for name in ("radius", "spread", "aspect", "thickness"):
+            if getattr(self, name)[0] <= 0:
+                raise ValidationError(f"space.{name}", getattr(self, name), "the low end must be > 0")
+        if self.v_inner[1] >= 1 or self.aspect[1] > 1 or self.clumps[0] < 1 or self.s_u[0] < 1:
+            raise ValidationError("space", asdict(self), "need v_inner < 1, aspect ≤ 1, clumps ≥ 1, s_u ≥ 1")
+        w = np.asarray(self.profile_weights, dtype=np.float64)
+        if w.shape != (3,) or (w < 0).any() or w.sum() <= 0:
+            raise ValidationError("space.profile_weights", self.profile_weights, "three weights ≥ 0, not all 0")
+
+
+@dataclass(frozen=True, eq=False)
+class SampledSectors:
+    """Random sectors: their splats (for ``sector_density``) and the parameters drawn.
+
+    ``params`` holds one entry per sector for each :class:`SectorSpace` field (``strands``,
+    ``radius`` relative to √area, ``spread``, ``clumps``, ``aspect``, ``v_inner``,
+    ``thickness``, ``s_u``), plus ``phase`` (polar angle of the s = 0 edge), ``profile``
+    (index into ``SECTOR_PROFILES``) and ``v_range`` (N, 2).
+    """
+
+    splats: SplatBatch
+    params: dict[str, np.ndarray]
+
+
+def _log_uniform(rng, lo, hi, n):
+    return np.exp(rng.uniform(np.log(lo), np.log(hi), n))
+
+
+def _truncnorm(rng, mu, sd, lo, hi):
+    """Normal(mu, sd) truncated to [lo, hi], by inverse CDF."""
+    a, b = ndtr((lo - mu) / sd), ndtr((hi - mu) / sd)
+    q = a + rng.uniform(size=np.shape(mu)) * (b - a)
+    return np.clip(mu + sd * ndtri(np.clip(q, 1e-300, 1 - 1e-16)), lo, hi)
+
+
+def sample_sectors(n: int, space: SectorSpace = SectorSpace(), *, seed: int = 0) -> SampledSectors:
+    """``n`` random sectors from ``space`` (module docstring), deterministic by ``seed``."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ValidationError("n", n, "need an integer ≥ 1")
+    if not isinstance(space, SectorSpace):
+        raise ValidationError("space", type(space).__name__, "must be a SectorSpace")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValidationError("seed", seed, "must be an integer ≥ 0")
+    rng = np.random.default_rng(int(seed))
+    p = {
+        "strands": np.floor(_log_uniform(rng, space.strands[0] + 1, space.strands[1] + 1 + 1e-9, n)).astype(np.int64) - 1,
+        "radius": _log_uniform(rng, *space.radius, n),
+        "spread": _log_uniform(rng, *space.spread, n),
+        "clumps": rng.integers(space.clumps[0], space.clumps[1] + 1, n),
+        "aspect": rng.uniform(*space.aspect, n),
+        "v_inner": rng.uniform(*space.v_inner, n),
+        "thickness": rng.uniform(*space.thickness, n),
+        "s_u": rng.integers(space.s_u[0], space.s_u[1] + 1, n),
+        "phase": rng.uniform(0.0, 2 * np.pi, n),
+        "profile": rng.choice(3, n, p=np.asarray(space.profile_weights) / sum(space.profile_weights)),
+    }
+    p["strands"] = np.clip(p["strands"], space.strands[0], space.strands[1])
+    v0 = p["v_inner"]
+    v1 = np.minimum(v0 + p["thickness"], 1.0)
+    du = 2 * np.pi / p["s_u"]
+    area = p["aspect"] * du * 0.5 * (v1**2 - v0**2)
+    r_metric = p["radius"] * np.sqrt(area)
+    # the window strands may cross: the sector plus a margin of 3σ (at its centre) on every side
+    su_c, sv_c = param_sigma(SIGMA_PER_RADIUS * r_metric, 0.5 * (v0 + v1), p["phase"] + 0.5 * du, 1.0, p["aspect"])
+    margin = 3.0 * np.stack([su_c / du, sv_c / (v1 - v0)], axis=1)
+    lo_r = np.maximum(-margin[:, 1], -v0 / (v1 - v0))                # not inside v < 0
+    hi_r = np.minimum(1.0 + margin[:, 1], (1.0 - v0) / (v1 - v0))    # nor outside the ellipse
+    lo_s, hi_s = -margin[:, 0], 1.0 + margin[:, 0]
+    owner = np.repeat(np.arange(n), p["strands"])
+    m = owner.size
+    prof = p["profile"][owner]
+    # uniform in metric area over the window: s uniform, v² uniform
+    s_pos = rng.uniform(lo_s[owner], hi_s[owner])
+    va, vb = v0 + lo_r * (v1 - v0), v0 + hi_r * (v1 - v0)
+    r_pos = (np.sqrt(rng.uniform(va[owner] ** 2, vb[owner] ** 2)) - v0[owner]) / (v1 - v0)[owner]
+    centre = rng.uniform(size=(n, space.clumps[1], 2))  # blob centres; a sector uses its first `clumps`
+    pick = np.where(prof == 2, rng.integers(0, p["clumps"][owner]), 0)
+    mu = centre[owner, pick]
+    sd = np.where(prof == 2, 0.5, 1.0) * p["spread"][owner]
+    blob_s = _truncnorm(rng, mu[:, 0], sd, lo_s[owner], hi_s[owner])
+    blob_r = _truncnorm(rng, mu[:, 1], sd, lo_r[owner], hi_r[owner])
+    s_pos = np.where(prof == 0, s_pos, blob_s)
+    r_pos = np.where(prof == 0, r_pos, blob_r)
+    v = v0[owner] + r_pos * (v1 - v0)[owner]
+    phi = p["phase"][owner] + s_pos * du[owner]
+    sig_u, sig_v = param_sigma(SIGMA_PER_RADIUS * r_metric[owner], v, phi, 1.0, p["aspect"][owner])
+    sigma = np.stack([sig_u / du[owner], sig_v / (v1 - v0)[owner]], axis=1)
+    splats = pack(owner, np.stack([s_pos, r_pos], axis=1), sigma, r_metric[owner], n,
+                  p["aspect"] * du, np.stack([v0, v1], axis=1), max_splats=max(space.strands[1], 1))
+    p["v_range"] = np.stack([v0, v1], axis=1)
+    return SampledSectors(splats, p)
+
+
+def groom_sectors(strands: Strands, n_clusters: int, *, radius: float, layer_radii=(0.5, 0.75, 1.0),
+                  core_radius: float = 0.25, s_t: int = 16, s_v: int = 1, s_u: int = 16,
+                  seed: int = 0) -> tuple[SectorTable, ClusterGeometry, np.ndarray]:
+    """Sectors cut from a real groom: fit ``n_clusters`` clusters, assign each strand to its
+    group's cluster, build the sectors.  Returns (sectors, geometry, cluster per strand)."""
+    batch, labels = fit_clusters(strands, n_clusters, layer_radii=layer_radii, core_radius=core_radius,
+                                 s_t=s_t, s_v=s_v, s_u=s_u, seed=seed)
+    geometry = ClusterGeometry(batch)
+    return build_sectors(geometry, strands, labels, radius=radius), geometry, labels
