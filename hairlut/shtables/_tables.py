@@ -25,6 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
+from .._blocks import map_blocks
 from ..sh._basis import _real_sh_kernel, check_dirs, real_sh_soa
 from ._zonal import cheb_eval
 
@@ -71,20 +72,9 @@ def _radiance_block(t, theta_v, b, kd, ks, kd_k, hd, cheb, hs, l_of_k_s, lmax_d,
 
 @functools.partial(jax.jit, static_argnames=("lmax_d", "lmax_s"))
 def _radiance_kernel(t, theta_v, b, kd, ks, kd_k, hd, cheb, hs, l_of_k_s, lmax_d, lmax_s):
-    """Radiance for flat (N,) vertices, evaluated block by block with ``lax.map``."""
-    n = t.shape[0]
-    nb = -(-n // BLOCK)
-    pad = nb * BLOCK - n
-
-    def blocks(x):
-        x = jnp.pad(x, [(0, pad)] + [(0, 0)] * (x.ndim - 1), mode="edge")
-        return x.reshape(nb, BLOCK, *x.shape[1:])
-
-    def one(args):
-        return _radiance_block(*args, kd_k, hd, cheb, hs, l_of_k_s, lmax_d, lmax_s)
-
-    out = jax.lax.map(one, tuple(blocks(x) for x in (t, theta_v, b, kd, ks)))
-    return out.reshape(nb * BLOCK, -1)[:n]
+    """Radiance for flat (N,) vertices, evaluated block by block."""
+    return map_blocks(lambda *blk: _radiance_block(*blk, kd_k, hd, cheb, hs, l_of_k_s, lmax_d, lmax_s),
+                      (t, theta_v, b, kd, ks), BLOCK)
 
 
 def _l_of_k(lmax: int) -> np.ndarray:
