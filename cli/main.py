@@ -57,9 +57,12 @@ def cli(verbose: int, quiet: bool) -> None:
 
 
 def _register() -> None:
-    from . import bake, cache, demo, inspect, sh, strands
+    from . import bake, cache, demo, hrir, inspect, sh, strands
 
+    bake.bake_group.add_command(hrir.hrir_cmd)
     cli.add_command(bake.bake_group)
+    cli.add_command(hrir.merge_cmd)
+    cli.add_command(hrir.hrir_slice_cmd)
     cli.add_command(cache.cache_group)
     cli.add_command(demo.demo_cmd)
     cli.add_command(inspect.inspect_cmd)

@@ -3,11 +3,14 @@
 The public API, imported on first use (so ``import hairlut`` stays light):
 
 ``hairlut.SHTables``          exact SH convolution tables (xing §4): ``SHTables.load(path)``
+``hairlut.HRIRDB``            the HRIR database (satf §4-5): ``HRIRDB.load(path).query(...)``
 ``hairlut.assets``            HDF5 tables and OpenEXR images, atomic and validated
 ``hairlut.sh``                real spherical harmonics, quadrature, Gaunt coefficients
 ``hairlut.shtables``          baking the SH tables
 ``hairlut.envlight``          environment maps → SH light coefficients
-``hairlut.geometry``          strands, strand files, generalized disk clusters
+``hairlut.geometry``          strands, strand files, generalized disk clusters, sector densities
+``hairlut.hrir``              baking the HRIR database by planar ray tracing
+``hairlut.cache``             the content-addressed table cache
 ``hairlut.errors``            every exception hairlut raises on purpose
 """
 
@@ -18,8 +21,8 @@ import importlib
 from . import errors
 from ._version import __version__
 
-_SUBMODULES = {"assets", "demo", "envlight", "geometry", "kernels", "recipes", "sh", "shtables"}
-_ATTRIBUTES = {"SHTables": "shtables"}
+_SUBMODULES = {"assets", "cache", "demo", "envlight", "geometry", "hrir", "kernels", "recipes", "sh", "shtables"}
+_ATTRIBUTES = {"SHTables": "shtables", "HRIRDB": "hrir"}
 
 __all__ = ["__version__", "errors", *sorted(_SUBMODULES), *sorted(_ATTRIBUTES)]
 

@@ -36,3 +36,5 @@ def register_kind(name: str, required: tuple[str, ...], description: str) -> Kin
 register_kind("kk_lobes", ("diffuse", "specular"), "Kajiya-Kay diffuse and specular kernels sampled on (theta, theta') grids")
 register_kind("sh_tables", ("gaunt",), "exact SH convolution tables for Kajiya-Kay hair (xing §4)")
 register_kind("sh_light", ("a",), "SH coefficients of an environment light (xing §4)")
+register_kind("hrir_db", ("features", "alpha", "reflectance"), "HRIR database: planar ray-traced sectors (satf §4-5)")
+register_kind("hrir_shard", ("alpha", "reflectance", "density"), "a slice of sectors of an HRIR-DB bake")

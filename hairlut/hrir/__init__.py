@@ -1,0 +1,37 @@
+"""HRIR database: planar ray tracing of generalized sectors into SATF records (satf §4–5).
+
+``bake`` samples random sectors, traces each under V in-plane view and L light angles
+with one jitted kernel (:func:`trace_kernel`), and writes an ``hrir_db`` asset; see
+``_tracer`` for the frame, pixel, opacity and reflectance conventions.
+
+Importing the package registers the asset kinds only; the baker (JAX) loads on first
+use of one of its names.
+"""
+
+from importlib import import_module
+
+from ._kinds import KIND, SHARD_KIND
+
+_LAZY = {
+    "bake": "_bake", "bake_block": "_bake", "blocks_of": "_bake", "merge": "_bake", "parse_shard": "_bake",
+    "parts_dir": "_bake", "sample_block": "_bake", "sector_seed": "_bake", "trace_sectors": "_bake",
+    "SMOOTH_RATIO": "_geometry", "disc_params": "_geometry", "sector_geometry": "_geometry",
+    "HRIRDB": "_io", "angles": "_io", "export_slice": "_io", "load_hrir_db": "_io", "read_shard": "_io",
+    "SCHEMA": "_recipe", "resolve_recipe": "_recipe", "sector_space": "_recipe",
+    "gaussian_smooth": "_reference", "reference_hrir": "_reference", "satf_query": "_query", "query_kernel": "_query",
+    "GEOM": "_tracer", "trace_kernel": "_tracer",
+}
+
+__all__ = ["KIND", "SHARD_KIND", *sorted(_LAZY)]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

@@ -1,0 +1,88 @@
+"""SATF lookup (satf eq 4): HRIRs for arbitrary (ρ_feature, θv, θl) from an HRIR-DB.
+
+Feature space: features are normalised with the database's statistics,
+z = (x − mean) / std, and compared with the Euclidean metric.  The k nearest
+records (brute force: one (N, M) distance block per chunk of queries, then
+``lax.top_k``) are blended with inverse-distance weights w_i ∝ 1 / (d_i + ε),
+so an exact feature match returns that record.  Angles are periodic: each
+record is interpolated bilinearly on the (θv, θl) grid with wrap-around (α only
+in θv, since it does not depend on the light).
+
+Cost per query: O(M·F) for the distances, O(k·4·P) for the gathers; memory is
+bounded by evaluating ``CHUNK`` queries at a time.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import errors
+from .._blocks import map_blocks
+
+CHUNK = 4096
+EPS = 1e-6
+
+
+def _periodic(theta, n):
+    """Grid cell (i0, i1) and fraction for a periodic grid 2πi/n."""
+    f = jnp.mod(theta, 2 * jnp.pi) / (2 * jnp.pi) * n
+    i0 = jnp.floor(f).astype(jnp.int32)
+    frac = f - i0
+    i0 = jnp.mod(i0, n)
+    return i0, jnp.mod(i0 + 1, n), frac
+
+
+def _query_block(zq, tv, tl, zdb, alpha, refl, k):
+    d2 = jnp.sum((zq[:, None, :] - zdb[None, :, :]) ** 2, axis=-1)  # (n, M)
+    neg, idx = jax.lax.top_k(-d2, k)
+    w = 1.0 / (jnp.sqrt(jnp.maximum(-neg, 0.0)) + EPS)
+    w = w / jnp.sum(w, axis=-1, keepdims=True)  # (n, k)
+    v0, v1, fv = _periodic(tv, alpha.shape[1])
+    l0, l1, fl = _periodic(tl, refl.shape[2])
+    fv, fl = fv[:, None, None], fl[:, None, None]
+    iv0, iv1 = v0[:, None], v1[:, None]
+    il0, il1 = l0[:, None], l1[:, None]
+    a = (1 - fv) * alpha[idx, iv0] + fv * alpha[idx, iv1]  # (n, k, P)
+    r = ((1 - fv) * ((1 - fl) * refl[idx, iv0, il0] + fl * refl[idx, iv0, il1])
+         + fv * ((1 - fl) * refl[idx, iv1, il0] + fl * refl[idx, iv1, il1]))
+    return jnp.einsum("nk,nkp->np", w, r), jnp.einsum("nk,nkp->np", w, a), idx, w
+
+
+@functools.partial(jax.jit, static_argnames=("k",))
+def query_kernel(zq, tv, tl, zdb, alpha, refl, k):
+    """The jitted SATF kernel over flat queries, in chunks of CHUNK (see module doc)."""
+    return map_blocks(lambda q, v, l: _query_block(q, v, l, zdb, alpha, refl, k), (zq, tv, tl), CHUNK)
+
+
+def satf_query(db, features, theta_v, theta_l, k: int = 4):
+    """SATF(ρ_feature, θv, θl) → (re (..., P), α (..., P), neighbour index (..., k), weights (..., k)).
+
+    ``features`` (..., F) are raw (un-normalised) feature vectors in the database's
+    feature order; θv, θl are in-plane angles (radians, any real value: periodic).
+    """
+    f = np.asarray(features, np.float64)
+    F = db.features.shape[1]
+    if f.ndim < 1 or f.shape[-1] != F or not np.all(np.isfinite(f)):
+        raise errors.ValidationError("features", f.shape, f"need finite (..., {F}) feature vectors ({', '.join(db.stats.names)})")
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= len(db.features):
+        raise errors.ValidationError("k", k, f"need 1 ≤ k ≤ {len(db.features)} (database size)")
+    tv = np.asarray(theta_v, np.float64)
+    tl = np.asarray(theta_l, np.float64)
+    for name, x in (("theta_v", tv), ("theta_l", tl)):
+        if not np.all(np.isfinite(x)):
+            raise errors.ValidationError(name, theta_v if name == "theta_v" else theta_l, "angles must be finite")
+    shape = np.broadcast_shapes(f.shape[:-1], tv.shape, tl.shape)
+    z = db.stats.normalize(np.broadcast_to(f, shape + (F,)).reshape(-1, F))
+    zdb = db.stats.normalize(db.features)
+    re, a, idx, w = query_kernel(
+        jnp.asarray(z, jnp.float32), jnp.asarray(np.broadcast_to(tv, shape).ravel(), jnp.float32),
+        jnp.asarray(np.broadcast_to(tl, shape).ravel(), jnp.float32), jnp.asarray(zdb, jnp.float32),
+        jnp.asarray(db.alpha, jnp.float32), jnp.asarray(db.reflectance, jnp.float32), int(k),
+    )
+    P = db.alpha.shape[-1]
+    return (np.asarray(re).reshape(*shape, P), np.asarray(a).reshape(*shape, P),
+            np.asarray(idx).reshape(*shape, k), np.asarray(w).reshape(*shape, k))
