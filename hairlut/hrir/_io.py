@@ -21,6 +21,7 @@ in float32, without features; :func:`assemble` turns the whole range into an ``h
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 from dataclasses import dataclass
@@ -177,6 +178,13 @@ class HRIRDB:
     def load(cls, path) -> HRIRDB:
         """Read and validate an ``hrir_db`` asset."""
         return load_hrir_db(path)
+
+    @functools.cached_property
+    def device_arrays(self):
+        """(normalised features, α, reflectance) as float32 device arrays, made once per database."""
+        from ._query import device_arrays
+
+        return device_arrays(self)
 
     def query(self, features, theta_v, theta_l, k: int = 4):
         """SATF lookup (eq 4): (re, α, neighbour index, weights); see :func:`hairlut.hrir.satf_query`."""

@@ -58,6 +58,12 @@ def query_kernel(zq, tv, tl, zdb, alpha, refl, k):
     return map_blocks(lambda q, v, l: _query_block(q, v, l, zdb, alpha, refl, k), (zq, tv, tl), CHUNK)
 
 
+def device_arrays(db):
+    """The database's normalised features, α and reflectance as float32 device arrays."""
+    return (jnp.asarray(db.stats.normalize(db.features), jnp.float32), jnp.asarray(db.alpha, jnp.float32),
+            jnp.asarray(db.reflectance, jnp.float32))
+
+
 def satf_query(db, features, theta_v, theta_l, k: int = 4):
     """SATF(ρ_feature, θv, θl) → (re (..., P), α (..., P), neighbour index (..., k), weights (..., k)).
 
@@ -77,11 +83,10 @@ def satf_query(db, features, theta_v, theta_l, k: int = 4):
             raise errors.ValidationError(name, theta_v if name == "theta_v" else theta_l, "angles must be finite")
     shape = np.broadcast_shapes(f.shape[:-1], tv.shape, tl.shape)
     z = db.stats.normalize(np.broadcast_to(f, shape + (F,)).reshape(-1, F))
-    zdb = db.stats.normalize(db.features)
+    zdb, alpha, refl = getattr(db, "device_arrays", None) or device_arrays(db)
     re, a, idx, w = query_kernel(
         jnp.asarray(z, jnp.float32), jnp.asarray(np.broadcast_to(tv, shape).ravel(), jnp.float32),
-        jnp.asarray(np.broadcast_to(tl, shape).ravel(), jnp.float32), jnp.asarray(zdb, jnp.float32),
-        jnp.asarray(db.alpha, jnp.float32), jnp.asarray(db.reflectance, jnp.float32), int(k),
+        jnp.asarray(np.broadcast_to(tl, shape).ravel(), jnp.float32), zdb, alpha, refl, int(k),
     )
     P = db.alpha.shape[-1]
     return (np.asarray(re).reshape(*shape, P), np.asarray(a).reshape(*shape, P),
