@@ -48,6 +48,8 @@ def demo_cmd(out_dir, shared, as_json):
                + ", ".join(f"{c} {e:.3f}" for c, e in sh["light_band_error"].items()))
     hair = report["hair"]
     click.echo(f"hair: {hair['source']}, {hair['vertices']:,} vertices shaded, radiance {hair['radiance_min']:.3g} … {hair['radiance_max']:.3g}")
+    click.echo(f"HRIR-DB: {report['hrir']['sectors']} sectors; SATF query at a stored record reproduces it to "
+               f"{report['hrir']['query_self_check_max_error']:.1e}")
     click.echo("times: " + ", ".join(f"{k} {v:.2f} s" for k, v in report["seconds"].items()))
     for png in report["previews"]:
         click.echo(f"preview: {png}")

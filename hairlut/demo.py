@@ -7,6 +7,8 @@
 4. Hair shaded with those tables: the shared Sintel groom when it is present
    (else a procedural tuft), unshadowed (b = transmittance 1), drawn as an
    orthographic point splat so a person can look at it.
+5. A small HRIR database (planar ray tracing of random sectors), one SATF query
+   per held-in sector as a self-check, and a view × pixel slice as EXR and PNG.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from .shtables import bake_sh, write_sh_tables, write_textures
 DEFAULT_RECIPE = {"n_theta": 181, "n_theta_v": 181, "exponents": [8.0, 49.0, 200.0], "storage": "float32"}
 SH_RECIPE = {"kernel": {"p": 49.0}, "bands": {"light_specular": 8}, "dense": {"t_resolution": 16, "theta_v_steps": 9}}
 SUN = np.array([0.5, 0.3, 0.81])
+HRIR_RECIPE = {"sectors": {"count": 64}, "angles": {"views": 16, "lights": 16}, "trace": {"pixels": 32, "steps": 48}}
 
 
 def bake_lobes(out_dir: str | os.PathLike, recipe: dict | None = None) -> tuple[Path, Path]:
@@ -135,8 +138,21 @@ def run(out_dir: str | os.PathLike, shared: str | os.PathLike | None = None) -> 
     hair_png = atomic_write_bytes(out / "hair.png", encode_png(tonemap(image, exposure=-1.0)))
     previews.append(hair_png)
     timings["shade"] = time.perf_counter() - start
+
+    start = time.perf_counter()
+    from .hrir import HRIRDB, bake as bake_hrir, export_slice
+
+    hrir_path = out / "hrir_small.h5"
+    bake_hrir(HRIR_RECIPE, hrir_path)
+    db = HRIRDB.load(hrir_path)
+    re, _, _, _ = db.query(db.features, db.theta_v[3], db.theta_l[5], k=1)
+    self_check = float(np.abs(re - db.reflectance[:, 3, 5]).max())
+    slice_exr = export_slice(hrir_path, out / "hrir_slice.exr", sector=int(np.argmax(db.features[:, 0])), light=5)
+    previews.append(preview(slice_exr, out / "hrir_slice.png", normalize=True))
+    timings["hrir"] = time.perf_counter() - start
     return {
-        "assets": [summarize(p) for p in (h5, exr, light_h5, sh_h5, tex)],
+        "assets": [summarize(p) for p in (h5, exr, light_h5, sh_h5, tex, hrir_path)],
+        "hrir": {"sectors": int(db.features.shape[0]), "query_self_check_max_error": self_check},
         "previews": [str(p) for p in previews],
         "seconds": timings,
         "hair": {"source": source, "vertices": int(rgb.shape[0]), "radiance_min": float(rgb.min()),

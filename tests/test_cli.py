@@ -156,7 +156,8 @@ def test_demo_writes_and_inspects(tmp_path):
     assert res.exit_code == 0, res.output
     doc = json.loads(res.output)
     kinds = [a["kind"] for a in doc["assets"]]
-    assert kinds == ["kk_lobes", "kk_lobes", "sh_light", "sh_tables", "sh_textures"]
+    assert kinds == ["kk_lobes", "kk_lobes", "sh_light", "sh_tables", "sh_textures", "hrir_db"]
+    assert doc["hrir"]["query_self_check_max_error"] < 1e-4
     spec = next(d for d in doc["assets"][0]["datasets"] if d["name"] == "specular")
     assert spec["max"] == pytest.approx(1.0) and spec["min"] == 0.0 and spec["nan"] == 0
     assert decode_png((tmp_path / "d" / "kk_lobes_p49.png").read_bytes()).shape == (181, 181)
