@@ -4,30 +4,16 @@ from __future__ import annotations
 
 import json
 import time
-import tomllib
 from pathlib import Path
 
 import click
 
 from hairlut import errors
 from hairlut.envlight import LAYOUTS, load_light
-from hairlut.recipes import load_toml, set_path
+from hairlut.recipes import apply_overrides, load_toml
 from hairlut.shtables import bake_sh, full_recipe, resolve_recipe, write_sh_tables, write_textures
 
 from .format import num
-
-
-def _overrides(recipe: dict, pairs) -> dict:
-    for pair in pairs:
-        key, sep, text = pair.partition("=")
-        if not sep or not key:
-            raise click.UsageError(f"--set expects KEY=VALUE, got {pair!r}")
-        try:
-            value = tomllib.loads(f"v = {text}")["v"]
-        except tomllib.TOMLDecodeError:
-            value = text  # a bare word, e.g. auto
-        set_path(recipe, key.strip(), value)
-    return recipe
 
 
 @click.group("bake")
@@ -64,7 +50,7 @@ def bake_sh_cmd(recipe, out, sets, p, light, layout, up, textures, as_json):
     given = load_toml(recipe) if recipe else {}
     if p is not None:
         sets = (*sets, f"kernel.p={p!r}")
-    given = _overrides(given, sets)
+    given = apply_overrides(given, sets)
     start = time.perf_counter()
     r = resolve_recipe(given)  # validate everything before any work or output
     if textures and (not light or r["dense"]["t_resolution"] == 0):

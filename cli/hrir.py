@@ -5,24 +5,10 @@ from __future__ import annotations
 import json
 import sys
 import time
-import tomllib
 
 import click
 
-from hairlut.recipes import load_toml, set_path
-
-
-def _apply_sets(recipe: dict, pairs) -> dict:
-    for pair in pairs:
-        key, sep, text = pair.partition("=")
-        if not sep or not key:
-            raise click.UsageError(f"--set expects KEY=VALUE, got {pair!r}")
-        try:
-            value = tomllib.loads(f"v = {text}")["v"]
-        except tomllib.TOMLDecodeError:
-            value = text
-        set_path(recipe, key.strip(), value)
-    return recipe
+from hairlut.recipes import apply_overrides, load_toml
 
 
 def _clock(seconds: float) -> str:
@@ -88,7 +74,7 @@ def hrir_cmd(recipe, out, shard, sets, block, keep_parts, no_progress, as_json):
     """
     from hairlut.hrir import bake
 
-    given = _apply_sets(load_toml(recipe) if recipe else {}, sets)
+    given = apply_overrides(load_toml(recipe) if recipe else {}, sets)
     bar = Progress(not no_progress)
     try:
         report = bake(given, out, shard=shard, block=block, progress=bar, keep_parts=keep_parts)

@@ -73,3 +73,17 @@ def set_path(mapping: dict, dotted: str, value) -> None:
         if not isinstance(node, dict):
             raise errors.ValidationError(dotted, value, f"{key} is not a table")
     node[keys[-1]] = value
+
+
+def apply_overrides(recipe: dict, pairs) -> dict:
+    """Apply ``KEY=VALUE`` overrides (``a.b.c=3``; the value is a TOML literal, else a bare string)."""
+    for pair in pairs:
+        key, sep, text = str(pair).partition("=")
+        if not sep or not key.strip():
+            raise errors.ValidationError("set", pair, "expected KEY=VALUE, e.g. kernel.p=100")
+        try:
+            value = tomllib.loads(f"v = {text}")["v"]
+        except tomllib.TOMLDecodeError:
+            value = text  # a bare word such as auto
+        set_path(recipe, key.strip(), value)
+    return recipe

@@ -95,12 +95,14 @@ def test_rotation_equivariance(paper, seed):
         np.testing.assert_allclose(np.asarray(got), dl @ np.asarray(base) @ d_trans.T, atol=1e-9)
 
 
+def random_vertices(rng, n):
+    """Light (64, RGB), transmittance (n, 9), unit tangents (n, 3) and θ′ (n,)."""
+    t = rng.normal(size=(n, 3))
+    return rng.normal(size=(64, 3)), rng.normal(size=(n, 9)), t / np.linalg.norm(t, axis=1, keepdims=True), rng.uniform(0, PI, n)
+
+
 def test_contract_and_radiance_match_the_tables(paper, rng):
-    a = rng.normal(size=(64, 3))
-    b = rng.normal(size=(5, 9))
-    t = rng.normal(size=(5, 3))
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
-    tv = rng.uniform(0, PI, 5)
+    a, b, t, tv = random_vertices(rng, 5)
     c = paper.contract(a)
     rd = np.asarray(paper.rd(t))
     rs = np.asarray(paper.rs(t, tv))
@@ -195,11 +197,7 @@ def test_bad_queries(paper):
 
 
 def test_float32_radiance_is_close(paper, rng):
-    a = rng.normal(size=(64, 3))
-    b = rng.normal(size=(200, 9))
-    t = rng.normal(size=(200, 3))
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
-    tv = rng.uniform(0, PI, 200)
+    a, b, t, tv = random_vertices(rng, 200)
     c = paper.contract(a)
     exact = np.asarray(c.radiance(b, t, tv, 0.5, 0.5))
     fast = np.asarray(c.radiance(b, t, tv, 0.5, 0.5, dtype="float32"))

@@ -6,7 +6,7 @@ Strand I/O is imported eagerly; the cluster and density modules (which load JAX 
 SciPy) on first use of one of their names, so ``hairlut strands info`` stays light.
 """
 
-from importlib import import_module
+from .._lazy import lazy_exports
 
 from .formats import SUFFIXES, format_of, read_strands, write_strands
 from .strands import Strands
@@ -29,13 +29,4 @@ _LAZY = {
 __all__ = ["SUFFIXES", "Strands", "format_of", "read_strands", "write_strands", *sorted(_LAZY)]
 
 
-def __getattr__(name: str):
-    if name in _LAZY:
-        value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

@@ -8,7 +8,7 @@ Importing the package registers the asset kinds only; the baker (JAX) loads on f
 use of one of its names.
 """
 
-from importlib import import_module
+from .._lazy import lazy_exports
 
 from ._kinds import KIND, SHARD_KIND
 
@@ -25,13 +25,4 @@ _LAZY = {
 __all__ = ["KIND", "SHARD_KIND", *sorted(_LAZY)]
 
 
-def __getattr__(name: str):
-    if name in _LAZY:
-        value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

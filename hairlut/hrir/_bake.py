@@ -106,6 +106,15 @@ def parts_dir(out) -> Path:
     return out.with_name(out.name + ".parts")
 
 
+def _intact(part, recipe_hash: str) -> bool:
+    """Whether a completed part validates against the recipe (resumable)."""
+    try:
+        read_shard(part, recipe_hash)
+    except errors.AssetError:
+        return False
+    return True
+
+
 def bake(given: dict | None, out, *, shard=None, block: int = BLOCK, progress=None, keep_parts: bool = False) -> dict:
     """Bake (or resume) the HRIR-DB of a recipe into ``out``.
 
@@ -133,15 +142,12 @@ def bake(given: dict | None, out, *, shard=None, block: int = BLOCK, progress=No
         part = folder / f"part-{s:09d}-{e:09d}.h5"
         paths.append(part)
         if part.exists():
-            try:
-                read_shard(part, h)
+            if _intact(part, h):  # a damaged or stale part is baked again
                 resumed += e - s
                 done += e - s
                 if progress:
                     progress(done, want)
                 continue
-            except errors.AssetError:
-                pass  # damaged or stale: bake it again
         write_shard(part, r, bake_block(r, s, e), s, total)
         computed += e - s
         done += e - s
