@@ -11,6 +11,8 @@ The public API, imported on first use (so ``import hairlut`` stays light):
 ``hairlut.geometry``          strands, strand files, generalized disk clusters, sector densities
 ``hairlut.hrir``              baking the HRIR database by planar ray tracing
 ``hairlut.cache``             the content-addressed table cache
+``hairlut.synthesize``        the online module (satf §6): re-, α-, s-maps, shading, blending
+``hairlut.shadows``           density volumes and voxel SH transmittance (xing §5)
 ``hairlut.errors``            every exception hairlut raises on purpose
 """
 
@@ -21,8 +23,9 @@ import importlib
 from . import errors
 from ._version import __version__
 
-_SUBMODULES = {"assets", "cache", "demo", "envlight", "geometry", "hrir", "kernels", "recipes", "sh", "shtables"}
-_ATTRIBUTES = {"SHTables": "shtables", "HRIRDB": "hrir"}
+_SUBMODULES = {"assets", "cache", "demo", "envlight", "geometry", "hrir", "kernels", "recipes", "sh", "shadows", "shtables",
+               "synth"}
+_ATTRIBUTES = {"SHTables": "shtables", "HRIRDB": "hrir", "synthesize": "synth"}
 
 __all__ = ["__version__", "errors", *sorted(_SUBMODULES), *sorted(_ATTRIBUTES)]
 

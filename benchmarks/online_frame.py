@@ -1,0 +1,171 @@
+"""Online frame time (satf §6, Table 1): index, maps, lighting, shadow and blend of a whole model.
+
+Builds procedural clusters around a head-sized ring (default: the paper's human model,
+17 clusters × 3 layers, s_t = 64, s_u = 16: 52K HSVs), prepares the scene once (strands,
+sectors, features, texel frames: the view-independent index), then times a frame after
+jit warm-up with ``hairlut.synth.render`` and with a plain NumPy implementation of the
+same steps (eq 7 sweep, eqs 8–11 lighting, eqs 12–14), both through the same SATF lookup
+(the NumPy path fetches every sector, not only those of non-uniform HSVs).
+Prints a table and writes benchmarks/results/online_frame.json.
+
+Usage: python benchmarks/online_frame.py [--db hrir.h5] [--clusters 17] [--quick]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import jax
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import best_of, save, table  # noqa: E402
+
+from hairlut.synth import prepare, render, resolve_scene  # noqa: E402
+from hairlut.synth._maps import fetch, param_distance, sector_angles, texels, wrap  # noqa: E402
+from hairlut.synth._synth import _material  # noqa: E402
+
+
+def model(n_clusters: int, s_t: int, s_u: int, res: int, strands: int) -> dict:
+    clusters = []
+    for c in range(n_clusters):
+        a = 2 * np.pi * c / n_clusters
+        root = [0.1 * np.cos(a), 0.1, 0.1 * np.sin(a)]
+        mid = [0.13 * np.cos(a), -0.05, 0.13 * np.sin(a)]
+        tip = [0.12 * np.cos(a + 0.2), -0.25, 0.12 * np.sin(a + 0.2)]
+        clusters.append({"trajectory": [root, mid, tip], "half_axis_a": 0.02, "half_axis_b": 0.012,
+                         "twist": [0.0, 0.5], "s_t": s_t, "s_u": s_u})
+    return {"render": {"resolution": [res, res]}, "camera": {"view": [0.0, 0.3, 1.0]},
+            "lights": {"directions": [[0.5, 0.8, 1.0]]}, "effects": {"noise": True},
+            "strands": {"count": strands, "radius": 0.0015, "profile": "clumped", "spread": 0.25},
+            "clusters": clusters}
+
+
+def _sample(arr, pix):
+    P = arr.shape[-1]
+    f = np.clip(pix, 0.0, P - 1.0)
+    i0 = np.clip(np.floor(f).astype(np.int64), 0, max(P - 2, 0))
+    i1 = np.minimum(i0 + 1, P - 1)
+    extra = arr.ndim - f.ndim  # trailing axes: (..., P) or (..., L, P)
+    w = (f - i0).reshape(f.shape + (1,) * (extra - 1))
+    g0 = np.take_along_axis(arr, i0.reshape(f.shape + (1,) * extra), -1)[..., 0]
+    g1 = np.take_along_axis(arr, i1.reshape(f.shape + (1,) * extra), -1)[..., 0]
+    return g0 + w * (g1 - g0)
+
+
+def _sin(c):
+    return np.sqrt(np.clip(1 - c * c, 0, 1))
+
+
+def numpy_frame(prep) -> list[np.ndarray]:
+    """The same frame in plain NumPy: maps (eqs 6–7), lighting (8–11), s-map, shading, blend (12–14)."""
+    sc, db = prep.scene, prep.db
+    m, fx = sc.material, sc.effects
+    (kd, ks1, ks2, p1, p2, s, scale, bias, amount), colours = _material(sc)
+    n_u, n_t = sc.config["render"]["resolution"]
+    out = []
+    for pc in prep.clusters:
+        sp = sector_angles(pc.frames, sc.view, sc.lights)
+        tx = texels(pc.table, sp, pc.spec.n_layers, (n_u, n_t), db.alpha.shape[-1])
+        top, bot = pc.table.hsv_sectors[:, 0], pc.table.hsv_sectors[:, 1]
+        d = param_distance(db, sp.features[top], sp.theta_v[top], sp.theta_l[top], sp.features[bot],
+                           sp.theta_v[bot], sp.theta_l[bot])
+        uni = d < m["k_threshold"]
+        k = sc.config["render"]["neighbours"]
+        re_s, a_s = fetch(db, sp.features, sp.theta_v, sp.theta_l, k)
+        f = 0.5 * (sp.features[top] + sp.features[bot])
+        tv = sp.theta_v[top] + 0.5 * wrap(sp.theta_v[bot] - sp.theta_v[top])
+        tl = sp.theta_l[top] + 0.5 * wrap(sp.theta_l[bot] - sp.theta_l[top])
+        re_u, a_u = fetch(db, f[uni], tv[uni], tl[uni], k)
+        re1, re2, a1, a2 = re_s[top], re_s[bot], a_s[top], a_s[bot]
+        re1[uni], re2[uni], a1[uni], a2[uni] = re_u, re_u, a_u, a_u
+        h, g = tx.hsv, tx.gamma
+        u = uni[h]
+        x1, x2 = np.where(u, tx.pix_ave, tx.pix_top), np.where(u, tx.pix_ave, tx.pix_bot)
+        re = (1 - g)[..., None] * _sample(re1[h], x1) + g[..., None] * _sample(re2[h], x2)  # (C, K, t, u, L)
+        al = np.clip((1 - g) * _sample(a1[h], x1) + g * _sample(a2[h], x2), 0, 1)[0]
+        t, n, v, ls = pc.tangent, pc.normal, sc.view, sc.lights
+        cl = t @ ls.T
+        light = np.zeros(t.shape[:-1] + (len(ls), 3))
+        if fx["diffuse"]:
+            light += kd * np.maximum(0, scale * _sin(cl) + bias)[..., None] * colours[0]
+        for on, sh, p, ks, col, noisy in ((fx["primary"], s, p1, ks1, colours[1], False),
+                                         (fx["secondary"], -s, p2, ks2, colours[2], fx["noise"])):
+            if on:
+                tt = t + sh * n
+                tt /= np.linalg.norm(tt, axis=-1, keepdims=True)
+                c1, c2 = tt @ ls.T, (tt @ v)[..., None]
+                term = ks * np.maximum(0, _sin(c1) * _sin(c2) - c1 * c2) ** p
+                if noisy:
+                    term = term * (1 - amount * pc.noise)[..., None]
+                light += term[..., None] * col
+        light *= sc.light_colors
+        outer = np.cumsum(al[::-1], 0)[::-1] - al
+        tau = np.exp(-m["k_shadow"] * outer) if fx["shadow"] else np.ones_like(al)
+        rgb = tau[..., None] * np.sum(light * re[0][..., None], axis=-2)
+        keep = 1 - al
+        above = np.concatenate([np.cumprod(keep[::-1], 0)[::-1][1:], np.ones_like(keep[:1])])
+        final = np.asarray(sc.config["render"]["background"]) * np.prod(keep, 0)[..., None] + \
+            np.sum(rgb * (al * above)[..., None], 0)
+        out.append(final)
+    return out
+
+
+def _small_db(folder: Path, quick: bool) -> Path:
+    from hairlut.hrir import bake
+
+    out = folder / "db.h5"
+    n = 64 if quick else 256
+    bake({"sectors": {"count": n, "grid": [16, 16]}, "angles": {"views": 16, "lights": 16},
+          "trace": {"pixels": 32, "steps": 32, "self_shadow": False}}, out)
+    return out
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--db", help="hrir_db file (default: bake a small one in a temporary folder)")
+    ap.add_argument("--clusters", type=int, default=17)
+    ap.add_argument("--s-t", type=int, default=64)
+    ap.add_argument("--s-u", type=int, default=16)
+    ap.add_argument("--res", type=int, default=64, help="texels per layer side")
+    ap.add_argument("--strands", type=int, default=400, help="strands per cluster")
+    ap.add_argument("--quick", action="store_true", help="2 clusters, s_t = 16 (a smoke run)")
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.clusters, args.s_t, args.res, args.strands = 2, 16, 32, 100
+    with tempfile.TemporaryDirectory() as tmp:
+        db_path = Path(args.db) if args.db else _small_db(Path(tmp), args.quick)
+        from hairlut.hrir import load_hrir_db
+
+        db = load_hrir_db(db_path)
+        sc = resolve_scene(model(args.clusters, args.s_t, args.s_u, args.res, args.strands))
+        t0 = time.perf_counter()
+        prep = prepare(sc, db)
+        t_prep = time.perf_counter() - t0
+    render(prep)  # warm-up: compiles
+    t_jax, res = best_of(lambda: render(prep), repeat=3)
+    numpy_frame(prep)
+    t_np, ref = best_of(lambda: numpy_frame(prep), repeat=3)
+    err = max(float(np.abs(c.final[..., :3] - r).max()) for c, r in zip(res.clusters, ref))
+    stages = {k: v for k, v in res.stats["seconds"].items() if k not in ("strands", "index")}
+    rows = [{"impl": "hairlut.synth.render (JAX)", "ms": 1e3 * t_jax, **{k: 1e3 * v for k, v in stages.items()}},
+            {"impl": "NumPy", "ms": 1e3 * t_np}]
+    print(f"model: {res.stats['clusters']} clusters, {res.stats['layers']} layers, {res.stats['hsvs']} HSVs, "
+          f"{args.res}x{args.res} texels per layer; DB {len(db.features)} sectors; prepare {t_prep:.1f} s "
+          f"(strands {res.stats['seconds']['strands']:.1f} s, index {res.stats['seconds']['index']:.1f} s)")
+    print(table(rows, [("impl", "frame", "s"), ("ms", "ms", ".1f"), ("maps", "maps ms", ".1f"),
+                       ("lighting", "lighting ms", ".1f"), ("shade_blend", "shadow+blend ms", ".1f")]))
+    print("(stage times are those of the last timed run)")
+    print(f"max |JAX − NumPy| of the composite: {err:.2e}")
+    path = save("online_frame", {"device": str(jax.devices()[0]), "args": vars(args), "stats": res.stats,
+                                 "prepare_s": t_prep, "frame_ms": {"jax": 1e3 * t_jax, "numpy": 1e3 * t_np},
+                                 "max_abs_diff": err})
+    print(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,30 @@
+"""The online module (satf §6): re-, α- and s-maps from the SATF, lighting, shading, blending.
+
+``synthesize(scene, db)`` runs it for a scene (``load_scene`` / ``resolve_scene``) against an
+HRIR database: ``render(prepare(scene, db))``, where ``prepare`` does the view- and
+light-independent work (strands, sectors, features, texel frames) once and ``render`` a
+frame for any view and lights.  ``write_outputs`` writes one EXR and PNG per cluster.
+JAX loads on first use of a name.
+"""
+
+from .._lazy import lazy_exports
+
+_LAZY = {
+    "SCHEMA": "_scene", "Scene": "_scene", "as_scene": "_scene", "find_shared": "_scene",
+    "load_scene": "_scene", "resolve_scene": "_scene",
+    "Maps": "_maps", "SectorFrames": "_maps", "SectorParams": "_maps", "Texels": "_maps", "build_maps": "_maps",
+    "fetch": "_maps", "param_distance": "_maps", "sector_angles": "_maps", "sector_frames": "_maps",
+    "sector_params": "_maps", "sweep_kernel": "_maps", "texel_grid": "_maps", "texels": "_maps",
+    "blend": "_shading", "compose_clusters_kernel": "_shading", "compose_kernel": "_shading", "diffuse": "_shading",
+    "lighting_kernel": "_shading",
+    "shade": "_shading", "shadow_map": "_shading", "specular": "_shading", "value_noise": "_shading",
+    "ClusterResult": "_synth", "KIND": "_synth", "Prepared": "_synth", "PreparedCluster": "_synth",
+    "SynthResult": "_synth", "channels": "_synth", "ortho_preview": "_synth", "prepare": "_synth",
+    "prepare_cluster": "_synth", "render": "_synth", "render_clusters": "_synth", "synthesize": "_synth",
+    "write_outputs": "_synth",
+}
+
+__all__ = sorted(_LAZY)
+
+
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

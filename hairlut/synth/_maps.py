@@ -1,0 +1,297 @@
+"""re-maps and α-maps of every layer from the SATF (satf §6.2, eqs 6–7).
+
+**Parameters** (§6.2.1).  Each boundary sector b of an HSV gets Params(b) =
+(ρ_feature, θv, θl): its density features (the database's feature set, grid and density
+scale) and the view and light directions projected into the cross-section's normal plane,
+as azimuths from the sector's local +x axis (the outward ellipse normal at its parametric
+centre; +y the tangent of increasing phase — the tracer's frame, ``hairlut.hrir._tracer``).
+
+**Uniformity** (eq 6) is tested in a normalised parameter space: features as
+z = (x − mean)/std with the database's statistics, angles as the wrapped difference over
+the database's grid step (2π/V for θv, 2π/L for θl), so one unit is one standard
+deviation of a feature or one cell of the angle grid:
+‖Params(b⊤) − Params(b⊥)‖ = √(Σ Δz² + (Δθv/δv)² + Σ_lights (Δθl/δl)²) < k_threshold.
+
+**Fetches.**  A uniform HSV fetches one HRIR at Params_ave (features averaged, angles by
+their wrapped mid-point); a non-uniform one uses its two boundary sectors' HRIRs (each
+sector is fetched once, however many HSVs share it).  Only what is needed is fetched.
+
+**Patching** (§6.2.2).  Texel (i, j) of layer k's (u, t) texture (u = 2π(j + ½)/n_u,
+t = (i + ½)/n_t; the layer meshes' uv) lies in HSV (⌊t s_t⌋, k, ⌊u s_u/2π⌋) at
+γ = t s_t − ⌊t s_t⌋ along it.  Its point on the layer surface, projected on a sector's
+image line (perpendicular to the in-plane view), gives the pixel it reads in that
+sector's HRIR: x = (p − c)·e / R ∈ [−1, 1], pixel (x + 1) P/2 − ½, sampled linearly.
+Non-uniform: l = (1 − γ)·HRIR⊤[x⊤] + γ·HRIR⊥[x⊥] (eq 7); uniform: HRIR_ave swept along
+the HSV at x̄ = (x⊤ + x⊥)/2.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import errors
+from ..geometry.density import sector_density
+from ..geometry.features import sector_features
+from ..hrir._query import query_kernel
+
+TWO_PI = 2.0 * np.pi
+
+
+def wrap(x):
+    """Angle differences wrapped to [−π, π)."""
+    return np.mod(np.asarray(x) + np.pi, TWO_PI) - np.pi
+
+
+@dataclass(frozen=True, eq=False)
+class SectorFrames:
+    """What does not change with the view or the lights, per sector (N): ``features`` (N, F),
+    the 2-D normal-plane frame ``centre``, ``ex``, ``ey`` (N, 2) in (reference, binormal)
+    coordinates, ``extent`` R (N,), ``half_axes`` (N, 2), ``twist`` (N,), outer radius
+    ``v_outer`` (N,), and the 3-D ``reference`` and ``binormal`` (N, 3) of its cross-section."""
+
+    features: np.ndarray
+    centre: np.ndarray
+    ex: np.ndarray
+    ey: np.ndarray
+    extent: np.ndarray
+    half_axes: np.ndarray
+    twist: np.ndarray
+    v_outer: np.ndarray
+    reference: np.ndarray
+    binormal: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class SectorParams:
+    """Params(b) of every sector: its :class:`SectorFrames` plus ``theta_v`` (N,) and ``theta_l`` (N, Lt)."""
+
+    frames: SectorFrames
+    theta_v: np.ndarray
+    theta_l: np.ndarray
+
+    def __getattr__(self, name):  # the frame's fields read through
+        if name == "frames":
+            raise AttributeError(name)
+        return getattr(self.frames, name)
+
+
+def _ellipse(ab, v, phi):
+    return np.stack([ab[..., 0] * v * np.cos(phi), ab[..., 1] * v * np.sin(phi)], axis=-1)
+
+
+def _unit2(x):
+    return x / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-300)
+
+
+def sector_frames(geometry, table, db) -> SectorFrames:
+    """Features (in the database's feature set, grid and density scale) and frames of every sector."""
+    names = tuple(db.stats.names)
+    if any(n.startswith("pc") for n in names):
+        raise errors.ValidationError("db.features", names, "principal-component features need the bake's PCA basis")
+    rec = db.recipe.get("sectors", {})
+    grid = tuple(rec.get("grid", (32, 32)))
+    splats = table.splats()
+    dens = sector_density(splats, grid, density_scale=float(rec.get("density_scale", 1.0)))
+    feats = sector_features(dens, splats, names)
+    s_t = table.shape[1] - 1
+    sec = geometry.sections(np.linspace(0.0, 1.0, s_t + 1))
+    cl, ti = table.cluster, table.t_index
+    ab, q = table.half_axes, table.twist
+    vm, um = table.v_range.mean(axis=1), table.u_range.mean(axis=1)
+    phi = q + um
+    centre = _ellipse(ab, vm, phi)
+    ex = _unit2(np.stack([ab[:, 1] * np.cos(phi), ab[:, 0] * np.sin(phi)], axis=1))  # outward normal
+    ey = np.stack([-ex[:, 1], ex[:, 0]], axis=1)  # +90°: increasing phase
+    w = np.linspace(0.0, 1.0, 9)
+    v0, v1 = table.v_range[:, :1], table.v_range[:, 1:]
+    u0, u1 = table.u_range[:, :1] + q[:, None], table.u_range[:, 1:] + q[:, None]
+    ua = u0 + (u1 - u0) * w
+    va = v0 + (v1 - v0) * w
+    edges = np.concatenate([_ellipse(ab[:, None], v0, ua), _ellipse(ab[:, None], v1, ua),
+                            _ellipse(ab[:, None], va, u0), _ellipse(ab[:, None], va, u1)], axis=1)
+    extent = np.linalg.norm(edges - centre[:, None], axis=-1).max(axis=1)
+    return SectorFrames(feats, centre, ex, ey, extent, ab, q, table.v_range[:, 1].copy(), sec.normal[cl, ti],
+                        sec.binormal[cl, ti])
+
+
+def sector_angles(fr: SectorFrames, view, lights) -> SectorParams:
+    """θv (N,) and θl (N, Lt): the directions projected into each sector's normal plane, as azimuths from +x."""
+
+    def azimuth(d):
+        d2 = np.stack([fr.reference @ d, fr.binormal @ d], axis=-1)
+        return np.mod(np.arctan2(np.sum(d2 * fr.ey, -1), np.sum(d2 * fr.ex, -1)), TWO_PI)
+
+    tl = np.stack([azimuth(l) for l in np.atleast_2d(np.asarray(lights, np.float64))], axis=1)
+    return SectorParams(fr, azimuth(np.asarray(view, np.float64)), tl)
+
+
+def sector_params(geometry, table, view, lights, db) -> SectorParams:
+    """Params(b) of every sector of ``table`` (a :class:`~hairlut.geometry.SectorTable`)."""
+    return sector_angles(sector_frames(geometry, table, db), view, lights)
+
+
+def param_distance(db, features_a, tv_a, tl_a, features_b, tv_b, tl_b) -> np.ndarray:
+    """Eq 6's ‖Params(a) − Params(b)‖ in the normalised space (module docstring)."""
+    std = np.where(db.stats.std > 0, db.stats.std, 1.0)
+    dz = (np.asarray(features_a) - np.asarray(features_b)) / std
+    dv = wrap(np.asarray(tv_a) - tv_b) / (TWO_PI / len(db.theta_v))
+    dl = wrap(np.asarray(tl_a) - tl_b) / (TWO_PI / len(db.theta_l))
+    return np.sqrt(np.sum(dz**2, -1) + dv**2 + np.sum(dl**2, -1))
+
+
+@dataclass(frozen=True, eq=False)
+class Texels:
+    """Per texel (C, K, n_t, n_u): its HSV ``hsv``, ``gamma`` along it, and the float pixel
+    index it reads in the top, bottom and averaged HRIR (``pix_top``, ``pix_bot``, ``pix_ave``)."""
+
+    hsv: np.ndarray
+    gamma: np.ndarray
+    pix_top: np.ndarray
+    pix_bot: np.ndarray
+    pix_ave: np.ndarray
+    u: np.ndarray
+    t: np.ndarray
+
+
+def texel_grid(resolution) -> tuple[np.ndarray, np.ndarray]:
+    """Texel centres of an (n_u, n_t) layer texture: u = 2π(j + ½)/n_u (n_u,), t = (i + ½)/n_t (n_t,)."""
+    n_u, n_t = resolution
+    return TWO_PI * (np.arange(n_u) + 0.5) / n_u, (np.arange(n_t) + 0.5) / n_t
+
+
+def texels(table, sp: SectorParams, n_layers: int, resolution, n_pixels: int) -> Texels:
+    """Texel → HSV, γ and pixel coordinates (module docstring) for every layer of every cluster."""
+    n_u, n_t = resolution
+    n_c, n_i, n_g, s_u = table.shape
+    s_t = n_i - 1
+    u, t = texel_grid(resolution)
+    row = np.minimum(np.floor(t * s_t).astype(np.int64), s_t - 1)
+    gamma_t = t * s_t - row
+    col = np.minimum(np.floor(u / (TWO_PI / s_u)).astype(np.int64), s_u - 1)
+    c, k, i, j = np.meshgrid(np.arange(n_c), np.arange(n_layers), np.arange(n_t), np.arange(n_u), indexing="ij")
+    hsv = ((c * s_t + row[i]) * n_g + k) * s_u + col[j]
+    uu = u[j]
+
+    def pix(b):
+        p = _ellipse(sp.half_axes[b], sp.v_outer[b], sp.twist[b] + uu)
+        th = sp.theta_v[b][..., None]
+        e = -np.sin(th) * sp.ex[b] + np.cos(th) * sp.ey[b]
+        x = np.sum((p - sp.centre[b]) * e, -1) / sp.extent[b]
+        return (x + 1.0) * n_pixels / 2.0 - 0.5
+
+    top, bot = pix(table.hsv_sectors[hsv, 0]), pix(table.hsv_sectors[hsv, 1])
+    return Texels(hsv, gamma_t[i], top, bot, 0.5 * (top + bot), u, t)
+
+
+def _bucket(n: int) -> int:
+    return max(64, 1 << (max(n, 1) - 1).bit_length())
+
+
+_DEVICE: dict[int, tuple] = {}
+
+
+def _device_db(db):
+    """The database's normalised features and tables as device arrays, converted once per database
+    (``satf_query`` converts them on every call; a default database's reflectance is ~130 MB)."""
+    hit = _DEVICE.get(id(db))
+    if hit is not None and hit[0] is db:
+        return hit[1]
+    std = np.where(db.stats.std > 0, db.stats.std, 1.0)  # as satf_query: a constant feature carries no distance
+    arrays = ((db.features - db.stats.mean) / std, db.alpha, db.reflectance)
+    dev = tuple(jnp.asarray(a, jnp.float32) for a in arrays) + (db.stats.mean, std)
+    if len(_DEVICE) >= 4:
+        _DEVICE.pop(next(iter(_DEVICE)))
+    _DEVICE[id(db)] = (db, dev)
+    return dev
+
+
+def fetch(db, features, theta_v, theta_l, k: int):
+    """SATF at (M,) parameter rows × Lt lights → re (M, Lt, P), α (M, P): ``satf_query``'s kernel
+    and normalisation on cached device arrays, padded to a bucket size so it compiles for few shapes."""
+    m, n_l = len(features), theta_l.shape[1]
+    P = db.alpha.shape[-1]
+    if m == 0:
+        return np.zeros((0, n_l, P), np.float32), np.zeros((0, P), np.float32)
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= len(db.features):
+        raise errors.ValidationError("k", k, f"need 1 ≤ k ≤ {len(db.features)} (database size)")
+    zdb, alpha, refl, mean, std = _device_db(db)
+    pad = _bucket(m) - m
+    idx = np.concatenate([np.arange(m), np.zeros(pad, np.int64)])
+    z = np.repeat((features[idx] - mean) / std, n_l, axis=0)
+    tv = np.repeat(theta_v[idx], n_l)
+    re, a, _, _ = query_kernel(jnp.asarray(z, jnp.float32), jnp.asarray(tv, jnp.float32),
+                               jnp.asarray(theta_l[idx].ravel(), jnp.float32), zdb, alpha, refl, int(k))
+    re = np.asarray(re).reshape(len(idx), n_l, P)
+    return re[:m], np.asarray(a).reshape(len(idx), n_l, P)[:m, 0]
+
+
+@jax.jit
+def sweep_kernel(re1, re2, a1, a2, hsv, gamma, pix1, pix2):
+    """Eq 7 per texel: (1 − γ)·HRIR1[pix1] + γ·HRIR2[pix2] (linear in the pixel, clamped);
+    re (T, Lt) and α (T,) from per-HSV arrays re (H, Lt, P), α (H, P)."""
+    P = a1.shape[-1]
+
+    def sample(arr, pix):  # arr (T, ..., P), pix (T,)
+        f = jnp.clip(pix, 0.0, P - 1.0)
+        i0 = jnp.clip(jnp.floor(f).astype(jnp.int32), 0, P - 2 if P > 1 else 0)
+        w = (f - i0) if P > 1 else jnp.zeros_like(f)
+        i1 = jnp.minimum(i0 + 1, P - 1)
+        shape = (-1,) + (1,) * (arr.ndim - 2)
+        g0 = jnp.take_along_axis(arr, i0.reshape(shape + (1,)), -1)[..., 0]
+        g1 = jnp.take_along_axis(arr, i1.reshape(shape + (1,)), -1)[..., 0]
+        return g0 + w.reshape(shape) * (g1 - g0)
+
+    g = gamma[:, None]
+    re = (1 - g) * sample(re1[hsv], pix1) + g * sample(re2[hsv], pix2)
+    a = (1 - gamma) * sample(a1[hsv], pix1) + gamma * sample(a2[hsv], pix2)
+    return re, jnp.clip(a, 0.0, 1.0)
+
+
+@dataclass(frozen=True, eq=False)
+class Maps:
+    """``re`` (C, K, Lt, n_t, n_u) per light, ``alpha`` (C, K, n_t, n_u), ``uniform`` (H,) per HSV,
+    ``distance`` (H,) of eq 6, and ``fetches``: HRIRs fetched (averaged + sector records)."""
+
+    re: np.ndarray
+    alpha: np.ndarray
+    uniform: np.ndarray
+    distance: np.ndarray
+    fetches: int
+
+
+def build_maps(db, table, sp: SectorParams, tx: Texels, k_threshold: float, k: int = 4) -> Maps:
+    """Eqs 6–7 for every HSV, then patch the re- and α-maps (module docstring)."""
+    top, bot = table.hsv_sectors[:, 0], table.hsv_sectors[:, 1]
+    dist = param_distance(db, sp.features[top], sp.theta_v[top], sp.theta_l[top],
+                          sp.features[bot], sp.theta_v[bot], sp.theta_l[bot])
+    uniform = dist < k_threshold
+    uh = np.flatnonzero(uniform)
+    ave_f = 0.5 * (sp.features[top[uh]] + sp.features[bot[uh]])
+    ave_v = sp.theta_v[top[uh]] + 0.5 * wrap(sp.theta_v[bot[uh]] - sp.theta_v[top[uh]])
+    ave_l = sp.theta_l[top[uh]] + 0.5 * wrap(sp.theta_l[bot[uh]] - sp.theta_l[top[uh]])
+    re_u, a_u = fetch(db, ave_f, ave_v, ave_l, k)
+    need = np.unique(np.concatenate([top[~uniform], bot[~uniform]]))
+    re_s, a_s = fetch(db, sp.features[need], sp.theta_v[need], sp.theta_l[need], k)
+    slot = np.full(len(sp.features), -1)
+    slot[need] = np.arange(need.size)
+    H, Lt, P = len(top), sp.theta_l.shape[1], db.alpha.shape[-1]
+    re1, re2 = np.zeros((H, Lt, P), np.float32), np.zeros((H, Lt, P), np.float32)
+    a1, a2 = np.zeros((H, P), np.float32), np.zeros((H, P), np.float32)
+    nu = np.flatnonzero(~uniform)
+    re1[uh], re2[uh], a1[uh], a2[uh] = re_u, re_u, a_u, a_u
+    re1[nu], a1[nu] = re_s[slot[top[nu]]], a_s[slot[top[nu]]]
+    re2[nu], a2[nu] = re_s[slot[bot[nu]]], a_s[slot[bot[nu]]]
+    hsv = tx.hsv.ravel()
+    uni = uniform[hsv]
+    pix1 = np.where(uni, tx.pix_ave.ravel(), tx.pix_top.ravel())
+    pix2 = np.where(uni, tx.pix_ave.ravel(), tx.pix_bot.ravel())
+    re, a = sweep_kernel(*(jnp.asarray(x) for x in (re1, re2, a1, a2)), jnp.asarray(hsv, jnp.int32),
+                         jnp.asarray(tx.gamma.ravel(), jnp.float32), jnp.asarray(pix1, jnp.float32),
+                         jnp.asarray(pix2, jnp.float32))
+    shape = tx.hsv.shape
+    re = np.moveaxis(np.asarray(re).reshape(shape + (Lt,)), -1, 2)
+    return Maps(re, np.asarray(a).reshape(shape), uniform, dist, int(uh.size + need.size))

@@ -1,0 +1,274 @@
+"""Scene files for the online module (satf §6): clusters, strands, camera, lights, material, effects.
+
+A scene is a TOML mapping validated by :func:`resolve_scene` (every key path checked by
+:mod:`hairlut.recipes`; an unknown, missing or out-of-range key raises
+:class:`~hairlut.errors.ValidationError` naming it, e.g. ``material.kd`` or
+``clusters[1].layer_radii``).  Clusters come either from ``[[clusters]]`` tables (the
+:class:`~hairlut.geometry.ClusterSpec` fields) with procedural strands (``[strands]``), or
+from ``[groom]``: a strand file whose strands are grouped into ``clusters`` fitted
+clusters (:func:`~hairlut.geometry.fit_clusters`).  Directions point *toward* the viewer
+and the lights (DESIGN.md).  A relative groom path is looked up next to the scene file,
+then as ``<ancestor>/shared/<path>`` for each ancestor of the scene folder (or under
+``$HAIRLUT_SHARED``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from .. import errors
+from ..recipes import Field, load_toml, resolve
+
+
+def _pos(x):
+    return None if x > 0 and math.isfinite(x) else "must be finite and > 0"
+
+
+def _nonneg(x):
+    return None if x >= 0 and math.isfinite(x) else "must be finite and ≥ 0"
+
+
+def _unit_interval(x):
+    return None if 0 <= x <= 1 else "must lie in [0, 1]"
+
+
+def _int_at_least(n):
+    return lambda x: None if x >= n else f"must be ≥ {n}"
+
+
+def _vec3(x):
+    if len(x) != 3 or not all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in x):
+        return "need 3 finite numbers"
+    return None if any(c != 0 for c in x) else "a direction cannot be zero"
+
+
+def _colour(x):
+    if len(x) != 3 or not all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in x):
+        return "need 3 numbers (RGB)"
+    return None if all(0 <= c <= 1 for c in x) else "colour components lie in [0, 1]"
+
+
+def _pair(check):
+    def run(x):
+        if len(x) != 2 or not all(isinstance(c, int) and not isinstance(c, bool) for c in x):
+            return "need 2 integers"
+        return check(min(x))
+    return run
+
+
+REQUIRED = ("camera.view", "lights.directions")
+_F, _I, _B, _L, _S = (float, int), (int,), (bool,), (list,), (str,)
+
+SCHEMA = {
+    "render": {
+        "resolution": Field([64, 32], _L, _pair(_int_at_least(2)), "texels per layer: [u columns, t rows]"),
+        "background": Field([0.0, 0.0, 0.0], _L, _colour, "RGB behind the innermost layer (eq 14)"),
+        "neighbours": Field(4, _I, _int_at_least(1), "k of the SATF k-NN lookup"),
+        "preview_size": Field(256, _I, _int_at_least(16), "pixels of the orthographic preview"),
+    },
+    "camera": {"view": Field(None, _L, _vec3, "direction toward the viewer")},
+    "lights": {
+        "directions": Field(None, _L, None, "list of directions toward the lights"),
+        "colors": Field([], _L, None, "RGB intensity per light (default white)"),
+    },
+    "material": {
+        "kd": Field(0.5, _F, _nonneg, "diffuse coefficient (eq 9)"),
+        "ks_I": Field(0.3, _F, _nonneg, "primary specular coefficient (eq 10)"),
+        "ks_II": Field(0.2, _F, _nonneg, "secondary specular coefficient (eq 11)"),
+        "p_I": Field(80.0, _F, _pos, "primary exponent"),
+        "p_II": Field(20.0, _F, _pos, "secondary exponent (Scheuermann: its own exponent)"),
+        "shift": Field(0.1, _F, _nonneg, "tangent shift s along the normal (eqs 10, 11)"),
+        "hair_color": Field([0.45, 0.3, 0.15], _L, _colour, "f_dif"),
+        "spec_color_I": Field([1.0, 1.0, 1.0], _L, _colour, "f_speI (the light's colour)"),
+        "spec_color_II": Field([1.0, 1.0, 1.0], _L, _colour, "f_speII when not tinted by the hair"),
+        "secondary_hair_tint": Field(True, _B, None, "f_speII = hair_color × spec_color_II (eq 11, Scheuermann)"),
+        "diffuse_scale": Field(1.0, _F, _nonneg, "Scheuermann: diffuse = max(0, scale·sin + bias); 1, 0 is eq 9"),
+        "diffuse_bias": Field(0.0, _F, lambda x: None if -1 <= x <= 1 else "must lie in [-1, 1]", "see diffuse_scale"),
+        "noise_amount": Field(0.5, _F, _unit_interval, "secondary modulated by 1 − amount·noise"),
+        "noise_frequency": Field(8.0, _F, _pos, "noise lattice cells per unit of texture space"),
+        "k_shadow": Field(0.5, _F, _nonneg, "eq 12 self-shadow intensity"),
+        "shadow_form": Field("exp", _S, lambda x: None if x in ("exp", "linear") else "'exp' or 'linear'", "eq 12"),
+        "k_threshold": Field(1.0, _F, lambda x: None if x >= 0 else "must be ≥ 0 (inf: always uniform)", "eq 6"),
+    },
+    "effects": {name: Field(True, _B, None, "") for name in ("diffuse", "primary", "secondary", "shadow")}
+    | {"noise": Field(False, _B, None, "")},
+    "strands": {
+        "count": Field(200, _I, _int_at_least(0), "strands per procedural cluster"),
+        "radius": Field(0.004, _F, _pos, "metric strand radius"),
+        "profile": Field("uniform", _S, lambda x: None if x in ("uniform", "gaussian", "clumped") else
+                         "'uniform', 'gaussian' or 'clumped'", ""),
+        "spread": Field(0.35, _F, _pos, ""),
+        "jitter": Field(0.0, _F, _nonneg, ""),
+        "seed": Field(0, _I, _int_at_least(0), ""),
+    },
+}
+
+CLUSTER = {
+    "trajectory": Field(None, _L, None, "(n, 3) control points"),
+    "half_axis_a": Field(None, (float, int, list), None, "A(t): a number or control values"),
+    "half_axis_b": Field(None, (float, int, list), None, "B(t)"),
+    "twist": Field(0.0, (float, int, list), None, "q(t)"),
+    "layer_radii": Field([0.5, 0.75, 1.0], _L, None, "shell radii (fractions)"),
+    "core_radius": Field(0.25, _F, _nonneg, ""),
+    "s_t": Field(8, _I, _int_at_least(1), ""),
+    "s_v": Field(1, _I, lambda x: None if x == 1 else "the online module maps one track per layer: use 1", ""),
+    "s_u": Field(8, _I, _int_at_least(1), ""),
+    "seed": Field(-1, _I, _int_at_least(-1), "strand seed (−1: derived from strands.seed and this table)"),
+}
+
+GROOM = {
+    "path": Field(None, _S, None, "strand file (.tfx, .hair, .usda)"),
+    "clusters": Field(4, _I, _int_at_least(1), "number of fitted clusters"),
+    "radius": Field(0.1, _F, _pos, "metric strand radius when the file has no thickness"),
+    "layer_radii": Field([0.5, 0.75, 1.0], _L, None, ""),
+    "core_radius": Field(0.25, _F, _nonneg, ""),
+    "s_t": Field(8, _I, _int_at_least(1), ""),
+    "s_u": Field(8, _I, _int_at_least(1), ""),
+    "seed": Field(0, _I, _int_at_least(0), ""),
+}
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """A validated scene: ``config`` (the resolved tables), cluster specs and the strand source."""
+
+    config: dict
+    specs: tuple
+    cluster_seeds: tuple
+    groom_path: Path | None
+    view: np.ndarray
+    lights: np.ndarray
+    light_colors: np.ndarray
+    source: str = "<mapping>"
+    raw: dict = field(default_factory=dict)
+
+    @property
+    def material(self) -> dict:
+        return self.config["material"]
+
+    @property
+    def effects(self) -> dict:
+        return self.config["effects"]
+
+
+def _get(mapping, dotted):
+    node = mapping
+    for key in dotted.split("."):
+        if not isinstance(node, Mapping) or key not in node:
+            return None
+        node = node[key]
+    return node
+
+
+def _unit(name, value) -> np.ndarray:
+    if not isinstance(value, list) or (reason := _vec3(value)):
+        raise errors.ValidationError(name, value, "need 3 finite numbers, not all zero" if isinstance(value, list) else
+                                     "expected a list of 3 numbers")
+    v = np.asarray(value, np.float64)
+    return v / np.linalg.norm(v)
+
+
+def find_shared(path: str, base: Path) -> Path:
+    """Resolve a groom path: absolute, next to the scene, $HAIRLUT_SHARED/<path>, <ancestor>/shared/<path>."""
+    p = Path(path)
+    tries = [p] if p.is_absolute() else [base / p]
+    if not p.is_absolute():
+        if os.environ.get("HAIRLUT_SHARED"):
+            tries.append(Path(os.environ["HAIRLUT_SHARED"]) / p)
+        for anc in [base.resolve(), *base.resolve().parents]:
+            tries.append(anc / "shared" / p)
+    for t in tries:
+        if t.is_file():
+            return t
+    raise errors.AssetNotFoundError(path, f"strand file not found (tried {len(tries)} places from {base})")
+
+
+def _cluster(i: int, given, strand_seed: int):
+    from ..geometry import ClusterSpec
+
+    where = f"clusters[{i}]."
+    if not isinstance(given, Mapping):
+        raise errors.ValidationError(f"clusters[{i}]", given, "expected a table of keys")
+    for key in ("trajectory", "half_axis_a", "half_axis_b"):
+        if key not in given:
+            raise errors.ValidationError(where + key, None, "missing required key")
+    c = resolve(CLUSTER, given, where)
+    seed = c.pop("seed")
+    if seed < 0:  # derived from the table's content, so a cluster's strands do not depend on its position
+        text = json.dumps({k: given[k] for k in sorted(given)}, sort_keys=True, default=str)
+        seed = int.from_bytes(hashlib.sha256(f"{strand_seed}:{text}".encode()).digest()[:4], "little")
+    try:
+        spec = ClusterSpec(**c)
+    except errors.ValidationError as exc:
+        raise errors.ValidationError(where + exc.field, exc.value, exc.reason) from None
+    return spec, seed
+
+
+def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -> Scene:
+    """Validate a scene mapping (module docstring); ``base_dir`` anchors relative paths."""
+    if not isinstance(given, Mapping):
+        raise errors.ValidationError("scene", type(given).__name__, "expected a table of keys")
+    given = dict(given)
+    clusters, groom = given.pop("clusters", None), given.pop("groom", None)
+    for key in REQUIRED:
+        if _get(given, key) is None:
+            raise errors.ValidationError(key, None, "missing required key")
+    cfg = resolve(SCHEMA, given)
+    view = _unit("camera.view", cfg["camera"]["view"])
+    dirs = cfg["lights"]["directions"]
+    if not dirs:
+        raise errors.ValidationError("lights.directions", dirs, "give at least one light direction")
+    lights = np.stack([_unit(f"lights.directions[{j}]", d) for j, d in enumerate(dirs)])
+    cols = cfg["lights"]["colors"] or [[1.0, 1.0, 1.0]] * len(lights)
+    if len(cols) != len(lights):
+        raise errors.ValidationError("lights.colors", cols, f"need one RGB per light ({len(lights)})")
+    for j, col in enumerate(cols):
+        if not isinstance(col, list) or len(col) != 3 or not all(isinstance(x, (int, float)) and x >= 0 for x in col):
+            raise errors.ValidationError(f"lights.colors[{j}]", col, "need 3 numbers ≥ 0")
+    base = Path(base_dir) if base_dir is not None else Path.cwd()
+    if (clusters is None) == (groom is None):
+        raise errors.ValidationError("clusters", None, "give exactly one of [[clusters]] or [groom]")
+    if groom is not None:
+        if not isinstance(groom, Mapping):
+            raise errors.ValidationError("groom", groom, "expected a table of keys")
+        if "path" not in groom:
+            raise errors.ValidationError("groom.path", None, "missing required key")
+        g = resolve(GROOM, groom, "groom.")
+        cfg["groom"] = g
+        specs, seeds, gpath = (), (), find_shared(g["path"], base)
+    else:
+        if not isinstance(clusters, list) or not clusters:
+            raise errors.ValidationError("clusters", clusters, "need a non-empty array of cluster tables")
+        made = [_cluster(i, c, cfg["strands"]["seed"]) for i, c in enumerate(clusters)]
+        specs, seeds, gpath = tuple(m[0] for m in made), tuple(m[1] for m in made), None
+        for i, s in enumerate(specs):
+            if s.structure() != specs[0].structure():
+                raise errors.ValidationError(f"clusters[{i}]", s.structure(), "layer count, s_t, s_v and s_u must "
+                                             f"agree across clusters ({specs[0].structure()})")
+    return Scene(cfg, specs, seeds, gpath, view, lights, np.asarray(cols, np.float64), source,
+                 {**given, **({"clusters": clusters} if clusters is not None else {"groom": groom})})
+
+
+def load_scene(path) -> Scene:
+    """Read and validate a scene TOML file (relative paths are taken from its folder)."""
+    p = Path(path)
+    return resolve_scene(load_toml(p), p.parent, source=str(p))
+
+
+def as_scene(scene) -> Scene:
+    """A Scene from a Scene, a mapping or a path."""
+    if isinstance(scene, Scene):
+        return scene
+    if isinstance(scene, Mapping):
+        return resolve_scene(scene)
+    if isinstance(scene, (str, os.PathLike)):
+        return load_scene(scene)
+    raise errors.ValidationError("scene", type(scene).__name__, "give a Scene, a mapping or a TOML path")

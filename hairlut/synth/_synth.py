@@ -1,0 +1,335 @@
+"""``synthesize(scene, db)``: the online phase for every cluster of a scene (satf §6), and its files.
+
+Pipeline.  :func:`prepare` (once per scene): clusters and strands → sectors and HSVs
+(``hairlut.geometry``) → sector features and frames → per-texel frames on each layer
+surface (tangent ∂P/∂t, normal ∂P/∂u × ∂P/∂t, as in ``layer_meshes``).  :func:`render`
+(per frame, any view and lights): Params(b) angles, the uniformity test, SATF fetches and
+re-/α-maps (``_maps``, eqs 6–7) → lighting (eqs 8–11) → s-map, shading and blending
+(eqs 12–14).
+Each cluster's strands, sectors and features are its own (so results do not depend on the
+order of the clusters); a frame then runs all clusters together, one fetch and one call of
+each kernel.  :func:`write_outputs` writes one EXR and one PNG per cluster
+plus an orthographic preview of the whole set.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from types import SimpleNamespace
+
+import jax.numpy as jnp
+import numpy as np
+
+from .. import errors
+from ..assets import atomic_write_bytes, encode_png, tonemap, write_exr
+from ._maps import SectorFrames, build_maps, sector_angles, sector_frames, texel_grid, texels
+from ._scene import Scene, as_scene
+from ._shading import compose_clusters_kernel, lighting_kernel, value_noise
+
+KIND = "synth_maps"
+
+
+@dataclass(frozen=True, eq=False)
+class ClusterResult:
+    """One cluster's maps, per layer k (innermost first) on the (n_t, n_u) texture:
+    ``re`` (K, Lt, n_t, n_u) per light, ``alpha``, ``shadow`` (K, n_t, n_u), ``lighting``
+    (K, n_t, n_u, 3; eq 8 summed over lights), ``rgba`` (K, n_t, n_u, 4; eq 13 and α),
+    ``final`` (n_t, n_u, 4; eq 14), ``position`` (K, n_t, n_u, 3) of the texels."""
+
+    re: np.ndarray
+    alpha: np.ndarray
+    shadow: np.ndarray
+    lighting: np.ndarray
+    rgba: np.ndarray
+    final: np.ndarray
+    position: np.ndarray
+    uniform_fraction: float
+
+
+@dataclass(frozen=True, eq=False)
+class SynthResult:
+    scene: Scene
+    clusters: list
+    stats: dict = field(default_factory=dict)
+
+
+def _load_db(db):
+    if isinstance(db, (str, Path)):
+        from ..hrir import load_hrir_db
+        return load_hrir_db(db)
+    for name in ("features", "stats", "alpha", "reflectance", "theta_v", "theta_l"):
+        if not hasattr(db, name):
+            raise errors.ValidationError("db", type(db).__name__, "give an HRIRDB or the path of an hrir_db file")
+    return db
+
+
+def _clusters(scene: Scene):
+    """[(ClusterSpec, Strands)] for each cluster of the scene."""
+    from ..geometry import ClusterGeometry, Strands, fit_clusters, generate_strands, read_strands
+
+    if scene.groom_path is not None:
+        g = scene.config["groom"]
+        strands = read_strands(scene.groom_path)
+        if strands.thickness is None:
+            strands = Strands(strands.points, strands.counts,
+                              thickness=np.full(strands.n_points, 2.0 * g["radius"], np.float32))
+        batch, labels = fit_clusters(strands, min(g["clusters"], strands.n_strands), layer_radii=g["layer_radii"],
+                                     core_radius=g["core_radius"], s_t=g["s_t"], s_u=g["s_u"], seed=g["seed"])
+        off = strands.offsets
+        out = []
+        for c, spec in enumerate(batch.specs):
+            idx = np.flatnonzero(labels == c)
+            pts = np.concatenate([strands.points[off[i]:off[i + 1]] for i in idx])
+            thick = np.concatenate([strands.thickness[off[i]:off[i + 1]] for i in idx])
+            out.append((spec, Strands(pts, strands.counts[idx], thickness=thick)))
+        return out
+    s = scene.config["strands"]
+    out = []
+    for spec, seed in zip(scene.specs, scene.cluster_seeds):
+        strands, _ = generate_strands(ClusterGeometry(spec), s["count"], radius=s["radius"], profile=s["profile"],
+                                      spread=s["spread"], jitter=s["jitter"], seed=int(seed))
+        out.append((spec, strands))
+    return out
+
+
+def _material(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    m = scene.material
+    mat = np.array([m["kd"], m["ks_I"], m["ks_II"], m["p_I"], m["p_II"], m["shift"], m["diffuse_scale"],
+                    m["diffuse_bias"], m["noise_amount"]], np.float32)
+    hair = np.asarray(m["hair_color"], np.float32)
+    sec = np.asarray(m["spec_color_II"], np.float32) * (hair if m["secondary_hair_tint"] else 1.0)
+    return mat, np.stack([hair, np.asarray(m["spec_color_I"], np.float32), sec])
+
+
+@dataclass(frozen=True, eq=False)
+class PreparedCluster:
+    """What does not change with the view or the lights, for one cluster: its ``spec``, sector
+    ``table`` and ``frames`` (features included), and per texel (K, n_t, n_u) the layer
+    surface's ``tangent``, ``normal`` and ``position`` (…, 3) and the ``noise`` texture."""
+
+    spec: object
+    table: object
+    frames: object
+    tangent: np.ndarray
+    normal: np.ndarray
+    position: np.ndarray
+    noise: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Prepared:
+    """A scene made ready for :func:`render`: its clusters, the database, the seconds it took, and
+    the clusters merged into one multi-cluster ``table`` and ``frames`` (sector ids offset by
+    cluster, as in a multi-cluster :class:`~hairlut.geometry.SectorTable`) with stacked texel
+    arrays, so a frame runs every cluster through one fetch and one call of each kernel."""
+
+    scene: Scene
+    db: object
+    clusters: list
+    seconds: dict
+    table: object = None
+    frames: object = None
+    stacked: dict = field(default_factory=dict)
+
+
+def _unit3(x):
+    return x / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-300)
+
+
+def prepare_cluster(scene: Scene, db, spec, strands) -> PreparedCluster:
+    """Sectors, features and frames (the index of §6.2.1) and the texels' frames on each layer surface."""
+    from ..geometry import ClusterGeometry, build_sectors
+
+    n_u, n_t = scene.config["render"]["resolution"]
+    geom = ClusterGeometry(spec)
+    table = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))
+    frames = sector_frames(geom, table, db)
+    u, t = texel_grid((n_u, n_t))
+    K = spec.n_layers
+    shape = (1, K, n_t, n_u)
+    tt = np.broadcast_to(t[None, None, :, None], shape)
+    uu = np.broadcast_to(u[None, None, None, :], shape)
+    vv = np.broadcast_to(spec.layer_radii[None, :, None, None], shape)
+    p, pt, pu = geom.derivatives_of(np.zeros(shape, np.int64), tt, vv, uu)
+    noise = np.stack([value_noise((n_t, n_u), scene.material["noise_frequency"], 7919 + k) for k in range(K)])
+    return PreparedCluster(spec, table, frames, _unit3(pt[0]), _unit3(np.cross(pu[0], pt[0])), p[0], noise)
+
+
+def prepare(scene, db) -> Prepared:
+    """Everything of a scene that does not depend on the view or the lights (see :func:`render`)."""
+    sc = as_scene(scene)
+    database = _load_db(db)
+    k = sc.config["render"]["neighbours"]
+    if k > len(database.features):
+        raise errors.ValidationError("render.neighbours", k, f"the database holds only {len(database.features)} sectors")
+    t0 = time.perf_counter()
+    pairs = _clusters(sc)
+    t1 = time.perf_counter()
+    clusters = [prepare_cluster(sc, database, spec, strands) for spec, strands in pairs]
+    shapes = {pc.table.shape[1:] for pc in clusters}
+    if len(shapes) != 1:
+        raise errors.ValidationError("clusters", sorted(shapes), "clusters must share s_t, layer count and s_u")
+    n_sec, n_hsv = clusters[0].table.n_sectors, clusters[0].table.n_hsvs
+    table = SimpleNamespace(shape=(len(clusters), *shapes.pop()), n_hsvs=n_hsv * len(clusters),
+                            hsv_sectors=np.concatenate([pc.table.hsv_sectors + c * n_sec for c, pc in enumerate(clusters)]))
+    frames = SectorFrames(*(np.concatenate([getattr(pc.frames, f.name) for pc in clusters])
+                            for f in fields(SectorFrames)))
+    stacked = {name: np.stack([getattr(pc, name) for pc in clusters]) for name in ("tangent", "normal", "noise")}
+    return Prepared(sc, database, clusters, {"strands": t1 - t0, "index": time.perf_counter() - t1}, table, frames,
+                    stacked)
+
+
+def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict | None = None) -> list:
+    """One frame of every prepared cluster: eqs 6–7 (maps), 8–11 (lighting), 12–14 (s-map, shading,
+    blend), each stage one batched call over all clusters."""
+    timing = {} if timing is None else timing
+    scene, db = prepared.scene, prepared.db
+    cfg, fx = scene.config, scene.effects
+    n_u, n_t = cfg["render"]["resolution"]
+    K = prepared.clusters[0].spec.n_layers
+    t0 = time.perf_counter()
+    sp = sector_angles(prepared.frames, view, lights)
+    tx = texels(prepared.table, sp, K, (n_u, n_t), db.alpha.shape[-1])
+    maps = build_maps(db, prepared.table, sp, tx, scene.material["k_threshold"], cfg["render"]["neighbours"])
+    t1 = time.perf_counter()
+    mat, colours = _material(scene)
+    st = prepared.stacked
+    light = lighting_kernel(jnp.asarray(st["tangent"], jnp.float32), jnp.asarray(st["normal"], jnp.float32),
+                            jnp.asarray(view, jnp.float32), jnp.asarray(lights, jnp.float32),
+                            jnp.asarray(light_colors, jnp.float32), jnp.asarray(st["noise"], jnp.float32),
+                            jnp.asarray(mat), jnp.asarray(colours), use_diffuse=fx["diffuse"], primary=fx["primary"],
+                            secondary=fx["secondary"], noise=fx["noise"])
+    light.block_until_ready()
+    t2 = time.perf_counter()
+    tau, rgb, final, a = compose_clusters_kernel(light, jnp.asarray(maps.re), jnp.asarray(maps.alpha),
+                                                 jnp.float32(scene.material["k_shadow"]),
+                                                 jnp.asarray(cfg["render"]["background"], jnp.float32),
+                                                 shadow=fx["shadow"], linear=scene.material["shadow_form"] == "linear")
+    final.block_until_ready()
+    t3 = time.perf_counter()
+    for key, dt in (("maps", t1 - t0), ("lighting", t2 - t1), ("shade_blend", t3 - t2)):
+        timing[key] = timing.get(key, 0.0) + dt
+    tau, rgb, final, a, light = (np.asarray(x) for x in (tau, rgb, final, a, light))
+    uniform = maps.uniform.reshape(len(prepared.clusters), -1)
+    return [ClusterResult(maps.re[c], maps.alpha[c], tau[c], light[c].sum(axis=-2),
+                          np.concatenate([rgb[c], maps.alpha[c][..., None]], axis=-1),
+                          np.concatenate([final[c], a[c][..., None]], axis=-1), pc.position,
+                          float(uniform[c].mean()) if uniform.size else 1.0)
+            for c, pc in enumerate(prepared.clusters)]
+
+
+def _direction(name, d) -> np.ndarray:
+    v = np.asarray(d, np.float64)
+    n = np.linalg.norm(v, axis=-1, keepdims=True) if v.size else np.zeros(1)
+    if v.shape[-1:] != (3,) or not np.all(np.isfinite(v)) or np.any(n == 0):
+        raise errors.ValidationError(name, d, "need finite, non-zero 3-vectors")
+    return v / n
+
+
+def render(prepared: Prepared, *, view=None, lights=None, light_colors=None) -> SynthResult:
+    """One frame of a prepared scene, for its own or the given view and lights (directions toward
+    the viewer / lights; ``light_colors`` (L, 3), white by default when ``lights`` is given)."""
+    sc = prepared.scene
+    v = sc.view if view is None else _direction("view", view)
+    ls = sc.lights if lights is None else np.atleast_2d(_direction("lights", lights))
+    if light_colors is not None:
+        cols = np.asarray(light_colors, np.float64).reshape(-1, 3)
+    else:
+        cols = sc.light_colors if lights is None else np.ones((len(ls), 3))
+    if len(cols) != len(ls):
+        raise errors.ValidationError("light_colors", light_colors, f"need one RGB per light ({len(ls)})")
+    timing = dict(prepared.seconds)
+    results = render_clusters(prepared, v, ls, cols, timing)
+    stats = {"clusters": len(results), "layers": int(sum(r.alpha.shape[0] for r in results)),
+             "hsvs": int(sum(pc.table.n_hsvs for pc in prepared.clusters)),
+             "texels_per_layer": list(results[0].alpha.shape[1:]) if results else [],
+             "uniform_fraction": [r.uniform_fraction for r in results], "seconds": timing}
+    return SynthResult(sc, results, stats)
+
+
+def synthesize(scene, db) -> SynthResult:
+    """Synthesise re-, α-, s-maps, lighting, shaded layers and composites for every cluster:
+    :func:`render` of :func:`prepare`.  ``scene``: a :class:`Scene`, a scene mapping or a TOML
+    path; ``db``: an ``HRIRDB`` or the path of an ``hrir_db`` file."""
+    return render(prepare(scene, db))
+
+
+def _plain(x):
+    if isinstance(x, float) and not math.isfinite(x):
+        return str(x)
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    return x
+
+
+def channels(res: ClusterResult) -> dict[str, np.ndarray]:
+    """EXR channels of one cluster: ``layerK.re`` (light 0; ``layerK.re_l<j>`` for further lights),
+    ``layerK.A``, ``layerK.s``, ``layerK.R/G/B`` (eq 13), and the composite ``R, G, B, A`` (eq 14)."""
+    out = {}
+    for k in range(res.alpha.shape[0]):
+        out[f"layer{k}.re"] = res.re[k, 0]
+        for j in range(1, res.re.shape[1]):
+            out[f"layer{k}.re_l{j}"] = res.re[k, j]
+        out[f"layer{k}.A"] = res.alpha[k]
+        out[f"layer{k}.s"] = res.shadow[k]
+        for c, name in enumerate("RGB"):
+            out[f"layer{k}.{name}"] = res.rgba[k, ..., c]
+    for c, name in enumerate("RGBA"):
+        out[name] = res.final[..., c]
+    return {k: np.asarray(v, np.float32) for k, v in out.items()}
+
+
+def _upsample(a: np.ndarray, f: int) -> np.ndarray:
+    """(n_t, n_u, C) → (f·(n_t − 1) + 1, f·n_u, C) by linear interpolation (periodic in u)."""
+    a = np.concatenate([a, a[:, :1]], axis=1)
+    w = (np.arange(f) / f)[:, None, None]
+    rows = (a[:-1, None] * (1 - w) + a[1:, None] * w).reshape(-1, *a.shape[1:])
+    rows = np.concatenate([rows, a[-1:]])
+    w = (np.arange(f) / f)[None, None, :, None]
+    return (rows[:, :-1, None] * (1 - w) + rows[:, 1:, None] * w).reshape(rows.shape[0], -1, a.shape[2])
+
+
+def ortho_preview(result: SynthResult, size: int) -> np.ndarray:
+    """(size, size, 3) linear RGB: each cluster's composite drawn at its outer-layer texels,
+    projected orthographically along the view, nearest texel in front."""
+    view = result.scene.view
+    up = np.array([0.0, 1.0, 0.0]) if abs(view[1]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    e1 = np.cross(up, view)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(view, e1)
+    pos = np.concatenate([_upsample(r.position[-1], 3).reshape(-1, 3) for r in result.clusters])
+    col = np.concatenate([_upsample(r.final[..., :3], 3).reshape(-1, 3) for r in result.clusters])
+    x, y, depth = pos @ e1, pos @ e2, pos @ view
+    span = max(np.ptp(x), np.ptp(y), 1e-12) * 1.05
+    cx, cy = 0.5 * (x.max() + x.min()), 0.5 * (y.max() + y.min())
+    px = np.clip(((x - cx) / span + 0.5) * size, 0, size - 1).astype(int)
+    py = np.clip((0.5 - (y - cy) / span) * size, 0, size - 1).astype(int)
+    img = np.zeros((size, size, 3))
+    order = np.argsort(depth)  # far first: nearer texels overwrite
+    for dy in (0, 1):
+        for dx in (0, 1):
+            img[np.minimum(py[order] + dy, size - 1), np.minimum(px[order] + dx, size - 1)] = col[order]
+    return img
+
+
+def write_outputs(result: SynthResult, out_dir) -> dict:
+    """One EXR (``cluster<i>.exr``, channels of :func:`channels`) and PNG per cluster, and
+    ``preview.png``; returns {"exr": [...], "png": [...], "preview": path}."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    recipe = _plain({"scene": result.scene.config, "source": result.scene.source})
+    exrs, pngs = [], []
+    for i, res in enumerate(result.clusters):
+        exrs.append(str(write_exr(out / f"cluster{i:03d}.exr", channels(res), recipe=recipe, kind=KIND)))
+        png = out / f"cluster{i:03d}.png"
+        atomic_write_bytes(png, encode_png(tonemap(res.final[..., :3])))
+        pngs.append(str(png))
+    prev = out / "preview.png"
+    size = result.scene.config["render"]["preview_size"]
+    atomic_write_bytes(prev, encode_png(tonemap(ortho_preview(result, size))))
+    return {"exr": exrs, "png": pngs, "preview": str(prev)}
