@@ -47,7 +47,9 @@ def demo_cmd(out_dir, shared, as_json):
     click.echo("light band-limiting error (relative L2): "
                + ", ".join(f"{c} {e:.3f}" for c, e in sh["light_band_error"].items()))
     hair = report["hair"]
-    click.echo(f"hair: {hair['source']}, {hair['vertices']:,} vertices shaded, radiance {hair['radiance_min']:.3g} … {hair['radiance_max']:.3g}")
+    click.echo(f"hair: {hair['source']}, {hair['vertices']:,} vertices shaded, radiance {hair['radiance_min']:.3g} … "
+               f"{hair['radiance_max']:.3g}, mean self-shadow visibility {hair['mean_visibility']:.2f}, "
+               f"{100 * hair['clamped_fraction']:.1f} % of vertices clamped at 0 (SH ringing)")
     click.echo(f"HRIR-DB: {report['hrir']['sectors']} sectors; SATF query at a stored record reproduces it to "
                f"{report['hrir']['query_self_check_max_error']:.1e}")
     click.echo("times: " + ", ".join(f"{k} {v:.2f} s" for k, v in report["seconds"].items()))

@@ -5,8 +5,8 @@
 3. The exact SH convolution tables at the paper's settings, with that light
    folded in (Cd/Cs), and their shader textures.
 4. Hair shaded with those tables: the shared Sintel groom when it is present
-   (else a procedural tuft), unshadowed (b = transmittance 1), drawn as an
-   orthographic point splat so a person can look at it.
+   (else a procedural tuft), self-shadowed by its voxel SH transmittance
+   (xing §5), drawn as an orthographic point splat so a person can look at it.
 5. A small HRIR database (planar ray tracing of random sectors), one SATF query
    per held-in sector as a self-check, and a view × pixel slice as EXR and PNG.
 """
@@ -75,21 +75,32 @@ def _hair(shared: Path | None):
         pts = s.as_padded().astype(np.float64)
         return pts[..., [0, 2, 1]] * np.array([1.0, -1.0, 1.0]), f"{path.name} ({s.n_strands} strands, y-up turned z-up)"
     rng = np.random.default_rng(0)
-    roots = rng.normal(size=(400, 2)) * 2.0
+    roots = rng.normal(size=(200, 2)) * 4.0
     u = np.linspace(0, 1, 32)[:, None]
     pts = [np.column_stack([x + 3 * np.sin(2 * u[:, 0] + y) * u[:, 0], y + 0.5 * u[:, 0], 20 * u[:, 0]]) for x, y in roots]
-    return np.stack(pts), "procedural tuft (400 strands)"
+    return np.stack(pts), "procedural tuft (200 strands)"
 
 
-def shade_hair(contracted, strands: np.ndarray, view=np.array([0.0, 1.0, 0.0]), size: int = 320, substeps: int = 6):
-    """Shade every vertex with I = Σ_j b_j (Kd Cd + Ks Cs) (b: no occlusion) and splat an orthographic image."""
+def hair_transmittance(strands: np.ndarray, kappa: float = 0.5, resolution: int = 32) -> np.ndarray:
+    """Per-vertex SH transmittance b_j (n, 9) of the hair itself (xing §5)."""
+    from .geometry import Strands
+    from .shadows import transmittance, voxelize
+
+    tr = transmittance(voxelize(Strands.from_padded(strands), resolution), kappa=kappa, stride=2)
+    return tr.at(strands.reshape(-1, 3))
+
+
+def shade_hair(contracted, strands: np.ndarray, b: np.ndarray, view=np.array([0.0, 1.0, 0.0]), size: int = 320,
+               substeps: int = 6):
+    """Shade every vertex with I = Σ_j b_j (Kd Cd + Ks Cs) and splat an orthographic image."""
     tangents = np.gradient(strands, axis=1)
     tangents /= np.maximum(np.linalg.norm(tangents, axis=-1, keepdims=True), 1e-12)
     t = tangents.reshape(-1, 3)
     theta_v = np.arccos(np.clip(t @ (-view), -1, 1))
-    b = np.zeros((len(t), 9))
-    b[:, 0] = np.sqrt(4 * np.pi)  # T(ω) = 1 everywhere
-    rgb = np.asarray(contracted.radiance(b, t, theta_v, kd=0.25, ks=0.6)) * np.array([0.55, 0.38, 0.24])
+    raw = np.asarray(contracted.radiance(b, t, theta_v, kd=0.25, ks=0.6)) * np.array([0.55, 0.38, 0.24])
+    # 9 SH coefficients cannot hold a sharp occlusion: their ringing can make I < 0; clamp, and count it
+    negative = float(np.mean(np.any(raw < 0, axis=-1)))
+    rgb = np.maximum(raw, 0.0)
     # draw each segment as `substeps` interpolated points (position and colour)
     f = (np.arange(substeps) / substeps)[None, None, :, None]
     seg = lambda a: (a[:, :-1, None] * (1 - f) + a[:, 1:, None] * f).reshape(-1, a.shape[-1])  # noqa: E731
@@ -105,7 +116,7 @@ def shade_hair(contracted, strands: np.ndarray, view=np.array([0.0, 1.0, 0.0]), 
     image = np.zeros((size, size, 3))
     order = np.argsort(depth)[::-1]  # far to near: nearer points overwrite
     image[py[order], px[order]] = rgb_pts[order]
-    return image, rgb
+    return image, rgb, negative
 
 
 def run(out_dir: str | os.PathLike, shared: str | os.PathLike | None = None) -> dict:
@@ -134,7 +145,8 @@ def run(out_dir: str | os.PathLike, shared: str | os.PathLike | None = None) -> 
 
     start = time.perf_counter()
     strands, source = _hair(Path(shared) if shared else None)
-    image, rgb = shade_hair(lp["contracted"], strands)
+    b = hair_transmittance(strands)  # self-shadowing; b_0 = √(4π) would be no occlusion
+    image, rgb, negative = shade_hair(lp["contracted"], strands, b)
     hair_png = atomic_write_bytes(out / "hair.png", encode_png(tonemap(image, exposure=-1.0)))
     previews.append(hair_png)
     timings["shade"] = time.perf_counter() - start
@@ -156,7 +168,8 @@ def run(out_dir: str | os.PathLike, shared: str | os.PathLike | None = None) -> 
         "previews": [str(p) for p in previews],
         "seconds": timings,
         "hair": {"source": source, "vertices": int(rgb.shape[0]), "radiance_min": float(rgb.min()),
-                 "radiance_max": float(rgb.max())},
+                 "radiance_max": float(rgb.max()),
+                 "mean_visibility": float(np.mean(b[:, 0]) / np.sqrt(4 * np.pi)), "clamped_fraction": negative},
         "sh": {"chebyshev_nodes": res["info"]["chebyshev_nodes"], "chebyshev_tail": res["info"]["chebyshev_tail"],
                "specular_truncation_error": res["info"]["truncation_error"],
                "light_band_error": dict(zip(light.channels, light.band_error.tolist()))},

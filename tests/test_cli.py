@@ -161,7 +161,8 @@ def test_demo_writes_and_inspects(tmp_path):
     spec = next(d for d in doc["assets"][0]["datasets"] if d["name"] == "specular")
     assert spec["max"] == pytest.approx(1.0) and spec["min"] == 0.0 and spec["nan"] == 0
     assert decode_png((tmp_path / "d" / "kk_lobes_p49.png").read_bytes()).shape == (181, 181)
-    assert doc["hair"]["source"].startswith("procedural") and doc["hair"]["radiance_min"] > 0
+    assert doc["hair"]["source"].startswith("procedural") and doc["hair"]["radiance_min"] >= 0
+    assert 0 < doc["hair"]["mean_visibility"] < 1 and doc["hair"]["clamped_fraction"] < 0.25
     hair = decode_png((tmp_path / "d" / "hair.png").read_bytes())
     assert hair.shape == (320, 320, 3) and (hair.sum(-1) > 0).mean() > 0.02
     assert doc["sh"]["chebyshev_tail"] < 1e-13
