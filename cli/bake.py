@@ -16,9 +16,54 @@ from hairlut.shtables import bake_sh, full_recipe, resolve_recipe, write_sh_tabl
 from .format import num
 
 
-@click.group("bake")
-def bake_group():
-    """Bake lookup tables from a TOML recipe."""
+@click.group("bake", invoke_without_command=True)
+@click.option("--scene", type=click.Path(dir_okay=False),
+              help="Bake exactly what this scene needs (see `hairlut plan`), into the table cache.")
+@click.option("--cache", "cache_root", type=click.Path(file_okay=False),
+              help="Table cache folder (default: $HAIRLUT_CACHE, else tables/).")
+@click.option("--no-progress", is_flag=True, help="No progress bars on stderr.")
+@click.option("--json", "as_json", is_flag=True, help="With --scene: print the plan and the bake report as JSON.")
+@click.pass_context
+def bake_group(ctx, scene, cache_root, no_progress, as_json):
+    """Bake lookup tables: for a scene (--scene), or from a recipe (sh, hrir).
+
+    \b
+    Examples:
+      hairlut bake --scene tables/scenes/two-clusters.toml
+      hairlut bake sh --recipe tables/sh-default.toml --out tables/sh.h5
+      hairlut bake hrir --recipe tables/hrir-default.toml --out tables/hrir-default.h5
+    """
+    if ctx.invoked_subcommand is not None:
+        if scene or as_json:
+            raise click.UsageError("--scene and --json go without a sub-command")
+        return
+    if scene is None:
+        click.echo(ctx.get_help())
+        return
+    from hairlut.plan import bake, plan
+
+    from .hrir import Progress
+    from .plan import echo_plan
+
+    p = plan(scene, cache_root)
+    if not as_json:
+        echo_plan(p)
+    bars = {}
+
+    def progress(name, done, total):
+        bars.setdefault(name, Progress(not no_progress, label=name))(done, total)
+
+    start = time.perf_counter()
+    done = bake(p, progress)
+    for bar in bars.values():
+        bar.close()
+    if as_json:
+        click.echo(json.dumps({"plan": p.to_json(), "assets": done, "seconds": time.perf_counter() - start},
+                              indent=2, default=str))
+        return
+    for name, d in done.items():
+        click.echo(f"{d['status']} {name}: {d['path']} ({d['seconds']:.1f} s)")
+    click.echo(f"scene tables ready in {time.perf_counter() - start:.1f} s")
 
 
 @bake_group.command("sh")

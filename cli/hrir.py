@@ -21,8 +21,8 @@ def _clock(seconds: float) -> str:
 class Progress:
     """A one-line progress bar on stderr: sectors done/total, rate, ETA (rate counts only sectors baked now)."""
 
-    def __init__(self, enabled: bool, width: int = 28):
-        self.enabled, self.width = enabled, width
+    def __init__(self, enabled: bool, width: int = 28, label: str = "hrir"):
+        self.enabled, self.width, self.label = enabled, width, label
         self.tty = sys.stderr.isatty()
         self.start = time.perf_counter()
         self.first = None  # sectors already done (resumed) when baking began
@@ -38,7 +38,7 @@ class Progress:
         eta = (total - done) / rate if rate else None
         fill = int(self.width * done / max(total, 1))
         bar = "#" * fill + "-" * (self.width - fill)
-        line = (f"hrir [{bar}] {done}/{total} sectors  "
+        line = (f"{self.label} [{bar}] {done}/{total} sectors  "
                 f"{'%.1f sectors/s' % rate if rate else '-- sectors/s'}  "
                 f"ETA {_clock(eta) if eta is not None else '--:--'}  elapsed {_clock(now - self.start)}")
         click.echo(("\r" + line) if self.tty else line, err=True, nl=not self.tty)

@@ -57,7 +57,7 @@ def cli(verbose: int, quiet: bool) -> None:
 
 
 def _register() -> None:
-    from . import bake, cache, demo, hrir, inspect, sh, strands, synth
+    from . import bake, cache, demo, hrir, inspect, plan, sh, strands, synth
 
     bake.bake_group.add_command(hrir.hrir_cmd)
     cli.add_command(bake.bake_group)
@@ -69,6 +69,7 @@ def _register() -> None:
     cli.add_command(sh.sh_group)
     cli.add_command(strands.strands_group)
     cli.add_command(synth.synth_cmd)
+    cli.add_command(plan.plan_cmd)
 
 
 _register()

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import json
 import os
 import time
 from collections.abc import Callable
@@ -43,7 +44,8 @@ class Entry:
     bytes: int
 
 
-def _valid(path: Path, kind: str, digest: str) -> bool:
+def is_valid(path: Path, kind: str, digest: str) -> bool:
+    """Whether ``path`` is a valid ``kind`` asset with recipe hash ``digest``."""
     try:
         with open_table(path, kind) as f:
             stored = f.attrs["recipe_hash"]
@@ -71,15 +73,22 @@ def ensure(kind: str, recipe: dict, bake: Callable[[Path], object], root=None) -
     """
     path = asset_path(kind, recipe, root)
     digest = recipe_hash(recipe)
-    if _valid(path, kind, digest):
+    if is_valid(path, kind, digest):
         return path, "reused"
     with _locked(path):
-        if _valid(path, kind, digest):  # another process baked it while we waited
+        if is_valid(path, kind, digest):  # another process baked it while we waited
             return path, "reused"
         bake(path)
-        if not _valid(path, kind, digest):
+        if not is_valid(path, kind, digest):
             raise errors.CorruptAssetError(path, f"the bake did not produce a valid {kind} with recipe hash {digest[:16]}")
         return path, "baked"
+
+
+def recipe_of(path) -> dict:
+    """The recipe stored in a cached asset."""
+    with open_table(path) as f:
+        r = f.attrs["recipe"]
+        return json.loads(r.decode() if isinstance(r, bytes) else r)
 
 
 def entries(root=None) -> list[Entry]:

@@ -21,13 +21,12 @@ import numpy as np
 
 from .assets import Axis, Variable, encode_png, preview, summarize, tonemap, write_exr, write_table
 from .assets.atomic import atomic_write_bytes
-from .envlight import latlong_samples, load_env_light, write_light
+from .envlight import SKY, load_env_light, sky_radiance, write_light
 from .kernels import sample_lobes
 from .shtables import bake_sh, write_sh_tables, write_textures
 
 DEFAULT_RECIPE = {"n_theta": 181, "n_theta_v": 181, "exponents": [8.0, 49.0, 200.0], "storage": "float32"}
 SH_RECIPE = {"kernel": {"p": 49.0}, "bands": {"light_specular": 8}, "dense": {"t_resolution": 16, "theta_v_steps": 9}}
-SUN = np.array([0.5, 0.3, 0.81])
 HRIR_RECIPE = {"sectors": {"count": 64}, "angles": {"views": 16, "lights": 16}, "trace": {"pixels": 32, "steps": 48}}
 
 
@@ -55,13 +54,8 @@ def bake_lobes(out_dir: str | os.PathLike, recipe: dict | None = None) -> tuple[
 
 
 def sky(height: int = 128) -> dict[str, np.ndarray]:
-    """A procedural z-up sky: a blue gradient, a warm ground bounce and a small bright sun."""
-    d, _ = latlong_samples(height, 2 * height)
-    up = d[..., 2]
-    sun = 40.0 * np.exp(60.0 * (d @ (SUN / np.linalg.norm(SUN)) - 1.0))
-    top = np.clip(up, 0, 1)[..., None] * np.array([0.25, 0.45, 0.9])
-    ground = np.clip(-up, 0, 1)[..., None] * np.array([0.3, 0.22, 0.15])
-    rgb = 0.15 + top + ground + sun[..., None] * np.array([1.0, 0.9, 0.75])
+    """The built-in procedural sky (:func:`hairlut.envlight.sky_radiance`) as EXR channels."""
+    rgb = sky_radiance(height)
     return {c: rgb[..., k].astype(np.float32) for k, c in enumerate("RGB")}
 
 
@@ -129,7 +123,7 @@ def run(out_dir: str | os.PathLike, shared: str | os.PathLike | None = None) -> 
     timings["kk_lobes"] = time.perf_counter() - start
 
     start = time.perf_counter()
-    env = write_exr(out / "sky.exr", sky(), recipe={"procedural": "sky", "sun": SUN.tolist()}, kind="envmap")
+    env = write_exr(out / "sky.exr", sky(), recipe=SKY, kind="envmap")
     light = load_env_light(env, lmax=SH_RECIPE["bands"]["light_specular"] - 1)
     light_h5 = write_light(out / "sky_light.h5", light, {"source_sha256": light.source_sha256, "lmax": light.lmax})
     previews.append(preview(env, out / "sky.png", exposure=-1))

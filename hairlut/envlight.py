@@ -220,6 +220,30 @@ def project_env(samples: EnvSamples, lmax: int) -> EnvLight:
     return EnvLight(coeffs, samples.channels, lmax, err, samples.layout)
 
 
+#: The built-in procedural sky (``map = "sky"`` in a scene): its recipe is its identity.
+SKY = {"procedural": "sky", "sun": [0.5, 0.3, 0.81], "height": 128}
+
+
+def sky_radiance(height: int = SKY["height"]) -> np.ndarray:
+    """A z-up lat-long sky (H, 2H, 3): a blue gradient, a warm ground bounce and a small bright sun."""
+    d, _ = latlong_samples(height, 2 * height)
+    up = d[..., 2]
+    sun_dir = np.asarray(SKY["sun"]) / np.linalg.norm(SKY["sun"])
+    sun = 40.0 * np.exp(60.0 * (d @ sun_dir - 1.0))
+    top = np.clip(up, 0, 1)[..., None] * np.array([0.25, 0.45, 0.9])
+    ground = np.clip(-up, 0, 1)[..., None] * np.array([0.3, 0.22, 0.15])
+    return 0.15 + top + ground + sun[..., None] * np.array([1.0, 0.9, 0.75])
+
+
+def sky_light(lmax: int) -> EnvLight:
+    """The built-in sky projected to SH up to band ``lmax`` (its source hash is that of :data:`SKY`)."""
+    dirs, omega = latlong_samples(SKY["height"], 2 * SKY["height"])
+    light = project_env(EnvSamples(dirs.reshape(-1, 3), omega.reshape(-1), sky_radiance().reshape(-1, 3),
+                                   ("R", "G", "B"), "latlong"), lmax)
+    digest = hashlib.sha256(repr(sorted(SKY.items())).encode()).hexdigest()
+    return EnvLight(light.coeffs, light.channels, light.lmax, light.band_error, light.layout, digest)
+
+
 def load_env_light(path: str | os.PathLike, lmax: int, layout: str = "auto", up: str = "z") -> EnvLight:
     """Read an EXR environment map and project it to SH up to band ``lmax``."""
     light = project_env(read_envmap(path, layout, up), lmax)

@@ -144,20 +144,27 @@ def bake_compact(recipe: dict) -> tuple[SHTables, dict]:
     return tables, info
 
 
-def truncation_error(tables: SHTables, theta_v) -> float:
-    """Relative L2 energy of the specular lobe above the light band limit, max over θ′.
+def band_truncation_error(p: float, light_specular: int, theta_v=None) -> float:
+    """Relative L2 energy of the specular lobe of exponent p above ``light_specular`` light
+    bands, max over θ′ (default: 65 angles over [0, π]).
 
     For a zonal f, ‖f‖² = Σ_l k_l² (2l+1)/4π (Funk–Hecke and the addition
     theorem), and the total ‖f‖² = 2π ∫ f² sin θ dθ is the l = 0 coefficient of
     the same kernel with exponent 2p; the light keeps the bands l < light_specular.
     """
-    p, lk = tables.p, tables.bands.light_specular - 1
+    lk = light_specular - 1
+    theta_v = np.linspace(0.0, np.pi, 65) if theta_v is None else theta_v
     theta_v = jnp.asarray(np.atleast_1d(np.asarray(theta_v, np.float64)))
     with jax.enable_x64(True):
         k = np.asarray(specular_coeffs(lk, specular_nodes(lk, p), p, theta_v))
         total = np.asarray(specular_coeffs(0, specular_nodes(0, 2 * p), 2 * p, theta_v))[..., 0]
     kept = (k**2 * (2 * np.arange(lk + 1) + 1) / (4 * np.pi)).sum(-1)
     return float(np.sqrt(np.clip(1 - kept / total, 0, None)).max())
+
+
+def truncation_error(tables: SHTables, theta_v) -> float:
+    """:func:`band_truncation_error` of a table's exponent and light bands."""
+    return band_truncation_error(tables.p, tables.bands.light_specular, theta_v)
 
 
 def full_recipe(recipe: dict | None, light=None) -> dict:

@@ -100,6 +100,22 @@ SCHEMA = {
     },
     "effects": {name: Field(True, _B, None, "") for name in ("diffuse", "primary", "secondary", "shadow")}
     | {"noise": Field(False, _B, None, "")},
+    "environment": {
+        "map": Field("", _S, None, "environment light: an EXR map (lat-long or cube), 'sky' (built in) or '' (none)"),
+        "layout": Field("auto", _S, lambda x: None if x in ("auto", "latlong", "cube") else "'auto', 'latlong' or 'cube'",
+                        "layout of an EXR map"),
+        "up": Field("z", _S, lambda x: None if x in ("z", "y") else "'z' or 'y'", "up axis of the map"),
+        "intensity": Field(1.0, _F, _nonneg, "scale of the environment radiance"),
+        "bands": Field("auto", (int, str), lambda x: None if x == "auto" or (isinstance(x, int) and 1 <= x <= 65)
+                       else "'auto' or an integer in [1, 65]", "light bands for Rs; auto: ceil(√p_I) + 1 (xing §4)"),
+        "self_shadow": Field(False, _B, None, "shadow the environment with the strands' voxel SH transmittance (xing §5)"),
+        "kappa": Field(0.5, _F, _pos, "extinction per unit of voxel strand density"),
+        "voxels": Field(32, _I, lambda x: None if 8 <= x <= 256 else "must lie in [8, 256]", "voxel grid side"),
+    },
+    "tables": {
+        "hrir": Field({}, (dict,), None, "hrir_db recipe keys over the defaults (as hairlut bake hrir --set)"),
+        "restrict": Field(True, _B, None, "restrict the database's sector space to the scene's own sectors"),
+    },
     "strands": {
         "count": Field(200, _I, _int_at_least(0), "strands per procedural cluster"),
         "radius": Field(0.004, _F, _pos, "metric strand radius"),
@@ -156,7 +172,19 @@ class Scene:
 
     @property
     def effects(self) -> dict:
-        return self.config["effects"]
+        """The switches the online module obeys: each effect as configured, and off when its
+        coefficient is zero (no work is done for a term that contributes nothing)."""
+        fx, m = self.config["effects"], self.material
+        out = {"diffuse": fx["diffuse"] and m["kd"] > 0, "primary": fx["primary"] and m["ks_I"] > 0,
+               "secondary": fx["secondary"] and m["ks_II"] > 0, "shadow": fx["shadow"] and m["k_shadow"] > 0}
+        out["noise"] = fx["noise"] and out["secondary"] and m["noise_amount"] > 0
+        return out
+
+    @property
+    def environment(self) -> dict | None:
+        """The ``[environment]`` table, or None when the scene has no environment light."""
+        env = self.config["environment"]
+        return env if env["map"] else None
 
 
 def _get(mapping, dotted):
@@ -177,7 +205,7 @@ def _unit(name, value) -> np.ndarray:
 
 
 def find_shared(path: str, base: Path) -> Path:
-    """Resolve a groom path: absolute, next to the scene, $HAIRLUT_SHARED/<path>, <ancestor>/shared/<path>."""
+    """Resolve a groom or environment-map path: absolute, next to the scene, $HAIRLUT_SHARED/<path>, <ancestor>/shared/<path>."""
     p = Path(path)
     tries = [p] if p.is_absolute() else [base / p]
     if not p.is_absolute():
@@ -188,7 +216,7 @@ def find_shared(path: str, base: Path) -> Path:
     for t in tries:
         if t.is_file():
             return t
-    raise errors.AssetNotFoundError(path, f"strand file not found (tried {len(tries)} places from {base})")
+    raise errors.AssetNotFoundError(path, f"file not found (tried {len(tries)} places from {base})")
 
 
 def _cluster(i: int, given, strand_seed: int):
@@ -234,6 +262,9 @@ def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -
         if not isinstance(col, list) or len(col) != 3 or not all(isinstance(x, (int, float)) and x >= 0 for x in col):
             raise errors.ValidationError(f"lights.colors[{j}]", col, "need 3 numbers ≥ 0")
     base = Path(base_dir) if base_dir is not None else Path.cwd()
+    env = cfg["environment"]
+    if env["map"] not in ("", "sky"):
+        env["map"] = str(find_shared(env["map"], base))
     if (clusters is None) == (groom is None):
         raise errors.ValidationError("clusters", None, "give exactly one of [[clusters]] or [groom]")
     if groom is not None:

@@ -1,0 +1,404 @@
+"""The scene planner: the assets a scene needs, what the cache already holds, and the work it skips.
+
+:func:`plan` reads a scene (``hairlut.synth`` format) and decides, rule by rule, each in words:
+
+* **HRIR database** (always: the SATF online module reads it).  Its recipe is the
+  defaults with ``[tables.hrir]`` over them; with ``tables.restrict`` (the default) the
+  sampled sector space is fitted to the scene's own sectors (phase steps s_u exactly;
+  aspect, inner radius, thickness, strand count and strand radius over their ranges in
+  the scene, widened by a margin): narrower where the scene uses less of the default
+  space, so the same N records cover its features more densely, and wider where its
+  sectors fall outside the defaults, which would not cover them.  A cached database is reused when its recipe hash matches, or
+  when it differs only in a sector space that contains the scene's.  The in-plane view
+  and light angles the scene's sectors produce are measured on the database's grid
+  (with the neighbouring node bilinear interpolation reads); the grid is periodic, so the
+  full circle is baked and the coverage is reported.
+* **SH tables** only with an environment light: p = p_I sets the light bands,
+  ceil(√p) + 1, i.e. (√p + 1)² coefficients (xing §4), and the specular energy left
+  beyond them is reported; ks_I = ks_II = 0 (or both highlights off) bakes no Rs, kd = 0
+  no Rd.  The light is projected (its hash is part of the recipe), so a new map re-bakes.
+* **Voxel SH transmittance** only when an environment light and ``self_shadow`` are on.
+* **Online work**: each shading term whose switch is off or whose coefficient is zero
+  is skipped (no secondary highlight → none of its lighting or noise), the s-map with
+  k_shadow = 0, and the uniformity test's fetch count follows k_threshold.
+
+:func:`bake` carries a plan out through :mod:`hairlut.cache`; :func:`find_assets` gives
+the cached assets of a scene to ``synthesize`` without baking.  Estimated times use
+throughputs measured by ``benchmarks/hrir_bake.py`` and ``benchmarks/plan.py`` on the
+2-core development CPU; ``benchmarks/plan.py`` reports them beside the real times.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import cache, errors
+from .assets import recipe_hash
+
+#: HRIR tracer throughput, (sector · view · light · pixel · step) per second, with and without
+#: in-sector self-shadowing (benchmarks/hrir_bake.py: 35 and 49 sectors/s at 32 × 32 angles, 64², 2 cores).
+TRACE_RATE = {True: 1.47e8, False: 2.07e8}
+#: Start-up of a bake (imports, jit compilation), seconds.
+BAKE_OVERHEAD = {"hrir_db": 6.0, "sh_tables": 4.0}
+#: Voxel SH transmittance: casts (voxel · direction · step) per second (benchmarks/plan.py).
+CAST_RATE = 6.0e7
+MARGIN = 0.1  # relative widening of each measured sector-space range
+
+
+@dataclass(frozen=True)
+class Step:
+    """One decision: ``action`` is ``bake``, ``reuse`` or ``skip`` for an asset, ``run`` or
+    ``skip`` for online work; ``bytes`` and ``seconds`` are estimates for a bake, the file
+    size for a reuse."""
+
+    name: str
+    action: str
+    reason: str
+    kind: str | None = None
+    recipe: dict | None = None
+    path: str | None = None
+    bytes: int = 0
+    seconds: float = 0.0
+    details: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Plan:
+    scene: object
+    steps: tuple
+    cache_dir: str
+
+    def step(self, name: str) -> Step:
+        return next(s for s in self.steps if s.name == name)
+
+    def to_json(self) -> dict:
+        return {"scene": self.scene.source, "cache": self.cache_dir,
+                "steps": [{k: v for k, v in asdict(s).items()} for s in self.steps],
+                "totals": {"bake_seconds": sum(s.seconds for s in self.steps if s.action == "bake"),
+                           "bake_bytes": sum(s.bytes for s in self.steps if s.action == "bake"),
+                           "reused_bytes": sum(s.bytes for s in self.steps if s.action == "reuse")}}
+
+
+# ----------------------------------------------------------------------------- scene geometry
+
+
+@dataclass(frozen=True, eq=False)
+class SceneSectors:
+    """What the planner measures on a scene's own sectors: per sector ``aspect`` (B/A ≤ 1),
+    ``v_range`` (N, 2), ``strands`` crossing it, strand ``radius`` / √area (NaN when empty),
+    and the in-plane azimuths ``theta_v`` (N,) and ``theta_l`` (N, L) of the view and lights."""
+
+    s_u: int
+    aspect: np.ndarray
+    v_range: np.ndarray
+    strands: np.ndarray
+    radius: np.ndarray
+    theta_v: np.ndarray
+    theta_l: np.ndarray
+
+
+def scene_sectors(scene) -> SceneSectors:
+    """Build every cluster's sectors (no features) and measure them (see :class:`SceneSectors`)."""
+    from .geometry import ClusterGeometry, build_sectors
+    from .synth._synth import _clusters
+
+    cols = {k: [] for k in ("aspect", "v_range", "strands", "radius", "theta_v", "theta_l")}
+    s_u = None
+    for spec, strands in _clusters(scene):
+        geom = ClusterGeometry(spec)
+        table = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))
+        s_u = table.shape[3]
+        A, B = table.half_axes[:, 0], table.half_axes[:, 1]
+        v0, v1 = table.v_range[:, 0], table.v_range[:, 1]
+        du = table.u_range[:, 1] - table.u_range[:, 0]
+        n = np.bincount(table.crossing_sector, minlength=table.n_sectors)
+        rsum = np.bincount(table.crossing_sector, weights=table.crossing_radius, minlength=table.n_sectors)
+        area = A * B * du * 0.5 * (v1**2 - v0**2)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cols["radius"].append(np.where(n > 0, rsum / np.maximum(n, 1) / np.sqrt(area), np.nan))
+        cols["aspect"].append(np.minimum(A, B) / np.maximum(A, B))
+        cols["v_range"].append(table.v_range)
+        cols["strands"].append(n)
+        tv, tl = sector_azimuths(geom, table, scene.view, scene.lights)
+        cols["theta_v"].append(tv)
+        cols["theta_l"].append(tl)
+    return SceneSectors(s_u, *(np.concatenate(cols[k]) for k in cols))
+
+
+def sector_azimuths(geometry, table, view, lights):
+    """θv (N,) and θl (N, L) of each sector: the directions projected into its cross-section's
+    normal plane, as azimuths from its outward normal (the tracer's +x; ``hairlut.synth._maps``)."""
+    sec = geometry.sections(np.linspace(0.0, 1.0, table.shape[1]))
+    ref, bi = sec.normal[table.cluster, table.t_index], sec.binormal[table.cluster, table.t_index]
+    ab, phi = table.half_axes, table.twist + table.u_range.mean(axis=1)
+    ex = np.stack([ab[:, 1] * np.cos(phi), ab[:, 0] * np.sin(phi)], axis=1)
+    ex /= np.maximum(np.linalg.norm(ex, axis=1, keepdims=True), 1e-300)
+    ey = np.stack([-ex[:, 1], ex[:, 0]], axis=1)
+
+    def azimuth(d):
+        d2 = np.stack([ref @ d, bi @ d], axis=-1)
+        return np.mod(np.arctan2(np.sum(d2 * ey, -1), np.sum(d2 * ex, -1)), 2 * np.pi)
+
+    return azimuth(np.asarray(view, np.float64)), np.stack([azimuth(l) for l in np.atleast_2d(lights)], axis=1)
+
+
+def grid_coverage(theta: np.ndarray, n: int) -> float:
+    """Fraction of a periodic grid 2πi/n whose nodes bilinear interpolation reads at ``theta``."""
+    cell = np.floor(np.mod(np.ravel(theta), 2 * np.pi) / (2 * np.pi) * n).astype(np.int64) % n
+    return float(np.unique(np.concatenate([cell, (cell + 1) % n])).size / n)
+
+
+def _widen(lo: float, hi: float, floor: float, ceil: float) -> list[float]:
+    pad = MARGIN * max(hi - lo, abs(hi), 1e-3)
+    return [float(max(floor, lo - pad)), float(min(ceil, hi + pad))]
+
+
+def restricted_space(ss: SceneSectors, base: dict) -> dict:
+    """The base sector space fitted to the scene's sectors (module docstring); spread, clumps and
+    profile weights are not measured and stay as given."""
+    out = dict(base)
+    v0, th = ss.v_range[:, 0], ss.v_range[:, 1] - ss.v_range[:, 0]
+    r = ss.radius[np.isfinite(ss.radius)]
+    out["s_u"] = [int(ss.s_u), int(ss.s_u)]
+    out["aspect"] = _widen(ss.aspect.min(), ss.aspect.max(), 1e-3, 1.0)
+    out["v_inner"] = _widen(v0.min(), v0.max(), 0.0, 0.9)
+    out["thickness"] = _widen(th.min(), th.max(), 1e-3, 1.0)
+    hi = int(ss.strands.max())
+    out["strands"] = [int(ss.strands.min()), hi + max(1, math.ceil(MARGIN * hi))]
+    if r.size:
+        out["radius"] = [float(r.min() / (1 + MARGIN)), float(r.max() * (1 + MARGIN))]
+    return out
+
+
+def _contains(outer: dict, inner: dict) -> bool:
+    return all(k == "profile_weights" and outer[k] == inner[k] or
+               k != "profile_weights" and outer[k][0] <= inner[k][0] and inner[k][1] <= outer[k][1] for k in inner)
+
+
+# ----------------------------------------------------------------------------- rules
+
+
+def _cached(kind: str, recipe: dict, root) -> tuple[Path, bool]:
+    path = cache.asset_path(kind, recipe, root)
+    return path, cache.is_valid(path, kind, recipe_hash(recipe))
+
+
+def _hrir_step(scene, ss: SceneSectors, root) -> Step:
+    from .hrir import resolve_recipe
+
+    tab = scene.config["tables"]
+    try:
+        base = resolve_recipe(dict(tab["hrir"]))
+    except errors.ValidationError as exc:
+        raise errors.ValidationError(f"tables.hrir.{exc.field}", exc.value, exc.reason) from None
+    recipe = base
+    details = {"sectors": int(len(ss.aspect)), "strands_per_sector": [int(ss.strands.min()), int(ss.strands.max())]}
+    if tab["restrict"]:
+        space = restricted_space(ss, base["sectors"]["space"])
+        recipe = resolve_recipe({**tab["hrir"], "sectors": {**tab["hrir"].get("sectors", {}), "space": space}})
+        details["space"] = {k: {"scene": space[k], "default": base["sectors"]["space"][k]} for k in space
+                            if space[k] != base["sectors"]["space"][k]}
+    a = recipe["angles"]
+    cov = {"views": grid_coverage(ss.theta_v, a["views"]), "lights": grid_coverage(ss.theta_l, a["lights"])}
+    details["angle_coverage"] = cov
+    n, t = recipe["sectors"]["count"], recipe["trace"]
+    work = n * a["views"] * a["lights"] * t["pixels"] * t["steps"] * t["rays_per_pixel"]
+    seconds = BAKE_OVERHEAD["hrir_db"] + work / TRACE_RATE[t["self_shadow"]]
+    item = np.dtype(recipe["storage"]["dtype"]).itemsize
+    nbytes = item * n * a["views"] * t["pixels"] * (a["lights"] + 1)
+    angle_words = (f"the scene's sectors read {100 * cov['views']:.0f} % of the {a['views']} view and "
+                   f"{100 * cov['lights']:.0f} % of the {a['lights']} light grid angles; the grid is periodic, so the "
+                   "full circle is kept")
+    restrict_words = ("sector space narrowed to the scene's sectors (" +
+                      ", ".join(f"{k} {v['scene'][0]:.3g}–{v['scene'][1]:.3g}" for k, v in details.get("space", {}).items())
+                      + ")") if tab["restrict"] else "sector space as given (tables.restrict = false)"
+    path, hit = _cached("hrir_db", recipe, root)
+    if hit:
+        return Step("hrir_db", "reuse", f"recipe hash matches the cache; {angle_words}", "hrir_db", recipe, str(path),
+                    path.stat().st_size, 0.0, details)
+    for e in cache.entries(root):
+        if e.kind != "hrir_db":
+            continue
+        other = cache.recipe_of(e.path)
+        same = {k: v for k, v in other.items() if k != "sectors"} == {k: v for k, v in recipe.items() if k != "sectors"}
+        so, sr = other.get("sectors", {}), recipe["sectors"]
+        if same and all(so.get(k) == sr[k] for k in ("grid", "density_scale", "features")) and \
+                so.get("count", 0) >= sr["count"] and _contains(so["space"], sr["space"]):
+            return Step("hrir_db", "reuse", f"cached database {e.path.name} samples a sector space that contains the "
+                        f"scene's, with ≥ {sr['count']} records; {angle_words}", "hrir_db", other, str(e.path), e.bytes,
+                        0.0, details)
+    return Step("hrir_db", "bake", f"the SATF lookup needs it; {restrict_words}; {angle_words}", "hrir_db", recipe,
+                str(path), nbytes, seconds, details)
+
+
+def environment_light(scene):
+    """The scene's environment light projected to the bands its SH tables need, or None."""
+    from .envlight import load_env_light, sky_light
+
+    env = scene.environment
+    if env is None:
+        return None
+    lmax = max(3, sh_bands(scene)) - 1
+    light = sky_light(lmax) if env["map"] == "sky" else load_env_light(env["map"], lmax, env["layout"], env["up"])
+    if env["intensity"] != 1.0:
+        from .envlight import EnvLight
+        light = EnvLight(light.coeffs * env["intensity"], light.channels, light.lmax, light.band_error, light.layout,
+                         f"{light.source_sha256}×{env['intensity']!r}")
+    return light
+
+
+def sh_bands(scene) -> int:
+    from .shtables._bake import specular_band_rule
+
+    b = scene.config["environment"]["bands"]
+    return specular_band_rule(scene.material["p_I"]) if b == "auto" else int(b)
+
+
+def sh_recipe(scene) -> dict | None:
+    """The SH-table recipe of a scene's environment light (None when nothing is needed)."""
+    fx, m = scene.effects, scene.material
+    diffuse, specular = fx["diffuse"], fx["primary"] or fx["secondary"]
+    if scene.environment is None or not (diffuse or specular):
+        return None
+    return {"kernel": {"p": float(m["p_I"]), "diffuse": bool(diffuse), "specular": bool(specular)},
+            "bands": {"light_specular": sh_bands(scene)}}
+
+
+def _sh_step(scene, root) -> Step:
+    from .shtables._bake import band_truncation_error, full_recipe
+
+    env = scene.environment
+    if env is None:
+        return Step("sh_tables", "skip", "no environment light: the scene is lit by its "
+                    f"{len(scene.lights)} directional light(s) alone, so no SH tables are needed")
+    given = sh_recipe(scene)
+    if given is None:
+        return Step("sh_tables", "skip", "the environment light has nothing to shade: kd = 0 and ks_I = ks_II = 0 "
+                    "(or those effects are off)")
+    light = environment_light(scene)
+    recipe = full_recipe(given, light)
+    k, b = recipe["kernel"], recipe["bands"]
+    words = [f"environment light {Path(env['map']).name}"]
+    details = {"light_band_error": dict(zip(light.channels, light.band_error.tolist()))}
+    if k["specular"]:
+        err = band_truncation_error(k["p"], b["light_specular"])
+        details["specular_truncation_error"] = err
+        words.append(f"p = p_I = {k['p']:g} sets {b['light_specular']} light bands ((√p + 1)² = "
+                     f"{b['light_specular'] ** 2} coefficients), leaving {100 * err:.0f} % of the lobe's L2 energy")
+    else:
+        words.append("ks_I = ks_II = 0: no Rs")
+    if not k["diffuse"]:
+        words.append("kd = 0: no Rd")
+    path, hit = _cached("sh_tables", recipe, root)
+    nb = b["light_specular"] ** 2
+    nbytes = 8 * ((nb + 2) ** 2 * nb * b["transmittance"] ** 2 + 64 * 2 * nb) if k["specular"] else 8 * 81 * 9
+    if hit:
+        return Step("sh_tables", "reuse", "recipe hash matches the cache; " + "; ".join(words), "sh_tables", recipe,
+                    str(path), path.stat().st_size, 0.0, details)
+    return Step("sh_tables", "bake", "; ".join(words), "sh_tables", recipe, str(path), int(nbytes),
+                BAKE_OVERHEAD["sh_tables"], details)
+
+
+def _transmittance_step(scene) -> Step:
+    env = scene.environment
+    if env is None:
+        return Step("transmittance", "skip", "no environment light to shadow")
+    if not env["self_shadow"]:
+        return Step("transmittance", "skip", "environment.self_shadow is off: the environment is unoccluded")
+    n = env["voxels"]
+    casts = (n // 2) ** 3 * 64 * 2 * n  # (n/stride)³ voxels × directions × steps
+    return Step("transmittance", "run", f"environment light with self-shadowing: {n}³ voxel SH transmittance of the "
+                "strands (xing §5), per scene", seconds=casts / CAST_RATE, bytes=4 * 9 * n**3,
+                details={"voxels": n, "kappa": env["kappa"]})
+
+
+def _online_steps(scene) -> list[Step]:
+    fx, m, cfg = scene.effects, scene.material, scene.config["effects"]
+
+    def why(name, coeff, key):
+        return f"effects.{name} is off" if not cfg[name] else f"{key} = 0"
+
+    out = [Step("diffuse", "run" if fx["diffuse"] else "skip",
+                "Kajiya–Kay diffuse, eq 9" if fx["diffuse"] else why("diffuse", m["kd"], "material.kd")),
+           Step("primary", "run" if fx["primary"] else "skip",
+                "primary highlight, eq 10" if fx["primary"] else why("primary", m["ks_I"], "material.ks_I")),
+           Step("secondary", "run" if fx["secondary"] else "skip",
+                "secondary highlight, eq 11" if fx["secondary"] else
+                why("secondary", m["ks_II"], "material.ks_II") + ": no secondary lighting and no noise")]
+    if fx["secondary"]:
+        out.append(Step("noise", "run" if fx["noise"] else "skip", "noise-modulated secondary (Scheuermann)"
+                        if fx["noise"] else ("effects.noise is off" if not cfg["noise"] else "material.noise_amount = 0")))
+    out.append(Step("s_map", "run" if fx["shadow"] else "skip", "eq 12 s-map from the outer layers' α" if fx["shadow"]
+                    else why("shadow", m["k_shadow"], "material.k_shadow") + ": τ = 1"))
+    kt = m["k_threshold"]
+    fetch = ("k_threshold = ∞: every HSV uniform, one fetch each" if math.isinf(kt) else
+             "k_threshold = 0: every HSV fetches two HRIRs (eq 7)" if kt == 0 else
+             f"eq 6 test at k_threshold = {kt:g}: one fetch per uniform HSV, two otherwise")
+    out.append(Step("uniformity", "run", fetch))
+    return out
+
+
+def plan(scene, cache_root=None) -> Plan:
+    """Decide, rule by rule, what ``scene`` needs (module docstring)."""
+    from .synth import as_scene
+
+    sc = as_scene(scene)
+    root = cache.cache_dir(cache_root)
+    ss = scene_sectors(sc)
+    steps = [_hrir_step(sc, ss, root), _sh_step(sc, root), _transmittance_step(sc), *_online_steps(sc)]
+    return Plan(sc, tuple(steps), str(root))
+
+
+# ----------------------------------------------------------------------------- carrying it out
+
+
+def bake(p: Plan, progress=None) -> dict[str, dict]:
+    """Bake (or reuse) every asset step of a plan through the cache; ``progress(name, done, total)``.
+
+    Returns {name: {"path", "status", "seconds"}} for the asset steps that are not skipped."""
+    from .hrir import bake as bake_hrir
+    from .shtables import bake_sh, write_sh_tables
+
+    out = {}
+    for s in p.steps:
+        if s.kind is None or s.action == "skip":
+            continue
+        t0 = time.perf_counter()
+        if s.name == "hrir_db":
+            if s.action == "reuse":
+                path, status = Path(s.path), "reused"
+            else:
+                cb = (lambda d, n: progress("hrir_db", d, n)) if progress else None
+                given = {k: v for k, v in s.recipe.items() if k != "method"}
+                path, status = cache.ensure("hrir_db", s.recipe, lambda f: bake_hrir(given, f, progress=cb), p.cache_dir)
+        else:
+            light = environment_light(p.scene)
+
+            def produce(f):
+                res = bake_sh(sh_recipe(p.scene), light)
+                write_sh_tables(f, res["tables"], res["info"], res["dense"], res["light"])
+
+            path, status = cache.ensure("sh_tables", s.recipe, produce, p.cache_dir)
+        out[s.name] = {"path": str(path), "status": status, "seconds": time.perf_counter() - t0}
+    return out
+
+
+def find_assets(scene, cache_root=None) -> dict[str, Path]:
+    """The cached assets a scene needs, without baking: {"hrir_db": path[, "sh_tables": path]}.
+
+    Raises :class:`~hairlut.errors.AssetNotFoundError` naming the missing asset and the command that bakes it."""
+    p = plan(scene, cache_root)
+    out = {}
+    for s in p.steps:
+        if s.kind is None or s.action == "skip":
+            continue
+        if s.action != "reuse":
+            raise errors.AssetNotFoundError(s.path, f"the scene's {s.kind} is not in the cache; run "
+                                            f"`hairlut bake --scene {p.scene.source}` (or give its path)")
+        out[s.name] = Path(s.path)
+    return out
