@@ -3,56 +3,70 @@
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import click
 
-from hairlut import demo
+CHECKOUT = Path(__file__).resolve().parents[1]
 
-from .format import render
+
+def default_scenes(shared: Path | None) -> list[Path]:
+    """The procedural sky scene, and the Sintel groom scene when the shared .tfx is present
+    (else the two-cluster procedural scene)."""
+    scenes = CHECKOUT / "tables" / "scenes"
+    groom = shared is not None and (Path(shared) / "data" / "hair" / "sintel_lite.tfx").is_file()
+    return [scenes / "sky-clusters.toml", scenes / ("sintel-groom.toml" if groom else "two-clusters.toml")]
 
 
 @click.command("demo")
 @click.option("--out", "out_dir", default="out/demo", show_default=True, type=click.Path(file_okay=False),
-              help="Folder for the assets and previews.")
+              help="Folder for the synthesised maps and previews.")
+@click.option("--scene", "scenes", multiple=True, type=click.Path(dir_okay=False),
+              help="Scene file(s) to run instead of the built-in examples.")
 @click.option("--shared", type=click.Path(file_okay=False), default=None,
               help="The shared/ folder with data/hair/*.tfx (default: ../shared beside the checkout, if present).")
+@click.option("--cache", "cache_root", type=click.Path(file_okay=False),
+              help="Table cache folder (default: $HAIRLUT_CACHE, else tables/).")
+@click.option("--no-progress", is_flag=True, help="No progress bars on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-def demo_cmd(out_dir, shared, as_json):
-    """Bake the built-in example assets, use them, and inspect them.
+def demo_cmd(out_dir, scenes, shared, cache_root, no_progress, as_json):
+    """Plan, bake (cached) and synthesise the example scenes; report what was done.
 
-    
-    1. Kajiya–Kay kernels as a table and an image.
-    2. A procedural sky, projected to SH light coefficients.
-    3. Exact SH convolution tables (paper settings) with the light folded in,
-       and their Cd/Cs shader textures.
-    4. The Sintel groom (or a procedural tuft) shaded with them: hair.png.
+    \b
+    1. tables/scenes/sky-clusters.toml: three procedural clusters under the
+       built-in sky (SH tables, voxel SH self-shadowing) and a key light.
+    2. tables/scenes/sintel-groom.toml: the shared Sintel groom's strands in
+       fitted clusters, when ../shared is present; else two-clusters.toml.
+    The first run bakes each scene's HRIR database and SH tables into the
+    cache (minutes); later runs reuse them (seconds).
     """
+    from hairlut import demo
+
+    from .hrir import Progress
+
     if shared is None:
-        guess = Path(__file__).resolve().parents[1].parent / "shared"
+        guess = CHECKOUT.parent / "shared"
         shared = guess if guess.is_dir() else None
-    start = time.perf_counter()
-    report = demo.run(out_dir, shared)
-    report["total_seconds"] = time.perf_counter() - start
+    bars = {}
+
+    def progress(name, done, total):
+        bars.setdefault(name, Progress(not no_progress, label=name))(done, total)
+
+    report = demo.run(out_dir, list(scenes) or default_scenes(shared), cache_root, progress)
+    for bar in bars.values():
+        bar.close()
     if as_json:
-        click.echo(json.dumps(report, indent=2))
+        click.echo(json.dumps(report, indent=2, default=str))
         return
-    for summary in report["assets"]:
-        click.echo(render(summary))
-        click.echo()
-    sh = report["sh"]
-    click.echo(f"SH tables: θ′ series of {sh['chebyshev_nodes']} Chebyshev nodes per half (tail {sh['chebyshev_tail']:.1e}); "
-               f"specular energy beyond 8 light bands {sh['specular_truncation_error']:.2f}")
-    click.echo("light band-limiting error (relative L2): "
-               + ", ".join(f"{c} {e:.3f}" for c, e in sh["light_band_error"].items()))
-    hair = report["hair"]
-    click.echo(f"hair: {hair['source']}, {hair['vertices']:,} vertices shaded, radiance {hair['radiance_min']:.3g} … "
-               f"{hair['radiance_max']:.3g}, mean self-shadow visibility {hair['mean_visibility']:.2f}, "
-               f"{100 * hair['clamped_fraction']:.1f} % of vertices clamped at 0 (SH ringing)")
-    click.echo(f"HRIR-DB: {report['hrir']['sectors']} sectors; SATF query at a stored record reproduces it to "
-               f"{report['hrir']['query_self_check_max_error']:.1e}")
-    click.echo("times: " + ", ".join(f"{k} {v:.2f} s" for k, v in report["seconds"].items()))
-    for png in report["previews"]:
-        click.echo(f"preview: {png}")
-    click.echo(f"demo finished in {report['total_seconds']:.2f} s; assets in {out_dir}/")
+    for r in report["scenes"]:
+        st = r["stats"]
+        click.echo(f"scene {r['scene']}: {st['clusters']} clusters, {st['layers']} layers, {st['hsvs']} HSVs")
+        for s in r["plan"]:
+            if s["kind"] is not None or s["action"] == "skip":
+                click.echo(f"  {s['action']:<5} {s['name']:<13} {s['reason']}")
+        for name, a in r["assets"].items():
+            click.echo(f"  {a['status']} {name} in {a['seconds']:.1f} s: {a['path']}")
+        click.echo("  accuracy: " + ", ".join(f"{k} {v:.2g}" for k, v in r["accuracy"].items()))
+        click.echo("  times: " + ", ".join(f"{k} {v:.1f} s" for k, v in r["seconds"].items()))
+        click.echo(f"  preview: {r['files']['preview']}")
+    click.echo(f"demo finished in {report['total_seconds']:.1f} s; outputs in {out_dir}/ (sky map {report['sky']})")

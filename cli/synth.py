@@ -9,26 +9,41 @@ import click
 
 @click.command("synth")
 @click.argument("scene", type=click.Path(dir_okay=False))
-@click.option("--db", "db_path", required=True, type=click.Path(dir_okay=False), help="The hrir_db file (hairlut bake hrir).")
+@click.option("--db", "db_path", type=click.Path(dir_okay=False),
+              help="The hrir_db file (default: the scene's database in the table cache; see `hairlut bake --scene`).")
+@click.option("--sh", "sh_path", type=click.Path(dir_okay=False),
+              help="The sh_tables file with the environment light (default: from the cache, when the scene has one).")
+@click.option("--cache", "cache_root", type=click.Path(file_okay=False),
+              help="Table cache folder (default: $HAIRLUT_CACHE, else tables/).")
 @click.option("--out", "out_dir", required=True, type=click.Path(file_okay=False), help="Output folder.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-def synth_cmd(scene: str, db_path: str, out_dir: str, as_json: bool) -> None:
+def synth_cmd(scene: str, db_path: str | None, sh_path: str | None, cache_root: str | None, out_dir: str,
+              as_json: bool) -> None:
     """Synthesise re-, alpha- and s-maps, light, shade and blend every cluster of SCENE.
 
     Writes one EXR per cluster (channels layerK.re, layerK.A, layerK.s, layerK.R/G/B and
     the composite R,G,B,A), a PNG beside each and preview.png (orthographic view).
+    Without --db (and --sh for a scene with an environment light) the tables are found
+    in the cache by the scene's plan; bake them first with `hairlut bake --scene SCENE`.
 
     \b
-    Example:
+    Examples:
+      hairlut bake --scene tables/scenes/sky-clusters.toml
+      hairlut synth tables/scenes/sky-clusters.toml --out out/synth-sky
       hairlut synth tables/scenes/two-clusters.toml --db tables/hrir-default.h5 --out out/synth
     """
-    from hairlut.hrir import load_hrir_db
     from hairlut.synth import load_scene, synthesize, write_outputs
 
     sc = load_scene(scene)
-    result = synthesize(sc, load_hrir_db(db_path))
+    if db_path is None or (sh_path is None and sc.environment is not None):
+        from hairlut.plan import find_assets
+
+        found = find_assets(sc, cache_root)
+        db_path = db_path or str(found["hrir_db"])
+        sh_path = sh_path or (str(found["sh_tables"]) if "sh_tables" in found else None)
+    result = synthesize(sc, db_path, sh=sh_path)
     files = write_outputs(result, out_dir)
-    report = {"scene": scene, "db": db_path, **files, **result.stats}
+    report = {"scene": scene, "db": db_path, "sh": sh_path, **files, **result.stats}
     if as_json:
         click.echo(json.dumps(report, indent=2))
         return

@@ -214,7 +214,7 @@ def _hrir_step(scene, ss: SceneSectors, root) -> Step:
     angle_words = (f"the scene's sectors read {100 * cov['views']:.0f} % of the {a['views']} view and "
                    f"{100 * cov['lights']:.0f} % of the {a['lights']} light grid angles; the grid is periodic, so the "
                    "full circle is kept")
-    restrict_words = ("sector space narrowed to the scene's sectors (" +
+    restrict_words = ("sector space fitted to the scene's sectors (" +
                       ", ".join(f"{k} {v['scene'][0]:.3g}–{v['scene'][1]:.3g}" for k, v in details.get("space", {}).items())
                       + ")") if tab["restrict"] else "sector space as given (tables.restrict = false)"
     path, hit = _cached("hrir_db", recipe, root)
@@ -295,8 +295,8 @@ def _sh_step(scene, root) -> Step:
     if not k["diffuse"]:
         words.append("kd = 0: no Rd")
     path, hit = _cached("sh_tables", recipe, root)
-    nb = b["light_specular"] ** 2
-    nbytes = 8 * ((nb + 2) ** 2 * nb * b["transmittance"] ** 2 + 64 * 2 * nb) if k["specular"] else 8 * 81 * 9
+    li = max(b["light_specular"] if k["specular"] else 0, b["light_diffuse"])
+    nbytes = 8 * (li + b["transmittance"] - 1) ** 2 * li**2 * b["transmittance"] ** 2  # the Gaunt tensor dominates
     if hit:
         return Step("sh_tables", "reuse", "recipe hash matches the cache; " + "; ".join(words), "sh_tables", recipe,
                     str(path), path.stat().st_size, 0.0, details)

@@ -152,20 +152,21 @@ def test_usage_errors_are_status_2(tmp_path):
 
 
 def test_demo_writes_and_inspects(tmp_path):
-    res = run("demo", "--out", tmp_path / "d", "--shared", tmp_path / "none", "--json")
+    from .test_plan import _write_toml, scene
+
+    path = _write_toml(tmp_path / "tiny.toml", scene({"map": "sky"}))
+    res = run("demo", "--scene", path, "--out", tmp_path / "d", "--cache", tmp_path / "c", "--no-progress", "--json")
     assert res.exit_code == 0, res.output
-    doc = json.loads(res.output)
-    kinds = [a["kind"] for a in doc["assets"]]
-    assert kinds == ["kk_lobes", "kk_lobes", "sh_light", "sh_tables", "sh_textures", "hrir_db"]
-    assert doc["hrir"]["query_self_check_max_error"] < 1e-4
-    spec = next(d for d in doc["assets"][0]["datasets"] if d["name"] == "specular")
-    assert spec["max"] == pytest.approx(1.0) and spec["min"] == 0.0 and spec["nan"] == 0
-    assert decode_png((tmp_path / "d" / "kk_lobes_p49.png").read_bytes()).shape == (181, 181)
-    assert doc["hair"]["source"].startswith("procedural") and doc["hair"]["radiance_min"] >= 0
-    assert 0 < doc["hair"]["mean_visibility"] < 1 and doc["hair"]["clamped_fraction"] < 0.25
-    hair = decode_png((tmp_path / "d" / "hair.png").read_bytes())
-    assert hair.shape == (320, 320, 3) and (hair.sum(-1) > 0).mean() > 0.02
-    assert doc["sh"]["chebyshev_tail"] < 1e-13
+    (doc,) = json.loads(res.output)["scenes"]
+    steps = {s["name"]: s["action"] for s in doc["plan"]}
+    assert steps["hrir_db"] == steps["sh_tables"] == "bake" and steps["transmittance"] == "skip"
+    assert doc["accuracy"]["chebyshev_tail"] < 1e-13 and doc["accuracy"]["hrir_query_self_check"] < 1e-5
+    info = json.loads(run("inspect", "--json", *[a["path"] for a in doc["assets"].values()], *doc["files"]["exr"]).output)
+    assert [i["kind"] for i in info] == ["hrir_db", "sh_tables", "synth_maps", "synth_maps"]
+    alpha = next(c for c in info[2]["parts"][0]["channels"] if c["name"] == "layer1.A")
+    assert 0 <= alpha["min"] and alpha["max"] <= 1 and alpha["nan"] == 0
+    prev = decode_png((tmp_path / "d" / "tiny" / "preview.png").read_bytes())
+    assert prev.shape == (32, 32, 3) and (prev.sum(-1) > 0).mean() > 0.05
 
 
 def test_real_subprocess(tmp_path, hairlut_exe):

@@ -3,13 +3,14 @@
 Feature space: features are normalised with the database's statistics,
 z = (x − mean) / std, and compared with the Euclidean metric.  The k nearest
 records (brute force: one (N, M) distance block per chunk of queries, then
-``lax.top_k``) are blended with inverse-distance weights w_i ∝ 1 / (d_i + ε),
-so an exact feature match returns that record.  Angles are periodic: each
-record is interpolated bilinearly on the (θv, θl) grid with wrap-around (α only
-in θv, since it does not depend on the light).
+``lax.top_k``: :func:`neighbours`) are blended with inverse-distance weights
+w_i ∝ 1 / (d_i + ε), so an exact feature match returns that record.  Angles are
+periodic: each record is interpolated bilinearly on the (θv, θl) grid with
+wrap-around (α only in θv, since it does not depend on the light: :func:`interpolate`,
+which callers with precomputed neighbours use on their own).
 
-Cost per query: O(M·F) for the distances, O(k·4·P) for the gathers; memory is
-bounded by evaluating ``CHUNK`` queries at a time.
+Cost per query: O(M·F) for the distances, O(k·4·P) for the gathers; the distances'
+memory is bounded by evaluating ``CHUNK`` queries at a time.
 """
 
 from __future__ import annotations
@@ -36,26 +37,53 @@ def _periodic(theta, n):
     return i0, jnp.mod(i0 + 1, n), frac
 
 
-def _query_block(zq, tv, tl, zdb, alpha, refl, k):
+def neighbours(zq, zdb, k):
+    """The k nearest records of normalised queries zq (n, F) among zdb (M, F) and their
+    inverse-distance weights w_i ∝ 1 / (d_i + ε), normalised: (idx (n, k), w (n, k))."""
     d2 = jnp.sum((zq[:, None, :] - zdb[None, :, :]) ** 2, axis=-1)  # (n, M)
     neg, idx = jax.lax.top_k(-d2, k)
     w = 1.0 / (jnp.sqrt(jnp.maximum(-neg, 0.0)) + EPS)
-    w = w / jnp.sum(w, axis=-1, keepdims=True)  # (n, k)
-    v0, v1, fv = _periodic(tv, alpha.shape[1])
-    l0, l1, fl = _periodic(tl, refl.shape[2])
-    fv, fl = fv[:, None, None], fl[:, None, None]
-    iv0, iv1 = v0[:, None], v1[:, None]
-    il0, il1 = l0[:, None], l1[:, None]
-    a = (1 - fv) * alpha[idx, iv0] + fv * alpha[idx, iv1]  # (n, k, P)
-    r = ((1 - fv) * ((1 - fl) * refl[idx, iv0, il0] + fl * refl[idx, iv0, il1])
-         + fv * ((1 - fl) * refl[idx, iv1, il0] + fl * refl[idx, iv1, il1]))
-    return jnp.einsum("nk,nkp->np", w, r), jnp.einsum("nk,nkp->np", w, a), idx, w
+    return idx, w / jnp.sum(w, axis=-1, keepdims=True)
+
+
+def interpolate(idx, w, tv, tl, alpha, refl):
+    """The angle half of the lookup for known neighbours: records idx (n, k) blended with weights
+    w (n, k), each bilinear on the periodic (θv, θl) grid (α in θv only) → re (n, Lt, P) for
+    tl (n, Lt), α (n, P).  One row gather per (neighbour, grid corner), fused into the sum."""
+    n_rec, V, L, P = refl.shape
+    rows, arows = refl.reshape(n_rec * V * L, P), alpha.reshape(n_rec * V, P)
+    v0, v1, fv = _periodic(tv, V)
+    l0, l1, fl = _periodic(tl, L)
+    gv, gl, fv = fv[:, None, None], fl[..., None], fv[:, None]
+    re = a = 0.0
+    for j in range(idx.shape[1]):
+        a0, a1 = idx[:, j] * V + v0, idx[:, j] * V + v1  # α rows; reflectance rows follow in θl
+        r0, r1 = a0[:, None] * L, a1[:, None] * L
+        r = ((1 - gv) * ((1 - gl) * rows[r0 + l0] + gl * rows[r0 + l1])
+             + gv * ((1 - gl) * rows[r1 + l0] + gl * rows[r1 + l1]))
+        re = re + w[:, j, None, None] * r
+        a = a + w[:, j, None] * ((1 - fv) * arows[a0] + fv * arows[a1])
+    return re, a
 
 
 @functools.partial(jax.jit, static_argnames=("k",))
+def neighbours_kernel(zq, zdb, k):
+    """:func:`neighbours` over flat queries, in chunks of CHUNK."""
+    return map_blocks(lambda q: neighbours(q, zdb, k), (zq,), CHUNK)
+
+
+@jax.jit
+def _interpolate_kernel(idx, w, tv, tl, alpha, refl):
+    re, a = interpolate(idx, w, tv, tl[:, None], alpha, refl)
+    return re[:, 0], a
+
+
 def query_kernel(zq, tv, tl, zdb, alpha, refl, k):
-    """The jitted SATF kernel over flat queries, in chunks of CHUNK (see module doc)."""
-    return map_blocks(lambda q, v, l: _query_block(q, v, l, zdb, alpha, refl, k), (zq, tv, tl), CHUNK)
+    """The SATF over flat queries (see module doc): the k-NN search (jitted, in chunks of CHUNK),
+    then :func:`interpolate` (jitted) over all queries at once → re, α, neighbour index, weights.
+    Two kernels: in one, XLA:CPU fuses the search into the gathers and runs ~15× slower."""
+    idx, w = neighbours_kernel(zq, zdb, k)
+    return (*_interpolate_kernel(idx, w, tv, tl, alpha, refl), idx, w)
 
 
 def device_arrays(db):

@@ -23,6 +23,17 @@ image line (perpendicular to the in-plane view), gives the pixel it reads in tha
 sector's HRIR: x = (p − c)·e / R ∈ [−1, 1], pixel (x + 1) P/2 − ½, sampled linearly.
 Non-uniform: l = (1 − γ)·HRIR⊤[x⊤] + γ·HRIR⊥[x⊥] (eq 7); uniform: HRIR_ave swept along
 the HSV at x̄ = (x⊤ + x⊥)/2.
+
+**Two implementations.**  :func:`sector_angles`, :func:`texels`, :func:`fetch` and
+:func:`build_maps` are the reference: NumPy, a k-NN search per fetch.  The per-frame path
+splits the work as the paper's index does: :func:`map_index` (once per scene) keeps what
+does not change with the view or the lights (the SATF neighbours and weights of every
+sector and of every HSV's averaged features, eq 6's feature term, each texel's offsets in
+its sectors' frames), and :func:`frame_maps` runs a frame in three jitted kernels:
+:func:`params_kernel` (angles, eq 6), :func:`fetch_kernel` (one HRIR row per HSV, a second
+for the non-uniform ones, compacted on the host) and :func:`sweep_rows` (eq 7).  They stay
+separate kernels because XLA:CPU otherwise fuses each row's gathers into every consumer
+and recomputes them per texel (measured 3–8× slower).
 """
 
 from __future__ import annotations
@@ -163,28 +174,46 @@ def texel_grid(resolution) -> tuple[np.ndarray, np.ndarray]:
     return TWO_PI * (np.arange(n_u) + 0.5) / n_u, (np.arange(n_t) + 0.5) / n_t
 
 
-def texels(table, sp: SectorParams, n_layers: int, resolution, n_pixels: int) -> Texels:
-    """Texel → HSV, γ and pixel coordinates (module docstring) for every layer of every cluster."""
+def _texel_cells(shape, resolution):
+    """HSV row and γ along it of each texel row i (n_t,), HSV column of each texel column j (n_u,)."""
+    s_t, s_u = shape[1] - 1, shape[3]
+    u, t = texel_grid(resolution)
+    row = np.minimum(np.floor(t * s_t).astype(np.int64), s_t - 1)
+    return row, t * s_t - row, np.minimum(np.floor(u / (TWO_PI / s_u)).astype(np.int64), s_u - 1)
+
+
+def texel_offsets(table, fr: SectorFrames, n_layers: int, resolution):
+    """The view-independent part of :func:`texels`: per texel (C, K, n_t, n_u) its ``hsv`` and
+    ``gamma``, and for its top and bottom sector b (axis 0) the offset of its layer-surface point
+    p from the sector's centre in the sector's frame, ((p − c)·ex, (p − c)·ey) / R (axis 1), so
+    that x = −sin θv · dx + cos θv · dy on the image line of the view's azimuth θv."""
     n_u, n_t = resolution
     n_c, n_i, n_g, s_u = table.shape
     s_t = n_i - 1
-    u, t = texel_grid(resolution)
-    row = np.minimum(np.floor(t * s_t).astype(np.int64), s_t - 1)
-    gamma_t = t * s_t - row
-    col = np.minimum(np.floor(u / (TWO_PI / s_u)).astype(np.int64), s_u - 1)
+    u, _ = texel_grid(resolution)
+    row, gamma_t, col = _texel_cells(table.shape, resolution)
     c, k, i, j = np.meshgrid(np.arange(n_c), np.arange(n_layers), np.arange(n_t), np.arange(n_u), indexing="ij")
     hsv = ((c * s_t + row[i]) * n_g + k) * s_u + col[j]
-    uu = u[j]
 
-    def pix(b):
-        p = _ellipse(sp.half_axes[b], sp.v_outer[b], sp.twist[b] + uu)
-        th = sp.theta_v[b][..., None]
-        e = -np.sin(th) * sp.ex[b] + np.cos(th) * sp.ey[b]
-        x = np.sum((p - sp.centre[b]) * e, -1) / sp.extent[b]
+    def offset(b):
+        d = _ellipse(fr.half_axes[b], fr.v_outer[b], fr.twist[b] + u[j]) - fr.centre[b]
+        return np.stack([np.sum(d * fr.ex[b], -1), np.sum(d * fr.ey[b], -1)]) / fr.extent[b]
+
+    return hsv, gamma_t[i], np.stack([offset(table.hsv_sectors[hsv, e]) for e in (0, 1)])
+
+
+def texels(table, sp: SectorParams, n_layers: int, resolution, n_pixels: int) -> Texels:
+    """Texel → HSV, γ and pixel coordinates (module docstring) for every layer of every cluster."""
+    hsv, gamma, off = texel_offsets(table, sp.frames, n_layers, resolution)
+
+    def pix(e):
+        th = sp.theta_v[table.hsv_sectors[hsv, e]]
+        x = -np.sin(th) * off[e, 0] + np.cos(th) * off[e, 1]
         return (x + 1.0) * n_pixels / 2.0 - 0.5
 
-    top, bot = pix(table.hsv_sectors[hsv, 0]), pix(table.hsv_sectors[hsv, 1])
-    return Texels(hsv, gamma_t[i], top, bot, 0.5 * (top + bot), u, t)
+    top, bot = pix(0), pix(1)
+    u, t = texel_grid(resolution)
+    return Texels(hsv, gamma, top, bot, 0.5 * (top + bot), u, t)
 
 
 def _bucket(n: int) -> int:
@@ -209,6 +238,11 @@ def _device_db(db):
     return dev
 
 
+def _check_k(db, k):
+    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= len(db.features):
+        raise errors.ValidationError("k", k, f"need 1 ≤ k ≤ {len(db.features)} (database size)")
+
+
 def fetch(db, features, theta_v, theta_l, k: int):
     """SATF at (M,) parameter rows × Lt lights → re (M, Lt, P), α (M, P): ``satf_query``'s kernel
     and normalisation on cached device arrays, padded to a bucket size so it compiles for few shapes."""
@@ -216,8 +250,7 @@ def fetch(db, features, theta_v, theta_l, k: int):
     P = db.alpha.shape[-1]
     if m == 0:
         return np.zeros((0, n_l, P), np.float32), np.zeros((0, P), np.float32)
-    if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= len(db.features):
-        raise errors.ValidationError("k", k, f"need 1 ≤ k ≤ {len(db.features)} (database size)")
+    _check_k(db, k)
     zdb, alpha, refl, mean, std = _device_db(db)
     pad = _bucket(m) - m
     idx = np.concatenate([np.arange(m), np.zeros(pad, np.int64)])
@@ -229,25 +262,22 @@ def fetch(db, features, theta_v, theta_l, k: int):
     return re[:m], np.asarray(a).reshape(len(idx), n_l, P)[:m, 0]
 
 
+def _sample(flat, row, p, P: int):
+    """Rows of P pixels, flattened, sampled at float pixel p of row ``row``: linear in the pixel, clamped."""
+    f = jnp.clip(p, 0.0, P - 1.0)
+    i0 = jnp.clip(jnp.floor(f).astype(jnp.int32), 0, max(P - 2, 0))
+    g0 = flat[row * P + i0]
+    return g0 + (f - i0) * (flat[row * P + jnp.minimum(i0 + 1, P - 1)] - g0)
+
+
 @jax.jit
 def sweep_kernel(re1, re2, a1, a2, hsv, gamma, pix1, pix2):
     """Eq 7 per texel: (1 − γ)·HRIR1[pix1] + γ·HRIR2[pix2] (linear in the pixel, clamped);
     re (T, Lt) and α (T,) from per-HSV arrays re (H, Lt, P), α (H, P)."""
-    P = a1.shape[-1]
-
-    def sample(arr, pix):  # arr (T, ..., P), pix (T,)
-        f = jnp.clip(pix, 0.0, P - 1.0)
-        i0 = jnp.clip(jnp.floor(f).astype(jnp.int32), 0, P - 2 if P > 1 else 0)
-        w = (f - i0) if P > 1 else jnp.zeros_like(f)
-        i1 = jnp.minimum(i0 + 1, P - 1)
-        shape = (-1,) + (1,) * (arr.ndim - 2)
-        g0 = jnp.take_along_axis(arr, i0.reshape(shape + (1,)), -1)[..., 0]
-        g1 = jnp.take_along_axis(arr, i1.reshape(shape + (1,)), -1)[..., 0]
-        return g0 + w.reshape(shape) * (g1 - g0)
-
-    g = gamma[:, None]
-    re = (1 - g) * sample(re1[hsv], pix1) + g * sample(re2[hsv], pix2)
-    a = (1 - gamma) * sample(a1[hsv], pix1) + gamma * sample(a2[hsv], pix2)
+    (Lt, P), g = re1.shape[1:], gamma[:, None]
+    rows = hsv[:, None] * Lt + jnp.arange(Lt)
+    re = (1 - g) * _sample(re1.reshape(-1), rows, pix1[:, None], P) + g * _sample(re2.reshape(-1), rows, pix2[:, None], P)
+    a = (1 - gamma) * _sample(a1.reshape(-1), hsv, pix1, P) + gamma * _sample(a2.reshape(-1), hsv, pix2, P)
     return re, jnp.clip(a, 0.0, 1.0)
 
 

@@ -30,8 +30,15 @@ import jax.numpy as jnp
 import numpy as np
 
 
+def _dot(a, b):
+    """a (..., 3) · b (3,) → (...), or · b (L, 3) → (..., L); spelled out, so XLA fuses it elementwise."""
+    if b.ndim == 1:
+        return a[..., 0] * b[0] + a[..., 1] * b[1] + a[..., 2] * b[2]
+    return a[..., 0, None] * b[:, 0] + a[..., 1, None] * b[:, 1] + a[..., 2, None] * b[:, 2]
+
+
 def _unit(x):
-    return x / jnp.maximum(jnp.linalg.norm(x, axis=-1, keepdims=True), 1e-12)
+    return x / jnp.maximum(jnp.sqrt(x[..., 0] ** 2 + x[..., 1] ** 2 + x[..., 2] ** 2), 1e-12)[..., None]
 
 
 def _sin(cos):
@@ -40,15 +47,14 @@ def _sin(cos):
 
 def diffuse(t, l, scale, bias):
     """Eq 9's kernel, scaled and biased: max(0, scale·sin(t, l) + bias); t (..., 3), l (L, 3) → (..., L)."""
-    c = jnp.einsum("...k,lk->...l", t, l)
-    return jnp.maximum(0.0, scale * _sin(c) + bias)
+    return jnp.maximum(0.0, scale * _sin(_dot(t, l)) + bias)
 
 
 def specular(t, n, v, l, shift, p):
     """Eqs 10/11's kernel with t̃ = unit(t + shift·n): (..., L) for lights l (L, 3)."""
     tt = _unit(t + shift * n)
-    cl = jnp.einsum("...k,lk->...l", tt, l)
-    cv = jnp.sum(tt * v, axis=-1)[..., None]
+    cl = _dot(tt, l)
+    cv = _dot(tt, v)[..., None]
     return jnp.maximum(0.0, _sin(cl) * _sin(cv) - cl * cv) ** p
 
 
@@ -74,11 +80,19 @@ def lighting_kernel(t, n, v, lights, light_rgb, noise_map, mat, colours, *, use_
     return out * light_rgb
 
 
+def _outer(x, op, start):
+    """[op over x[m] for m > k] for every k along axis 0 (K small: unrolled; layer K − 1 outermost)."""
+    out, acc = [], start
+    for k in range(x.shape[0] - 1, -1, -1):
+        out.append(acc)
+        acc = op(acc, x[k])
+    return jnp.stack(out[::-1]), acc
+
+
 def shadow_map(alpha, k_shadow, linear: bool = False):
     """Eq 12: τ_k from α-maps (K, ...) with layer K − 1 outermost; exp form or its linear form."""
     alpha = jnp.asarray(alpha)
-    total = jnp.cumsum(alpha[::-1], axis=0)[::-1]
-    outer = total - alpha  # Σ_{m > k} α_m
+    outer, _ = _outer(alpha, jnp.add, jnp.zeros_like(alpha[0]))  # Σ_{m > k} α_m
     if linear:
         return jnp.clip(1.0 - k_shadow * outer, 0.0, 1.0)
     return jnp.exp(-k_shadow * outer)
@@ -86,24 +100,25 @@ def shadow_map(alpha, k_shadow, linear: bool = False):
 
 def shade(lighting, re, tau):
     """Eq 13: Ψ_k = τ_k · Σ_lights Ψ^lighting · re; lighting (K, ..., L, 3), re (K, L, ...), τ (K, ...) → (K, ..., 3)."""
-    re = jnp.moveaxis(jnp.asarray(re), 1, -1)  # (K, ..., L)
-    return jnp.asarray(tau)[..., None] * jnp.sum(lighting * re[..., None], axis=-2)
+    lighting, re = jnp.asarray(lighting), jnp.asarray(re)
+    total = sum(lighting[..., j, :] * re[:, j, ..., None] for j in range(re.shape[1]))
+    return jnp.asarray(tau)[..., None] * total
 
 
 def blend(rgb, alpha, background):
     """Eq 14 over the background: rgb (K, ..., 3), α (K, ...) → composite RGB (..., 3) and alpha (...)."""
     rgb, alpha = jnp.asarray(rgb), jnp.asarray(alpha)
-    keep = 1.0 - alpha
-    # Π_{j > k} (1 − α_j): exclusive reverse cumulative product
-    above = jnp.concatenate([jnp.cumprod(keep[::-1], axis=0)[::-1][1:], jnp.ones_like(keep[:1])], axis=0)
-    through = jnp.prod(keep, axis=0)
-    out = jnp.asarray(background) * through[..., None] + jnp.sum(rgb * (alpha * above)[..., None], axis=0)
+    above, through = _outer(1.0 - alpha, jnp.multiply, jnp.ones_like(alpha[0]))  # Π_{j > k} (1 − α_j), Π_k
+    w = (alpha * above)[..., None]
+    out = jnp.asarray(background) * through[..., None] + sum(rgb[k] * w[k] for k in range(rgb.shape[0]))
     return out, 1.0 - through
 
 
-def _compose(lighting, re, alpha, k_shadow, background, shadow, linear):
+def _compose(lighting, re, alpha, k_shadow, background, shadow, linear, extra=None):
     tau = shadow_map(alpha, k_shadow, linear) if shadow else jnp.ones_like(alpha)
     rgb = shade(lighting, re, tau)
+    if extra is not None:  # light that does not pass through the SATF (the environment term)
+        rgb = rgb + extra
     final, a = blend(rgb, alpha, background)
     return tau, rgb, final, a
 
@@ -115,9 +130,11 @@ def compose_kernel(lighting, re, alpha, k_shadow, background, *, shadow=True, li
 
 
 @partial(jax.jit, static_argnames=("shadow", "linear"))
-def compose_clusters_kernel(lighting, re, alpha, k_shadow, background, *, shadow=True, linear=False):
-    """:func:`compose_kernel` over a leading cluster axis (every input gains it)."""
-    return jax.vmap(lambda li, r, a: _compose(li, r, a, k_shadow, background, shadow, linear))(lighting, re, alpha)
+def compose_clusters_kernel(lighting, re, alpha, k_shadow, background, extra=None, *, shadow=True, linear=False):
+    """:func:`compose_kernel` over a leading cluster axis (every input gains it); ``extra``
+    (C, K, ..., 3), when given, is added to each layer's shaded colour before blending."""
+    return jax.vmap(lambda li, r, a, e: _compose(li, r, a, k_shadow, background, shadow, linear, e))(
+        lighting, re, alpha, extra)
 
 
 def value_noise(shape, frequency: float, seed: int) -> np.ndarray:

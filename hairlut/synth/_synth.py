@@ -1,15 +1,16 @@
 """``synthesize(scene, db)``: the online phase for every cluster of a scene (satf §6), and its files.
 
 Pipeline.  :func:`prepare` (once per scene): clusters and strands → sectors and HSVs
-(``hairlut.geometry``) → sector features and frames → per-texel frames on each layer
-surface (tangent ∂P/∂t, normal ∂P/∂u × ∂P/∂t, as in ``layer_meshes``).  :func:`render`
-(per frame, any view and lights): Params(b) angles, the uniformity test, SATF fetches and
-re-/α-maps (``_maps``, eqs 6–7) → lighting (eqs 8–11) → s-map, shading and blending
-(eqs 12–14).
+(``hairlut.geometry``) → sector features and frames → the index of eqs 6–7 (``_maps.map_index``:
+the SATF neighbours of every sector and averaged HSV, texel → HSV and image-line offsets)
+→ per-texel frames on each layer surface (tangent ∂P/∂t, normal ∂P/∂u × ∂P/∂t, as in
+``layer_meshes``).  :func:`render` (per frame, any view and lights): Params(b) angles, the
+uniformity test, SATF fetches and re-/α-maps (``_maps.frame_maps``, eqs 6–7) → lighting
+(eqs 8–11), s-map, shading and blending (eqs 12–14) in one kernel.
 Each cluster's strands, sectors and features are its own (so results do not depend on the
-order of the clusters); a frame then runs all clusters together, one fetch and one call of
-each kernel.  :func:`write_outputs` writes one EXR and one PNG per cluster
-plus an orthographic preview of the whole set.
+order of the clusters); a frame then runs all clusters together through each kernel once.
+:func:`write_outputs` writes one EXR and one PNG per cluster plus an orthographic preview
+of the whole set.
 """
 
 from __future__ import annotations
@@ -17,15 +18,19 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, fields
+from functools import partial
 from pathlib import Path
 from types import SimpleNamespace
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
 from ..assets import atomic_write_bytes, encode_png, tonemap, write_exr
-from ._maps import SectorFrames, build_maps, sector_angles, sector_frames, texel_grid, texels
+from ._frame import frame_maps, map_index
+from ._maps import SectorFrames, sector_frames, texel_grid
+from ._environment import prepare_environment
 from ._scene import Scene, as_scene
 from ._shading import compose_clusters_kernel, lighting_kernel, value_noise
 
@@ -124,7 +129,9 @@ class Prepared:
     """A scene made ready for :func:`render`: its clusters, the database, the seconds it took, and
     the clusters merged into one multi-cluster ``table`` and ``frames`` (sector ids offset by
     cluster, as in a multi-cluster :class:`~hairlut.geometry.SectorTable`) with stacked texel
-    arrays, so a frame runs every cluster through one fetch and one call of each kernel."""
+    arrays (float32 device arrays) and the maps' ``index`` (``_frame.MapIndex``), so a frame runs
+    every cluster through one call of each kernel; ``environment`` (``_environment.Environment``)
+    when the scene has an environment light."""
 
     scene: Scene
     db: object
@@ -133,6 +140,8 @@ class Prepared:
     table: object = None
     frames: object = None
     stacked: dict = field(default_factory=dict)
+    index: object = None
+    environment: object = None
 
 
 def _unit3(x):
@@ -158,8 +167,9 @@ def prepare_cluster(scene: Scene, db, spec, strands) -> PreparedCluster:
     return PreparedCluster(spec, table, frames, _unit3(pt[0]), _unit3(np.cross(pu[0], pt[0])), p[0], noise)
 
 
-def prepare(scene, db) -> Prepared:
-    """Everything of a scene that does not depend on the view or the lights (see :func:`render`)."""
+def prepare(scene, db, sh=None) -> Prepared:
+    """Everything of a scene that does not depend on the view or the lights (see :func:`render`);
+    ``sh``: the ``sh_tables`` file of the scene's environment light, when it has one."""
     sc = as_scene(scene)
     database = _load_db(db)
     k = sc.config["render"]["neighbours"]
@@ -177,46 +187,54 @@ def prepare(scene, db) -> Prepared:
                             hsv_sectors=np.concatenate([pc.table.hsv_sectors + c * n_sec for c, pc in enumerate(clusters)]))
     frames = SectorFrames(*(np.concatenate([getattr(pc.frames, f.name) for pc in clusters])
                             for f in fields(SectorFrames)))
-    stacked = {name: np.stack([getattr(pc, name) for pc in clusters]) for name in ("tangent", "normal", "noise")}
-    return Prepared(sc, database, clusters, {"strands": t1 - t0, "index": time.perf_counter() - t1}, table, frames,
-                    stacked)
+    stacked = {name: jnp.asarray(np.stack([getattr(pc, name) for pc in clusters]), jnp.float32)
+               for name in ("tangent", "normal", "noise")}
+    index = map_index(database, table, frames, clusters[0].spec.n_layers, sc.config["render"]["resolution"], k)
+    t2 = time.perf_counter()
+    env = prepare_environment(sc, sh, [s for _, s in pairs], np.stack([pc.tangent for pc in clusters]),
+                              np.stack([pc.position for pc in clusters]))
+    seconds = {"strands": t1 - t0, "index": t2 - t1} | ({"environment": time.perf_counter() - t2} if env else {})
+    return Prepared(sc, database, clusters, seconds, table, frames, stacked, index, env)
 
 
-def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict | None = None) -> list:
-    """One frame of every prepared cluster: eqs 6–7 (maps), 8–11 (lighting), 12–14 (s-map, shading,
-    blend), each stage one batched call over all clusters."""
+@partial(jax.jit, static_argnames=("effects", "linear"))
+def shade_kernel(re, alpha, tangent, normal, noise, view, lights, light_rgb, mat, colours, k_shadow, background,
+                 extra=None, *, effects, linear):
+    """Eqs 8–11 (lighting) and 12–14 (s-map, shading, blend) of every cluster, one kernel: τ, lighting
+    summed over the lights, shaded RGBA per layer (plus ``extra``, the environment term) and the composite RGBA."""
+    fx = dict(zip(("use_diffuse", "primary", "secondary", "noise"), effects))
+    light = lighting_kernel(tangent, normal, view, lights, light_rgb, noise, mat, colours, **fx)
+    tau, rgb, final, a = compose_clusters_kernel(light, re, alpha, k_shadow, background, extra, shadow=effects[-1],
+                                                 linear=linear)
+    return (tau, light.sum(axis=-2), jnp.concatenate([rgb, alpha[..., None]], -1),
+            jnp.concatenate([final, a[..., None]], -1))
+
+
+def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict | None = None, extra=None) -> list:
+    """One frame of every prepared cluster, all clusters batched: eqs 6–7 from the index
+    (``_frame.frame_maps``: three kernels, timed as "maps"), then eqs 8–14 (:func:`shade_kernel`, "shade");
+    ``extra`` (C, K, n_t, n_u, 3), the environment term, is added to each layer's shaded colour."""
     timing = {} if timing is None else timing
     scene, db = prepared.scene, prepared.db
     cfg, fx = scene.config, scene.effects
-    n_u, n_t = cfg["render"]["resolution"]
-    K = prepared.clusters[0].spec.n_layers
     t0 = time.perf_counter()
-    sp = sector_angles(prepared.frames, view, lights)
-    tx = texels(prepared.table, sp, K, (n_u, n_t), db.alpha.shape[-1])
-    maps = build_maps(db, prepared.table, sp, tx, scene.material["k_threshold"], cfg["render"]["neighbours"])
+    re, alpha, uniform = frame_maps(prepared.index, db, view, lights, scene.material["k_threshold"])
+    jax.block_until_ready(alpha)
     t1 = time.perf_counter()
     mat, colours = _material(scene)
     st = prepared.stacked
-    light = lighting_kernel(jnp.asarray(st["tangent"], jnp.float32), jnp.asarray(st["normal"], jnp.float32),
-                            jnp.asarray(view, jnp.float32), jnp.asarray(lights, jnp.float32),
-                            jnp.asarray(light_colors, jnp.float32), jnp.asarray(st["noise"], jnp.float32),
-                            jnp.asarray(mat), jnp.asarray(colours), use_diffuse=fx["diffuse"], primary=fx["primary"],
-                            secondary=fx["secondary"], noise=fx["noise"])
-    light.block_until_ready()
+    f32 = partial(np.asarray, dtype=np.float32)
+    out = shade_kernel(re, alpha, st["tangent"], st["normal"], st["noise"], f32(view), f32(lights), f32(light_colors),
+                       mat, colours, f32(scene.material["k_shadow"]), f32(cfg["render"]["background"]),
+                       None if extra is None else f32(extra),
+                       effects=tuple(fx[k] for k in ("diffuse", "primary", "secondary", "noise", "shadow")),
+                       linear=scene.material["shadow_form"] == "linear")
+    re, alpha, tau, light, rgba, final = (np.asarray(x) for x in jax.block_until_ready((re, alpha, *out)))
     t2 = time.perf_counter()
-    tau, rgb, final, a = compose_clusters_kernel(light, jnp.asarray(maps.re), jnp.asarray(maps.alpha),
-                                                 jnp.float32(scene.material["k_shadow"]),
-                                                 jnp.asarray(cfg["render"]["background"], jnp.float32),
-                                                 shadow=fx["shadow"], linear=scene.material["shadow_form"] == "linear")
-    final.block_until_ready()
-    t3 = time.perf_counter()
-    for key, dt in (("maps", t1 - t0), ("lighting", t2 - t1), ("shade_blend", t3 - t2)):
+    for key, dt in (("maps", t1 - t0), ("shade", t2 - t1)):
         timing[key] = timing.get(key, 0.0) + dt
-    tau, rgb, final, a, light = (np.asarray(x) for x in (tau, rgb, final, a, light))
-    uniform = maps.uniform.reshape(len(prepared.clusters), -1)
-    return [ClusterResult(maps.re[c], maps.alpha[c], tau[c], light[c].sum(axis=-2),
-                          np.concatenate([rgb[c], maps.alpha[c][..., None]], axis=-1),
-                          np.concatenate([final[c], a[c][..., None]], axis=-1), pc.position,
+    uniform = uniform.reshape(len(prepared.clusters), -1)
+    return [ClusterResult(re[c], alpha[c], tau[c], light[c], rgba[c], final[c], pc.position,
                           float(uniform[c].mean()) if uniform.size else 1.0)
             for c, pc in enumerate(prepared.clusters)]
 
@@ -241,20 +259,25 @@ def render(prepared: Prepared, *, view=None, lights=None, light_colors=None) -> 
         cols = sc.light_colors if lights is None else np.ones((len(ls), 3))
     if len(cols) != len(ls):
         raise errors.ValidationError("light_colors", light_colors, f"need one RGB per light ({len(ls)})")
-    timing = dict(prepared.seconds)
-    results = render_clusters(prepared, v, ls, cols, timing)
+    timing, extra, env_stats = dict(prepared.seconds), None, {}
+    if prepared.environment is not None:
+        t0 = time.perf_counter()
+        extra, env_stats["environment_clamped"] = prepared.environment.rgb(v)
+        timing["environment"] += time.perf_counter() - t0
+    results = render_clusters(prepared, v, ls, cols, timing, extra)
     stats = {"clusters": len(results), "layers": int(sum(r.alpha.shape[0] for r in results)),
              "hsvs": int(sum(pc.table.n_hsvs for pc in prepared.clusters)),
              "texels_per_layer": list(results[0].alpha.shape[1:]) if results else [],
-             "uniform_fraction": [r.uniform_fraction for r in results], "seconds": timing}
+             "uniform_fraction": [r.uniform_fraction for r in results], "seconds": timing, **env_stats}
     return SynthResult(sc, results, stats)
 
 
-def synthesize(scene, db) -> SynthResult:
+def synthesize(scene, db, sh=None) -> SynthResult:
     """Synthesise re-, α-, s-maps, lighting, shaded layers and composites for every cluster:
     :func:`render` of :func:`prepare`.  ``scene``: a :class:`Scene`, a scene mapping or a TOML
-    path; ``db``: an ``HRIRDB`` or the path of an ``hrir_db`` file."""
-    return render(prepare(scene, db))
+    path; ``db``: an ``HRIRDB`` or the path of an ``hrir_db`` file; ``sh``: the ``sh_tables``
+    file of the scene's environment light (``hairlut.plan.find_assets`` finds both in the cache)."""
+    return render(prepare(scene, db, sh))
 
 
 def _plain(x):
@@ -296,16 +319,20 @@ def _upsample(a: np.ndarray, f: int) -> np.ndarray:
 
 def ortho_preview(result: SynthResult, size: int) -> np.ndarray:
     """(size, size, 3) linear RGB: each cluster's composite drawn at its outer-layer texels,
-    projected orthographically along the view, nearest texel in front."""
+    upsampled until neighbours are at most a pixel apart, projected orthographically along the
+    view, nearest texel in front."""
     view = result.scene.view
     up = np.array([0.0, 1.0, 0.0]) if abs(view[1]) < 0.9 else np.array([0.0, 0.0, 1.0])
     e1 = np.cross(up, view)
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(view, e1)
-    pos = np.concatenate([_upsample(r.position[-1], 3).reshape(-1, 3) for r in result.clusters])
-    col = np.concatenate([_upsample(r.final[..., :3], 3).reshape(-1, 3) for r in result.clusters])
+    coarse = np.stack([r.position[-1] for r in result.clusters]) @ np.stack([e1, e2], 1)  # (C, n_t, n_u, 2)
+    span = max(np.ptp(coarse[..., 0]), np.ptp(coarse[..., 1]), 1e-12) * 1.05
+    gap = max(np.abs(np.diff(coarse, axis=a)).max(initial=0.0) for a in (1, 2)) * size / span
+    f = int(np.clip(np.ceil(gap), 2, 16))
+    pos = np.concatenate([_upsample(r.position[-1], f).reshape(-1, 3) for r in result.clusters])
+    col = np.concatenate([_upsample(r.final[..., :3], f).reshape(-1, 3) for r in result.clusters])
     x, y, depth = pos @ e1, pos @ e2, pos @ view
-    span = max(np.ptp(x), np.ptp(y), 1e-12) * 1.05
     cx, cy = 0.5 * (x.max() + x.min()), 0.5 * (y.max() + y.min())
     px = np.clip(((x - cx) / span + 0.5) * size, 0, size - 1).astype(int)
     py = np.clip((0.5 - (y - cy) / span) * size, 0, size - 1).astype(int)

@@ -1,0 +1,189 @@
+"""The per-frame path of eqs 6–7 (satf §6.2): the index once, then three jitted kernels a frame.
+
+:func:`map_index` (once per scene, in ``prepare``) keeps what does not change with the view
+or the lights; :func:`frame_maps` runs :func:`params_kernel` (angles, eq 6),
+:func:`fetch_kernel` (the SATF rows, non-uniform HSVs compacted on the host) and
+:func:`sweep_rows` (eq 7).  Conventions and the reference implementation: ``_maps``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import errors
+from ..hrir._query import interpolate, neighbours_kernel
+from ._maps import TWO_PI, SectorFrames, _bucket, _check_k, _device_db, _sample, _texel_cells, texel_offsets
+
+
+@partial(jax.tree_util.register_dataclass, data_fields=["axes", "nbr", "wgt", "dz2", "nbr_ave", "wgt_ave", "gamma", "offset"],
+         meta_fields=["grid", "layers", "rows", "cols"])
+@dataclass(frozen=True, eq=False)
+class MapIndex:
+    """§6.2.1's index: what eqs 6–7 need that does not change with the view or the lights, as
+    device arrays over the sectors (S; grid (C, s_t + 1, G, s_u)), HSVs (H; (C, s_t, G, s_u))
+    and texels ((C, K, n_t, n_u); texel (i, j) of layer k lies in HSV row ``rows[i]``, column
+    ``cols[j]``, track k).  Per sector: ``axes`` (2, S, 3), its +x and +y in 3-D; ``nbr``,
+    ``wgt`` (S, k), the SATF neighbours of its features (``hairlut.hrir._query.neighbours``).
+    Per HSV: ``dz2``, eq 6's feature term Σ Δz²; ``nbr_ave``, ``wgt_ave``, the neighbours of
+    its averaged features.  Per texel row: ``gamma`` (n_t,), γ along the HSV.  Per texel:
+    ``offset`` (2, 2, …) of :func:`texel_offsets`."""
+
+    axes: jax.Array
+    nbr: jax.Array
+    wgt: jax.Array
+    dz2: jax.Array
+    nbr_ave: jax.Array
+    wgt_ave: jax.Array
+    gamma: jax.Array
+    offset: jax.Array
+    grid: tuple
+    layers: int
+    rows: tuple
+    cols: tuple
+
+
+def map_index(db, table, fr: SectorFrames, n_layers: int, resolution, k: int) -> MapIndex:
+    """The :class:`MapIndex` of a (multi-cluster) sector table; its neighbours are those ``fetch`` finds."""
+    _check_k(db, k)
+    zdb, _, _, mean, std = _device_db(db)
+    n_c, n_i, n_g, s_u = table.shape
+    top = ((np.arange(n_c)[:, None] * n_i + np.arange(n_i - 1)) * n_g * s_u)[..., None] + np.arange(n_g * s_u)
+    if not np.array_equal(table.hsv_sectors, np.stack([top.ravel(), top.ravel() + n_g * s_u], 1)):
+        raise errors.ValidationError("table.hsv_sectors", table.shape, "need the sector table's HSV order")
+    top, bot = table.hsv_sectors[:, 0], table.hsv_sectors[:, 1]
+
+    def knn(f):
+        return neighbours_kernel(jnp.asarray((f - mean) / std, jnp.float32), zdb, int(k))
+
+    nbr, wgt = knn(fr.features)
+    nbr_ave, wgt_ave = knn(0.5 * (fr.features[top] + fr.features[bot]))
+    axes = np.stack([fr.ex[:, :1] * fr.reference + fr.ex[:, 1:] * fr.binormal,
+                     fr.ey[:, :1] * fr.reference + fr.ey[:, 1:] * fr.binormal])
+    dz2 = np.sum(((fr.features[top] - fr.features[bot]) / std) ** 2, -1)
+    rows, gamma, cols = _texel_cells(table.shape, resolution)
+    f32 = partial(jnp.asarray, dtype=jnp.float32)
+    return MapIndex(f32(axes), nbr, wgt, f32(dz2), nbr_ave, wgt_ave, f32(gamma),
+                    f32(texel_offsets(table, fr, n_layers, resolution)[2]), (n_c, n_i - 1, n_g, s_u), int(n_layers),
+                    tuple(rows.tolist()), tuple(cols.tolist()))
+
+
+def _wrap(x):
+    return jnp.mod(x + jnp.pi, TWO_PI) - jnp.pi
+
+
+def _take(x, idx: tuple, axis: int):
+    """x[..., idx, ...] along ``axis`` for a static index: a broadcast where idx = 0…0, 1…1, … (m each)."""
+    m = len(idx) // max(x.shape[axis], 1)
+    if m * x.shape[axis] == len(idx) and idx == tuple(i // m for i in range(len(idx))):
+        return jnp.repeat(x, m, axis=axis)
+    return jnp.take(x, np.asarray(idx), axis=axis)
+
+
+def _split(ix: MapIndex, x):
+    """Per-sector values (S, …) at every HSV's top and bottom sector: two (H, …) arrays (slices, no gather)."""
+    n_c, s_t, n_g, s_u = ix.grid
+    x = x.reshape(n_c, s_t + 1, n_g * s_u, *x.shape[1:])
+    return x[:, :-1].reshape(-1, *x.shape[3:]), x[:, 1:].reshape(-1, *x.shape[3:])
+
+
+def _texels(ix: MapIndex, x):
+    """Per-HSV values (H, …) → per texel (C, K, n_t, n_u, …)."""
+    n_c, s_t, n_g, s_u = ix.grid
+    x = jnp.swapaxes(x.reshape(n_c, s_t, n_g, s_u, *x.shape[1:])[:, :, :ix.layers], 1, 2)
+    return _take(_take(x, ix.rows, 2), ix.cols, 3)
+
+
+@partial(jax.jit, static_argnames=("n_v", "n_l"))
+def params_kernel(ix: MapIndex, view, lights, k_threshold, *, n_v: int, n_l: int):
+    """Params(b) angles of every sector, θv (S,) and θl (S, Lt), with the view's (cos θv, sin θv)
+    (S, 2), and eq 6 per HSV: the distance and the uniform mask (H,) (module docstring)."""
+    def project(d):  # (…, 3) → components on each sector's +x, +y: (S, …) twice
+        return (sum(ix.axes[i, :, j, None] * d[..., j] for j in range(3)) for i in (0, 1))
+
+    x, y = project(jnp.concatenate([view[None], lights]))
+    theta = jnp.mod(jnp.arctan2(y, x), TWO_PI)
+    r = jnp.hypot(x[:, 0], y[:, 0])
+    r1 = jnp.where(r > 0, r, 1.0)  # atan2(0, 0) = 0
+    cs = jnp.stack([jnp.where(r > 0, x[:, 0] / r1, 1.0), y[:, 0] / r1], -1)
+    (top, bot) = _split(ix, theta)
+    dv = _wrap(top[:, 0] - bot[:, 0]) / (TWO_PI / n_v)
+    dl = _wrap(top[:, 1:] - bot[:, 1:]) / (TWO_PI / n_l)
+    dist = jnp.sqrt(ix.dz2 + dv**2 + jnp.sum(dl**2, -1))
+    return theta[:, 0], theta[:, 1:], cs, dist, dist < k_threshold
+
+
+@partial(jax.jit, donate_argnames=("scratch",), keep_unused=True)
+def fetch_kernel(ix: MapIndex, alpha, refl, tv, tl, uniform, nonuniform, scratch):
+    """The SATF rows of a frame from the index's neighbours (``hairlut.hrir._query.interpolate``):
+    re (M, Lt, P), α (M, P).  Row h < H is HSV h's first HRIR (at Params_ave if it is uniform,
+    else its top sector's); row H + i the bottom sector's HRIR of HSV ``nonuniform[i]``.
+    ``scratch``: two arrays of those shapes, donated, so that the rows reuse their memory."""
+    u = uniform[:, None]
+    (n1, n2), (w1, w2), (v1, v2), (l1, l2) = (_split(ix, x) for x in (ix.nbr, ix.wgt, tv, tl))
+    q = (jnp.where(u, ix.nbr_ave, n1), jnp.where(u, ix.wgt_ave, w1),
+         jnp.where(uniform, v1 + 0.5 * _wrap(v2 - v1), v1), jnp.where(u, l1 + 0.5 * _wrap(l2 - l1), l1))
+    return interpolate(*(jnp.concatenate([a, b[nonuniform]]) for a, b in zip(q, (n2, w2, v2, l2))), alpha, refl)
+
+
+@jax.jit
+def sweep_rows(ix: MapIndex, rows_re, rows_a, cs, uniform, slot):
+    """Eq 7 per texel from :func:`fetch_kernel`'s rows: re (C, K, Lt, n_t, n_u), α (C, K, n_t, n_u).
+
+    A texel samples its HSV's row h at x⊤ and, with weight γ, row H + ``slot[h]`` at x⊥; a
+    uniform HSV's texels sample row h twice at x̄ (module docstring)."""
+    H, (Lt, P) = uniform.shape[0], rows_re.shape[1:]
+    c1, c2 = (_texels(ix, x) for x in _split(ix, cs))  # (C, K, n_t, n_u, 2) each
+    pix = [((-c[..., 1] * o[0] + c[..., 0] * o[1]) + 1.0) * P / 2.0 - 0.5 for c, o in zip((c1, c2), ix.offset)]
+    un, h = _texels(ix, uniform), _texels(ix, jnp.arange(H, dtype=jnp.int32))
+    p_ave = 0.5 * (pix[0] + pix[1])
+    p1, p2 = jnp.where(un, p_ave, pix[0]), jnp.where(un, p_ave, pix[1])
+    h2 = jnp.where(un, h, H + _texels(ix, slot))
+    g = ix.gamma[:, None]
+
+    def eq7(rows, r1, r2):
+        flat = rows.reshape(-1)
+        return (1 - g) * _sample(flat, r1, p1, P) + g * _sample(flat, r2, p2, P)
+
+    re = jnp.stack([eq7(rows_re, h * Lt + j, h2 * Lt + j) for j in range(Lt)], axis=2)
+    return re, jnp.clip(eq7(rows_a, h, h2), 0.0, 1.0)
+
+
+_SCRATCH: dict[int, tuple] = {}
+
+
+def frame_rows(ix: MapIndex, db, view, lights, k_threshold: float):
+    """Eq 6 and the SATF fetches of one frame: :func:`sweep_rows`'s arguments after ``ix`` (device
+    arrays) and the uniform mask (H,) on the host.  Two kernels: the uniformity test, then, with the
+    few non-uniform HSVs compacted on the host (padded to a bucket size), the fetches.  The rows
+    stay valid until the next frame of ``ix``, which reuses their memory."""
+    _, alpha, refl, _, _ = _device_db(db)
+    f32 = partial(np.asarray, dtype=np.float32)  # NumPy in: a jnp conversion would dispatch a kernel per argument
+    tv, tl, cs, _, uni = params_kernel(ix, f32(view), f32(lights), f32(k_threshold), n_v=len(db.theta_v),
+                                       n_l=len(db.theta_l))
+    uniform = np.asarray(uni)
+    nu = np.flatnonzero(~uniform)
+    slot = np.zeros(len(uniform), np.int32)
+    slot[nu] = np.arange(nu.size)
+    pad = np.zeros(_bucket(nu.size), np.int32)
+    pad[:nu.size] = nu
+    m, P = len(uniform) + pad.size, alpha.shape[-1]
+    shapes = ((m, tl.shape[1], P), (m, P))
+    scratch = _SCRATCH.pop(id(ix), None)
+    if scratch is None or tuple(x.shape for x in scratch) != shapes:
+        scratch = tuple(jnp.zeros(s, jnp.float32) for s in shapes)
+    rows = fetch_kernel(ix, alpha, refl, tv, tl, uni, pad, scratch)
+    if len(_SCRATCH) >= 4:
+        _SCRATCH.pop(next(iter(_SCRATCH)))
+    _SCRATCH[id(ix)] = rows
+    return (*rows, cs, uni, slot), uniform
+
+
+def frame_maps(ix: MapIndex, db, view, lights, k_threshold: float):
+    """Eqs 6–7 of one frame from the index: re, α as :func:`build_maps` (device arrays) and the uniform mask."""
+    args, uniform = frame_rows(ix, db, view, lights, k_threshold)
+    return (*sweep_rows(ix, *args), uniform)
