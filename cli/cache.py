@@ -15,7 +15,7 @@ def cache_group():
 
 
 @cache_group.command("ls")
-@click.option("--dir", "root", type=click.Path(file_okay=False), help="Cache folder (default: $HAIRLUT_CACHE or ./tables).")
+@click.option("--cache", "--dir", "root", type=click.Path(file_okay=False), help="Cache folder (default: $HAIRLUT_CACHE or ./tables).")
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 def ls_cmd(root, as_json):
     """List cached assets, newest first."""
@@ -33,7 +33,7 @@ def ls_cmd(root, as_json):
 
 
 @cache_group.command("prune")
-@click.option("--dir", "root", type=click.Path(file_okay=False), help="Cache folder (default: $HAIRLUT_CACHE or ./tables).")
+@click.option("--cache", "--dir", "root", type=click.Path(file_okay=False), help="Cache folder (default: $HAIRLUT_CACHE or ./tables).")
 @click.option("--kind", "kinds", multiple=True, help="Remove assets of this kind (repeatable).")
 @click.option("--older-than", "days", type=float, help="Remove assets older than this many days.")
 @click.option("--all", "everything", is_flag=True, help="Remove every cached asset.")

@@ -62,7 +62,7 @@ def demo_cmd(out_dir, scenes, shared, cache_root, no_progress, as_json):
         st = r["stats"]
         click.echo(f"scene {r['scene']}: {st['clusters']} clusters, {st['layers']} layers, {st['hsvs']} HSVs")
         for s in r["plan"]:
-            if s["kind"] is not None or s["action"] == "skip":
+            if s["kind"] is not None or s["action"] == "skip" or s["name"] == "transmittance":
                 click.echo(f"  {s['action']:<5} {s['name']:<13} {s['reason']}")
         for name, a in r["assets"].items():
             click.echo(f"  {a['status']} {name} in {a['seconds']:.1f} s: {a['path']}")

@@ -7,6 +7,7 @@ status 2 (the same status click uses for usage errors); no traceback.
 from __future__ import annotations
 
 import logging
+import os
 import sys
 
 import click
@@ -75,7 +76,19 @@ def _register() -> None:
 _register()
 
 
+def _xla_cache() -> None:
+    """Keep compiled JAX kernels between runs (a warm `hairlut demo` then skips most compilation):
+    ``$JAX_COMPILATION_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/hairlut/xla`` (``~/.cache``)."""
+    import jax
+
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    jax.config.update("jax_compilation_cache_dir",
+                      os.environ.get("JAX_COMPILATION_CACHE_DIR") or os.path.join(base, "hairlut", "xla"))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+
+
 def main() -> None:
+    _xla_cache()  # before the first compilation
     cli(prog_name="hairlut")
 
 
