@@ -42,21 +42,16 @@ def bake_group(ctx, scene, cache_root, no_progress, as_json):
         return
     from hairlut.plan import bake, plan
 
-    from .hrir import Progress
+    from .hrir import Bars
     from .plan import echo_plan
 
     p = plan(scene, cache_root)
     if not as_json:
         echo_plan(p)
-    bars = {}
-
-    def progress(name, done, total):
-        bars.setdefault(name, Progress(not no_progress, label=name))(done, total)
-
+    bars = Bars(not no_progress)
     start = time.perf_counter()
-    done = bake(p, progress)
-    for bar in bars.values():
-        bar.close()
+    done = bake(p, bars)
+    bars.close()
     if as_json:
         click.echo(json.dumps({"plan": p.to_json(), "assets": done, "seconds": time.perf_counter() - start},
                               indent=2, default=str))

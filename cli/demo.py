@@ -42,19 +42,14 @@ def demo_cmd(out_dir, scenes, shared, cache_root, no_progress, as_json):
     """
     from hairlut import demo
 
-    from .hrir import Progress
+    from .hrir import Bars
 
     if shared is None:
         guess = CHECKOUT.parent / "shared"
         shared = guess if guess.is_dir() else None
-    bars = {}
-
-    def progress(name, done, total):
-        bars.setdefault(name, Progress(not no_progress, label=name))(done, total)
-
-    report = demo.run(out_dir, list(scenes) or default_scenes(shared), cache_root, progress)
-    for bar in bars.values():
-        bar.close()
+    bars = Bars(not no_progress)
+    report = demo.run(out_dir, list(scenes) or default_scenes(shared), cache_root, bars)
+    bars.close()
     if as_json:
         click.echo(json.dumps(report, indent=2, default=str))
         return

@@ -48,6 +48,20 @@ class Progress:
             click.echo("", err=True)
 
 
+class Bars:
+    """One :class:`Progress` bar per named bake, as ``hairlut.plan.bake``'s ``progress(name, done, total)``."""
+
+    def __init__(self, enabled: bool):
+        self.enabled, self.bars = enabled, {}
+
+    def __call__(self, name: str, done: int, total: int) -> None:
+        self.bars.setdefault(name, Progress(self.enabled, label=name))(done, total)
+
+    def close(self) -> None:
+        for bar in self.bars.values():
+            bar.close()
+
+
 @click.command("hrir")
 @click.option("--recipe", type=click.Path(dir_okay=False), help="TOML recipe (default: the built-in defaults).")
 @click.option("--out", required=True, type=click.Path(dir_okay=False),

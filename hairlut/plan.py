@@ -105,6 +105,7 @@ class SceneSectors:
 def scene_sectors(scene) -> SceneSectors:
     """Build every cluster's sectors (no features) and measure them (see :class:`SceneSectors`)."""
     from .geometry import ClusterGeometry, build_sectors
+    from .synth._maps import azimuths, sector_axes
     from .synth._synth import _clusters
 
     cols = {k: [] for k in ("aspect", "v_range", "strands", "radius", "theta_v", "theta_l")}
@@ -124,27 +125,10 @@ def scene_sectors(scene) -> SceneSectors:
         cols["aspect"].append(np.minimum(A, B) / np.maximum(A, B))
         cols["v_range"].append(table.v_range)
         cols["strands"].append(n)
-        tv, tl = sector_azimuths(geom, table, scene.view, scene.lights)
+        tv, tl = azimuths(*sector_axes(geom, table), scene.view, scene.lights)
         cols["theta_v"].append(tv)
         cols["theta_l"].append(tl)
     return SceneSectors(s_u, *(np.concatenate(cols[k]) for k in cols))
-
-
-def sector_azimuths(geometry, table, view, lights):
-    """θv (N,) and θl (N, L) of each sector: the directions projected into its cross-section's
-    normal plane, as azimuths from its outward normal (the tracer's +x; ``hairlut.synth._maps``)."""
-    sec = geometry.sections(np.linspace(0.0, 1.0, table.shape[1]))
-    ref, bi = sec.normal[table.cluster, table.t_index], sec.binormal[table.cluster, table.t_index]
-    ab, phi = table.half_axes, table.twist + table.u_range.mean(axis=1)
-    ex = np.stack([ab[:, 1] * np.cos(phi), ab[:, 0] * np.sin(phi)], axis=1)
-    ex /= np.maximum(np.linalg.norm(ex, axis=1, keepdims=True), 1e-300)
-    ey = np.stack([-ex[:, 1], ex[:, 0]], axis=1)
-
-    def azimuth(d):
-        d2 = np.stack([ref @ d, bi @ d], axis=-1)
-        return np.mod(np.arctan2(np.sum(d2 * ey, -1), np.sum(d2 * ex, -1)), 2 * np.pi)
-
-    return azimuth(np.asarray(view, np.float64)), np.stack([azimuth(l) for l in np.atleast_2d(lights)], axis=1)
 
 
 def grid_coverage(theta: np.ndarray, n: int) -> float:

@@ -98,6 +98,27 @@ def _unit2(x):
     return x / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-300)
 
 
+def sector_axes(geometry, table):
+    """Each sector's normal-plane frame: 3-D ``reference`` and ``binormal`` (N, 3) of its cross-section
+    and its in-plane +x (the outward ellipse normal at its parametric centre) and +y (N, 2)."""
+    sec = geometry.sections(np.linspace(0.0, 1.0, table.shape[1]))
+    ab, phi = table.half_axes, table.twist + table.u_range.mean(axis=1)
+    ex = _unit2(np.stack([ab[:, 1] * np.cos(phi), ab[:, 0] * np.sin(phi)], axis=1))
+    ey = np.stack([-ex[:, 1], ex[:, 0]], axis=1)  # +90°: increasing phase
+    return sec.normal[table.cluster, table.t_index], sec.binormal[table.cluster, table.t_index], ex, ey
+
+
+def azimuths(reference, binormal, ex, ey, view, lights):
+    """θv (N,) and θl (N, Lt): the directions projected into each sector's normal plane, as azimuths from +x."""
+
+    def azimuth(d):
+        d2 = np.stack([reference @ d, binormal @ d], axis=-1)
+        return np.mod(np.arctan2(np.sum(d2 * ey, -1), np.sum(d2 * ex, -1)), TWO_PI)
+
+    tl = np.stack([azimuth(l) for l in np.atleast_2d(np.asarray(lights, np.float64))], axis=1)
+    return azimuth(np.asarray(view, np.float64)), tl
+
+
 def sector_frames(geometry, table, db) -> SectorFrames:
     """Features (in the database's feature set, grid and density scale) and frames of every sector."""
     names = tuple(db.stats.names)
@@ -108,15 +129,9 @@ def sector_frames(geometry, table, db) -> SectorFrames:
     splats = table.splats()
     dens = sector_density(splats, grid, density_scale=float(rec.get("density_scale", 1.0)))
     feats = sector_features(dens, splats, names)
-    s_t = table.shape[1] - 1
-    sec = geometry.sections(np.linspace(0.0, 1.0, s_t + 1))
-    cl, ti = table.cluster, table.t_index
+    reference, binormal, ex, ey = sector_axes(geometry, table)
     ab, q = table.half_axes, table.twist
-    vm, um = table.v_range.mean(axis=1), table.u_range.mean(axis=1)
-    phi = q + um
-    centre = _ellipse(ab, vm, phi)
-    ex = _unit2(np.stack([ab[:, 1] * np.cos(phi), ab[:, 0] * np.sin(phi)], axis=1))  # outward normal
-    ey = np.stack([-ex[:, 1], ex[:, 0]], axis=1)  # +90°: increasing phase
+    centre = _ellipse(ab, table.v_range.mean(axis=1), q + table.u_range.mean(axis=1))
     w = np.linspace(0.0, 1.0, 9)
     v0, v1 = table.v_range[:, :1], table.v_range[:, 1:]
     u0, u1 = table.u_range[:, :1] + q[:, None], table.u_range[:, 1:] + q[:, None]
@@ -125,19 +140,12 @@ def sector_frames(geometry, table, db) -> SectorFrames:
     edges = np.concatenate([_ellipse(ab[:, None], v0, ua), _ellipse(ab[:, None], v1, ua),
                             _ellipse(ab[:, None], va, u0), _ellipse(ab[:, None], va, u1)], axis=1)
     extent = np.linalg.norm(edges - centre[:, None], axis=-1).max(axis=1)
-    return SectorFrames(feats, centre, ex, ey, extent, ab, q, table.v_range[:, 1].copy(), sec.normal[cl, ti],
-                        sec.binormal[cl, ti])
+    return SectorFrames(feats, centre, ex, ey, extent, ab, q, table.v_range[:, 1].copy(), reference, binormal)
 
 
 def sector_angles(fr: SectorFrames, view, lights) -> SectorParams:
-    """θv (N,) and θl (N, Lt): the directions projected into each sector's normal plane, as azimuths from +x."""
-
-    def azimuth(d):
-        d2 = np.stack([fr.reference @ d, fr.binormal @ d], axis=-1)
-        return np.mod(np.arctan2(np.sum(d2 * fr.ey, -1), np.sum(d2 * fr.ex, -1)), TWO_PI)
-
-    tl = np.stack([azimuth(l) for l in np.atleast_2d(np.asarray(lights, np.float64))], axis=1)
-    return SectorParams(fr, azimuth(np.asarray(view, np.float64)), tl)
+    """Params(b) angles (:func:`azimuths`) of every sector with its frames."""
+    return SectorParams(fr, *azimuths(fr.reference, fr.binormal, fr.ex, fr.ey, view, lights))
 
 
 def sector_params(geometry, table, view, lights, db) -> SectorParams:
