@@ -12,6 +12,7 @@ The public API, imported on first use (so ``import hairlut`` stays light):
 ``hairlut.hrir``              baking the HRIR database by planar ray tracing
 ``hairlut.cache``             the content-addressed table cache
 ``hairlut.synthesize``        the online module (satf §6): re-, α-, s-maps, shading, blending
+``hairlut.plan``              the scene planner: what a scene needs, what the cache holds, what it skips
 ``hairlut.shadows``           density volumes and voxel SH transmittance (xing §5)
 ``hairlut.errors``            every exception hairlut raises on purpose
 """
@@ -23,8 +24,8 @@ import importlib
 from . import errors
 from ._version import __version__
 
-_SUBMODULES = {"assets", "cache", "demo", "envlight", "geometry", "hrir", "kernels", "recipes", "sh", "shadows", "shtables",
-               "synth"}
+_SUBMODULES = {"assets", "cache", "demo", "envlight", "geometry", "hrir", "kernels", "plan", "recipes", "sh", "shadows",
+               "shtables", "synth"}
 _ATTRIBUTES = {"SHTables": "shtables", "HRIRDB": "hrir", "synthesize": "synth"}
 
 __all__ = ["__version__", "errors", *sorted(_SUBMODULES), *sorted(_ATTRIBUTES)]
