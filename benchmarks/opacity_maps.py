@@ -31,7 +31,7 @@ from _common import best_of, save, table  # noqa: E402
 
 from hairlut.geometry import Strands, read_strands  # noqa: E402
 from hairlut.shadows._light import light_frame  # noqa: E402
-from hairlut.shadows._opacity import PADDING, opacity_shadow_maps  # noqa: E402
+from hairlut.shadows._opacity import map_grid, opacity_shadow_maps  # noqa: E402
 
 GROOM = Path(__file__).resolve().parents[2] / "shared" / "data" / "hair" / "sintel_lite.tfx"
 LIGHT = np.array([0.3, 1.0, 0.5])
@@ -49,14 +49,8 @@ def procedural_tuft(n: int = 400, v: int = 32, seed: int = 1) -> Strands:
 def numpy_osm(strands: Strands, light, n_slices: int, resolution: int, kappa: float) -> np.ndarray:
     """τ at every vertex by Table 6-1, in NumPy, with hairlut's grid and pieces (width 1)."""
     frame = light_frame(light)
-    pts = np.asarray(strands.points, np.float64)
-    q = pts @ frame.T
-    lo, hi = q.min(0), q.max(0)
-    ext = hi - lo
-    h = float(max(ext[0], ext[1])) / resolution or 1.0
-    H, W = (int(np.floor(ext[i] / h)) + 1 + 2 * PADDING for i in (1, 0))
-    ox, oy = lo[:2] - PADDING * h
-    near, dz = float(lo[2]), float(ext[2]) / n_slices or h
+    q = np.asarray(strands.points, np.float64) @ frame.T
+    (ox, oy), h, near, dz, (H, W) = map_grid(q, n_slices, resolution)
     step = 0.25 * min(h, dz)
     seg = strands.segments
     a, b = q[seg[:, 0]], q[seg[:, 1]]

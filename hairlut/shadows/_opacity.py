@@ -134,6 +134,17 @@ def _bucket(n: int) -> int:
     return -(-n // step) * step
 
 
+def map_grid(q: np.ndarray, n_slices: int, resolution: int):
+    """The maps' layout for hair points ``q`` (n, 3) in the light frame: texel origin (x, y), texel
+    edge h (``resolution`` texels over the longer side of the footprint, plus PADDING around), the
+    near depth, the slice spacing and the map shape (H, W)."""
+    lo, hi = q.min(0), q.max(0)
+    ext = hi - lo
+    h = float(max(ext[0], ext[1])) / resolution or 1.0
+    shape = tuple(int(np.floor(ext[i] / h)) + 1 + 2 * PADDING for i in (1, 0))
+    return lo[:2] - PADDING * h, h, float(lo[2]), float(ext[2]) / n_slices or h, shape
+
+
 def opacity_shadow_maps(strands, light, *, n_slices: int = 16, resolution: int = 128, kappa: float = 1.0,
                         width: float | None = None, spacing: float | None = None, up=None) -> OpacityMaps:
     """Opacity shadow maps of ``strands`` (a :class:`hairlut.geometry.Strands`) for a directional light.
@@ -159,14 +170,7 @@ def opacity_shadow_maps(strands, light, *, n_slices: int = 16, resolution: int =
         raise errors.ValidationError("spacing", spacing, "the sample spacing must be finite and > 0")
 
     pts = np.asarray(strands.points, np.float64)
-    q = pts @ frame.T
-    lo, hi = q.min(0), q.max(0)
-    ext = hi - lo
-    h = float(max(ext[0], ext[1])) / resolution or 1.0
-    H, W = (int(np.floor(ext[i] / h)) + 1 + 2 * PADDING for i in (1, 0))
-    origin = lo[:2] - PADDING * h
-    near = float(lo[2])
-    dz = float(ext[2]) / n_slices or h
+    origin, h, near, dz, (H, W) = map_grid(pts @ frame.T, n_slices, resolution)
     step = float(spacing) if spacing is not None else 0.25 * min(h, dz)
 
     seg = strands.segments
