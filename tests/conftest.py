@@ -15,9 +15,16 @@ settings.load_profile("ci" if os.environ.get("CI") else "dev")
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def shared_dir() -> Path:
-    """The shared/ folder beside the checkout (or $HAIRLUT_SHARED)."""
-    return Path(os.environ.get("HAIRLUT_SHARED", ROOT.parent / "shared"))
+GROOMS = ROOT / "tables" / "grooms"  # the example grooms kept in the repository (tables/grooms/README.md)
+
+
+def groom_path(name: str) -> Path:
+    """An example groom in tables/grooms/ (``sintel_lite.tfx``, ``ratboy_mohawk.tfx``).  They are
+    part of the repository, so a missing one is a broken checkout: fail, never skip."""
+    path = GROOMS / name
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: the example grooms are committed in tables/grooms/; the checkout is incomplete")
+    return path
 
 
 @pytest.fixture

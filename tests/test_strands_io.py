@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
+import hashlib
 import importlib.util
 import json
 import math
-import os
 import struct
 import sys
 import tempfile
@@ -24,29 +24,17 @@ from hairlut.geometry import Strands, read_strands, write_strands
 from hairlut_cli.main import Group
 from hairlut_cli.strands import strands_group
 
+from .conftest import GROOMS as GROOM_DIR
+from .conftest import groom_path as groom
+
 needs_pxr = pytest.mark.skipif(importlib.util.find_spec("pxr") is None, reason="usd-core (pxr) is not installed; USD support is an optional extra")
 
 
-def _shared() -> Path:
-    env = os.environ.get("HAIRLUT_SHARED")
-    return Path(env) if env else Path(__file__).resolve().parents[1].parent / "shared"
-
-
-HAIR_DIR = _shared() / "data" / "hair"
-# file: (strands, vertices per strand, bbox min, bbox max), as documented in shared/data/hair/README.md
+# file: (strands, vertices per strand, bbox min, bbox max), as documented in tables/grooms/README.md
 GROOMS = {
     "ratboy_mohawk.tfx": (2226, 32, (-9.5, 21.4, -33.6), (11.7, 111.0, 27.1)),
     "sintel_lite.tfx": (228, 32, (-10.6, 20.7, -13.0), (9.8, 47.7, 11.7)),
 }
-
-
-def groom(name: str) -> Path:
-    path = HAIR_DIR / name
-    if not path.is_file():
-        pytest.skip(f"{path} not found: the shared hair models sit in ../shared/data/hair/ beside the checkout "
-                    "(or set HAIRLUT_SHARED)")
-    return path
-
 
 def random_strands(rng: np.random.Generator, n: int = 7, equal: int | None = None) -> Strands:
     counts = np.full(n, equal) if equal else rng.integers(2, 12, n)
@@ -106,6 +94,24 @@ def test_tfx_grooms_match_their_documentation(name):
     np.testing.assert_allclose(s.bbox(), [lo, hi], atol=0.1)
     assert not s.movable[s.offsets[:-1]].any(), "TressFX pins every root vertex (w = 0)"
     assert s.lengths().min() > 0
+
+
+def test_vendored_grooms_are_the_documented_files_with_their_licences():
+    """tables/grooms/ keeps each groom unchanged (the SHA-256 its README lists), beside its licence
+    and attribution: a clone that lost a file, or a checkout that rewrote its bytes, fails here."""
+    readme = (GROOM_DIR / "README.md").read_text(encoding="utf-8")
+    assert sorted(p.name for p in GROOM_DIR.glob("*.tfx")) == sorted(GROOMS)
+    for name in GROOMS:
+        row = next(line for line in readme.splitlines() if line.startswith(f"| `{name}` |"))
+        digest = row.rstrip(" |").rsplit("`", 2)[-2]
+        assert hashlib.sha256(groom(name).read_bytes()).hexdigest() == digest, name
+    sintel = (GROOM_DIR / "LICENSE-sintel.txt").read_text(encoding="utf-8")
+    assert "Blender Foundation" in sintel and "durian.blender.org" in sintel
+    assert "creativecommons.org/licenses/by/3.0" in sintel
+    ratboy = (GROOM_DIR / "LICENSE-ratboy.txt").read_text(encoding="utf-8")
+    assert "Advanced Micro Devices" in ratboy and "Permission is hereby granted, free of charge" in ratboy
+    for licence in ("LICENSE-sintel.txt", "LICENSE-ratboy.txt"):
+        assert f"({licence})" in readme, f"README.md does not point at {licence}"
 
 
 def test_tfx_round_trip_is_byte_identical(tmp_path):
