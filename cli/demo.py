@@ -10,12 +10,10 @@ import click
 CHECKOUT = Path(__file__).resolve().parents[1]
 
 
-def default_scenes(shared: Path | None) -> list[Path]:
-    """The procedural sky scene, and the Sintel groom scene when the shared .tfx is present
-    (else the two-cluster procedural scene)."""
+def default_scenes() -> list[Path]:
+    """The procedural sky scene and the Sintel groom scene (its groom is kept in tables/grooms/)."""
     scenes = CHECKOUT / "tables" / "scenes"
-    groom = shared is not None and (Path(shared) / "data" / "hair" / "sintel_lite.tfx").is_file()
-    return [scenes / "sky-clusters.toml", scenes / ("sintel-groom.toml" if groom else "two-clusters.toml")]
+    return [scenes / "sky-clusters.toml", scenes / "sintel-groom.toml"]
 
 
 @click.command("demo")
@@ -23,20 +21,19 @@ def default_scenes(shared: Path | None) -> list[Path]:
               help="Folder for the synthesised maps and previews.")
 @click.option("--scene", "scenes", multiple=True, type=click.Path(dir_okay=False),
               help="Scene file(s) to run instead of the built-in examples.")
-@click.option("--shared", type=click.Path(file_okay=False), default=None,
-              help="The shared/ folder with data/hair/*.tfx (default: ../shared beside the checkout, if present).")
 @click.option("--cache", "cache_root", type=click.Path(file_okay=False),
               help="Table cache folder (default: $HAIRLUT_CACHE, else tables/).")
 @click.option("--no-progress", is_flag=True, help="No progress bars on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-def demo_cmd(out_dir, scenes, shared, cache_root, no_progress, as_json):
+def demo_cmd(out_dir, scenes, cache_root, no_progress, as_json):
     """Plan, bake (cached) and synthesise the example scenes; report what was done.
 
     \b
     1. tables/scenes/sky-clusters.toml: three procedural clusters under the
        built-in sky (SH tables, voxel SH self-shadowing) and a key light.
-    2. tables/scenes/sintel-groom.toml: the shared Sintel groom's strands in
-       fitted clusters, when ../shared is present; else two-clusters.toml.
+    2. tables/scenes/sintel-groom.toml: the strands of the Sintel groom
+       (tables/grooms/sintel_lite.tfx, CC-BY 3.0 Blender Foundation) in
+       six fitted clusters under two directional lights.
     The first run bakes each scene's HRIR database and SH tables into the
     cache (minutes); later runs reuse them (seconds).
     """
@@ -44,11 +41,8 @@ def demo_cmd(out_dir, scenes, shared, cache_root, no_progress, as_json):
 
     from .hrir import Bars
 
-    if shared is None:
-        guess = CHECKOUT.parent / "shared"
-        shared = guess if guess.is_dir() else None
     bars = Bars(not no_progress)
-    report = demo.run(out_dir, list(scenes) or default_scenes(shared), cache_root, bars)
+    report = demo.run(out_dir, list(scenes) or default_scenes(), cache_root, bars)
     bars.close()
     if as_json:
         click.echo(json.dumps(report, indent=2, default=str))
