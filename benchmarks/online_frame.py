@@ -27,7 +27,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import save, table  # noqa: E402
 
-from hairlut.synth import prepare, render, resolve_scene  # noqa: E402
+from hairlut.scene import resolve_scene  # noqa: E402
+from hairlut.synth import prepare, render  # noqa: E402
 from hairlut.synth._maps import fetch, param_distance, sector_angles, texels, wrap  # noqa: E402
 from hairlut.synth._synth import _material  # noqa: E402
 

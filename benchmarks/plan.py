@@ -30,7 +30,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import save, table  # noqa: E402
 
-from hairlut.plan import bake, plan  # noqa: E402
+from hairlut.scene import bake, plan  # noqa: E402
 from hairlut.recipes import load_toml  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -89,7 +89,8 @@ def full_bake(folder: Path, quick: bool) -> dict:
 def coverage(scene: Path, db_paths: dict) -> dict:
     """Nearest-record distance of the scene's sector features, in the scene features' std."""
     from hairlut.hrir import load_hrir_db
-    from hairlut.synth import prepare, resolve_scene
+    from hairlut.scene import resolve_scene
+    from hairlut.synth import prepare
 
     raw = load_toml(scene)
     raw.pop("environment", None)  # the features do not depend on the light

@@ -56,8 +56,7 @@ TRACE = {"angles": {"views": 16, "lights": 16}, "trace": {"pixels": 32, "steps":
 def scene_space() -> dict:
     """The sector space the planner fits to the scene's own sectors (``hairlut.plan.restricted_space``)."""
     from hairlut.hrir import resolve_recipe
-    from hairlut.plan import restricted_space, scene_sectors
-    from hairlut.synth import load_scene
+    from hairlut.scene import load_scene, restricted_space, scene_sectors
 
     return restricted_space(scene_sectors(load_scene(SCENE)), resolve_recipe({})["sectors"]["space"])
 
@@ -99,8 +98,8 @@ def lookup_rows(tmp: Path, sizes, n_test: int):
 
 
 def uniformity_rows(db_path: Path):
-    from hairlut.synth import load_scene, prepare, render
-    from hairlut.synth._scene import resolve_scene
+    from hairlut.scene import load_scene, resolve_scene
+    from hairlut.synth import prepare, render
     from hairlut.recipes import load_toml
 
     scene_file = ROOT / "tables" / "scenes" / "two-clusters.toml"
@@ -186,7 +185,8 @@ def _map_errors(re, a, re_t, a_t) -> dict:
 def scene_rows(dbs):
     """Section 3 for each (label, path) of ``dbs``; see the module docstring."""
     from hairlut.assets import canonical_json
-    from hairlut.synth import build_maps, load_scene, prepare, sector_angles, texels
+    from hairlut.scene import load_scene
+    from hairlut.synth import build_maps, prepare, sector_angles, texels
 
     scene = load_scene(SCENE)
     rows, prepared, truths = [], {}, {}

@@ -32,11 +32,12 @@ def synth_cmd(scene: str, db_path: str | None, sh_path: str | None, cache_root: 
       hairlut synth tables/scenes/sky-clusters.toml --out out/synth-sky
       hairlut synth tables/scenes/two-clusters.toml --db tables/hrir-default.h5 --out out/synth
     """
-    from hairlut.synth import load_scene, synthesize, write_outputs
+    from hairlut.scene import load_scene
+    from hairlut.synth import synthesize, write_outputs
 
     sc = load_scene(scene)
     if db_path is None or (sh_path is None and sc.environment is not None):
-        from hairlut.plan import find_assets
+        from hairlut.scene import find_assets
 
         found = find_assets(sc, cache_root)
         db_path = db_path or str(found["hrir_db"])

@@ -12,7 +12,8 @@ The public API, imported on first use (so ``import hairlut`` stays light):
 ``hairlut.hrir``              baking the HRIR database by planar ray tracing
 ``hairlut.cache``             the content-addressed table cache
 ``hairlut.synthesize``        the online module (satf §6): re-, α-, s-maps, shading, blending
-``hairlut.plan``              the scene planner: what a scene needs, what the cache holds, what it skips
+``hairlut.scene``             scene files, their clusters and strands, and the planner
+``hairlut.plan``              the scene planner, ``hairlut.scene.plan``: what a scene needs, what the cache holds, what it skips
 ``hairlut.shadows``           density volumes and voxel SH transmittance (xing §5)
 ``hairlut.errors``            every exception hairlut raises on purpose
 """
@@ -24,9 +25,9 @@ import importlib
 from . import errors
 from ._version import __version__
 
-_SUBMODULES = {"assets", "cache", "demo", "envlight", "geometry", "hrir", "kernels", "plan", "recipes", "sh", "shadows",
-               "shtables", "synth"}
-_ATTRIBUTES = {"SHTables": "shtables", "HRIRDB": "hrir", "synthesize": "synth"}
+_SUBMODULES = {"assets", "cache", "demo", "envlight", "geometry", "hrir", "kernels", "recipes", "scene", "sh",
+               "shadows", "shtables", "synth"}
+_ATTRIBUTES = {"SHTables": "shtables", "HRIRDB": "hrir", "plan": "scene", "synthesize": "synth"}
 
 __all__ = ["__version__", "errors", *sorted(_SUBMODULES), *sorted(_ATTRIBUTES)]
 

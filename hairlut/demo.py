@@ -48,7 +48,7 @@ def _sh_figures(path) -> dict:
 
 def run_scene(scene_path, out_dir, cache_root=None, progress=None) -> dict:
     """Plan, bake (through the cache) and synthesise one scene; its report."""
-    from .plan import bake, plan
+    from .scene import bake, plan
     from .synth import synthesize, write_outputs
 
     t0 = time.perf_counter()

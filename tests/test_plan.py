@@ -10,9 +10,8 @@ from click.testing import CliRunner
 from tests._synth_fixtures import scene as base_scene
 from hairlut import errors
 from hairlut.cache import entries
-from hairlut.plan import bake, find_assets, grid_coverage, plan, scene_sectors
+from hairlut.scene import bake, find_assets, grid_coverage, plan, resolve_scene, scene_sectors
 from hairlut.shtables._bake import band_truncation_error, specular_band_rule
-from hairlut.synth import resolve_scene
 from hairlut_cli.main import cli
 
 TINY_HRIR = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 4, "lights": 4},

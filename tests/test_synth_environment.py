@@ -6,8 +6,8 @@ from click.testing import CliRunner
 
 from hairlut import errors
 from hairlut.assets import read_exr, write_exr
-from hairlut.plan import bake, find_assets, plan
-from hairlut.synth import prepare, render, resolve_scene, synthesize
+from hairlut.scene import bake, find_assets, plan, resolve_scene
+from hairlut.synth import prepare, render, synthesize
 from hairlut_cli.main import cli
 from tests.test_plan import TINY_HRIR, _write_toml, scene
 

@@ -7,7 +7,8 @@ import pytest
 
 from hairlut.geometry import ClusterGeometry, build_sectors, generate_strands
 from hairlut.hrir._query import satf_query
-from hairlut.synth import resolve_scene, synthesize
+from hairlut.scene import resolve_scene
+from hairlut.synth import synthesize
 from hairlut.synth._maps import build_maps, param_distance, sector_params, texels, wrap
 
 from ._synth_fixtures import CLUSTER_A, scene, synthetic_db

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from hairlut import errors
-from hairlut.synth import load_scene, resolve_scene
+from hairlut.scene import load_scene, resolve_scene
 
 from ._synth_fixtures import scene
 

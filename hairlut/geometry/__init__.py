@@ -17,6 +17,7 @@ _LAZY = {
     "ClusterGeometry": "sweep", "Section": "sweep",
     "LayerMeshes": "mesh", "layer_meshes": "mesh",
     "SectorTable": "sectors", "build_sectors": "sectors",
+    "azimuths": "inplane", "sector_axes": "inplane",
     "SIGMA_PER_RADIUS": "splats", "SplatBatch": "splats",
     "PROFILES": "strandgen", "assign_strands": "strandgen", "generate_strands": "strandgen",
     "sector_density": "density", "sector_density_numpy": "density",

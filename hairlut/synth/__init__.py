@@ -1,6 +1,6 @@
 """The online module (satf §6): re-, α- and s-maps from the SATF, lighting, shading, blending.
 
-``synthesize(scene, db, sh=None)`` runs it for a scene (``load_scene`` / ``resolve_scene``)
+``synthesize(scene, db, sh=None)`` runs it for a scene (``hairlut.scene.load_scene`` / ``resolve_scene``)
 against an HRIR database (and the SH tables of its environment light, if it has one):
 ``render(prepare(scene, db, sh))``, where ``prepare`` does the view- and light-independent
 work (strands, sectors, features, the SATF index, texel frames, transmittance) once and
@@ -11,8 +11,6 @@ JAX loads on first use of a name.
 from .._lazy import lazy_exports
 
 _LAZY = {
-    "SCHEMA": "_scene", "Scene": "_scene", "as_scene": "_scene", "find_shared": "_scene",
-    "load_scene": "_scene", "resolve_scene": "_scene",
     "Environment": "_environment", "prepare_environment": "_environment",
     "MapIndex": "_frame", "frame_maps": "_frame", "map_index": "_frame",
     "Maps": "_maps", "SectorFrames": "_maps", "SectorParams": "_maps", "Texels": "_maps", "build_maps": "_maps",

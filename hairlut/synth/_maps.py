@@ -47,10 +47,8 @@ import numpy as np
 from .. import errors
 from ..geometry.density import sector_density
 from ..geometry.features import sector_features
-from ..hrir._query import query_kernel
-
-TWO_PI = 2.0 * np.pi
-
+from ..geometry.inplane import TWO_PI, azimuths, sector_axes
+from ..hrir import query_kernel
 
 def wrap(x):
     """Angle differences wrapped to [−π, π)."""
@@ -92,31 +90,6 @@ class SectorParams:
 
 def _ellipse(ab, v, phi):
     return np.stack([ab[..., 0] * v * np.cos(phi), ab[..., 1] * v * np.sin(phi)], axis=-1)
-
-
-def _unit2(x):
-    return x / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-300)
-
-
-def sector_axes(geometry, table):
-    """Each sector's normal-plane frame: 3-D ``reference`` and ``binormal`` (N, 3) of its cross-section
-    and its in-plane +x (the outward ellipse normal at its parametric centre) and +y (N, 2)."""
-    sec = geometry.sections(np.linspace(0.0, 1.0, table.shape[1]))
-    ab, phi = table.half_axes, table.twist + table.u_range.mean(axis=1)
-    ex = _unit2(np.stack([ab[:, 1] * np.cos(phi), ab[:, 0] * np.sin(phi)], axis=1))
-    ey = np.stack([-ex[:, 1], ex[:, 0]], axis=1)  # +90°: increasing phase
-    return sec.normal[table.cluster, table.t_index], sec.binormal[table.cluster, table.t_index], ex, ey
-
-
-def azimuths(reference, binormal, ex, ey, view, lights):
-    """θv (N,) and θl (N, Lt): the directions projected into each sector's normal plane, as azimuths from +x."""
-
-    def azimuth(d):
-        d2 = np.stack([reference @ d, binormal @ d], axis=-1)
-        return np.mod(np.arctan2(np.sum(d2 * ey, -1), np.sum(d2 * ex, -1)), TWO_PI)
-
-    tl = np.stack([azimuth(l) for l in np.atleast_2d(np.asarray(lights, np.float64))], axis=1)
-    return azimuth(np.asarray(view, np.float64)), tl
 
 
 def sector_frames(geometry, table, db) -> SectorFrames:

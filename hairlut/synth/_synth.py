@@ -28,10 +28,10 @@ import numpy as np
 
 from .. import errors
 from ..assets import atomic_write_bytes, encode_png, tonemap, write_exr
+from ..scene import Scene, as_scene, scene_clusters
 from ._frame import frame_maps, map_index
 from ._maps import SectorFrames, sector_frames, texel_grid
 from ._environment import prepare_environment
-from ._scene import Scene, as_scene
 from ._shading import compose_clusters_kernel, lighting_kernel, value_noise
 
 KIND = "synth_maps"
@@ -69,35 +69,6 @@ def _load_db(db):
         if not hasattr(db, name):
             raise errors.ValidationError("db", type(db).__name__, "give an HRIRDB or the path of an hrir_db file")
     return db
-
-
-def _clusters(scene: Scene):
-    """[(ClusterSpec, Strands)] for each cluster of the scene."""
-    from ..geometry import ClusterGeometry, Strands, fit_clusters, generate_strands, read_strands
-
-    if scene.groom_path is not None:
-        g = scene.config["groom"]
-        strands = read_strands(scene.groom_path)
-        if strands.thickness is None:
-            strands = Strands(strands.points, strands.counts,
-                              thickness=np.full(strands.n_points, 2.0 * g["radius"], np.float32))
-        batch, labels = fit_clusters(strands, min(g["clusters"], strands.n_strands), layer_radii=g["layer_radii"],
-                                     core_radius=g["core_radius"], s_t=g["s_t"], s_u=g["s_u"], seed=g["seed"])
-        off = strands.offsets
-        out = []
-        for c, spec in enumerate(batch.specs):
-            idx = np.flatnonzero(labels == c)
-            pts = np.concatenate([strands.points[off[i]:off[i + 1]] for i in idx])
-            thick = np.concatenate([strands.thickness[off[i]:off[i + 1]] for i in idx])
-            out.append((spec, Strands(pts, strands.counts[idx], thickness=thick)))
-        return out
-    s = scene.config["strands"]
-    out = []
-    for spec, seed in zip(scene.specs, scene.cluster_seeds):
-        strands, _ = generate_strands(ClusterGeometry(spec), s["count"], radius=s["radius"], profile=s["profile"],
-                                      spread=s["spread"], jitter=s["jitter"], seed=int(seed))
-        out.append((spec, strands))
-    return out
 
 
 def _material(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
@@ -176,7 +147,7 @@ def prepare(scene, db, sh=None) -> Prepared:
     if k > len(database.features):
         raise errors.ValidationError("render.neighbours", k, f"the database holds only {len(database.features)} sectors")
     t0 = time.perf_counter()
-    pairs = _clusters(sc)
+    pairs = scene_clusters(sc)
     t1 = time.perf_counter()
     clusters = [prepare_cluster(sc, database, spec, strands) for spec, strands in pairs]
     shapes = {pc.table.shape[1:] for pc in clusters}
@@ -276,7 +247,7 @@ def synthesize(scene, db, sh=None) -> SynthResult:
     """Synthesise re-, α-, s-maps, lighting, shaded layers and composites for every cluster:
     :func:`render` of :func:`prepare`.  ``scene``: a :class:`Scene`, a scene mapping or a TOML
     path; ``db``: an ``HRIRDB`` or the path of an ``hrir_db`` file; ``sh``: the ``sh_tables``
-    file of the scene's environment light (``hairlut.plan.find_assets`` finds both in the cache)."""
+    file of the scene's environment light (``hairlut.scene.find_assets`` finds both in the cache)."""
     return render(prepare(scene, db, sh))
 
 

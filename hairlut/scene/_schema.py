@@ -1,4 +1,4 @@
-"""Scene files for the online module (satf §6): clusters, strands, camera, lights, material, effects.
+"""Scene files (satf §6): clusters, strands, camera, lights, material, effects, shadows, tables.
 
 A scene is a TOML mapping validated by :func:`resolve_scene` (every key path checked by
 :mod:`hairlut.recipes`; an unknown, missing or out-of-range key raises
@@ -7,9 +7,8 @@ A scene is a TOML mapping validated by :func:`resolve_scene` (every key path che
 :class:`~hairlut.geometry.ClusterSpec` fields) with procedural strands (``[strands]``), or
 from ``[groom]``: a strand file whose strands are grouped into ``clusters`` fitted
 clusters (:func:`~hairlut.geometry.fit_clusters`).  Directions point *toward* the viewer
-and the lights (DESIGN.md).  A relative groom path is looked up next to the scene file,
-then as ``<ancestor>/shared/<path>`` for each ancestor of the scene folder (or under
-``$HAIRLUT_SHARED``).
+and the lights (DESIGN.md).  A relative groom or environment-map path is resolved next to
+the scene file (:func:`resolve_path`), and nowhere else.
 """
 
 from __future__ import annotations
@@ -204,19 +203,13 @@ def _unit(name, value) -> np.ndarray:
     return v / np.linalg.norm(v)
 
 
-def find_shared(path: str, base: Path) -> Path:
-    """Resolve a groom or environment-map path: absolute, next to the scene, $HAIRLUT_SHARED/<path>, <ancestor>/shared/<path>."""
+def resolve_path(path: str, base: Path) -> Path:
+    """A groom or environment-map path: absolute, or relative to ``base`` (the scene file's folder)."""
     p = Path(path)
-    tries = [p] if p.is_absolute() else [base / p]
-    if not p.is_absolute():
-        if os.environ.get("HAIRLUT_SHARED"):
-            tries.append(Path(os.environ["HAIRLUT_SHARED"]) / p)
-        for anc in [base.resolve(), *base.resolve().parents]:
-            tries.append(anc / "shared" / p)
-    for t in tries:
-        if t.is_file():
-            return t
-    raise errors.AssetNotFoundError(path, f"file not found (tried {len(tries)} places from {base})")
+    full = p if p.is_absolute() else base / p
+    if not full.is_file():
+        raise errors.AssetNotFoundError(str(full), f"file not found ({path!r} is resolved next to the scene file)")
+    return full
 
 
 def _cluster(i: int, given, strand_seed: int):
@@ -264,7 +257,7 @@ def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -
     base = Path(base_dir) if base_dir is not None else Path.cwd()
     env = cfg["environment"]
     if env["map"] not in ("", "sky"):
-        env["map"] = str(find_shared(env["map"], base))
+        env["map"] = str(resolve_path(env["map"], base))
     if (clusters is None) == (groom is None):
         raise errors.ValidationError("clusters", None, "give exactly one of [[clusters]] or [groom]")
     if groom is not None:
@@ -274,7 +267,7 @@ def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -
             raise errors.ValidationError("groom.path", None, "missing required key")
         g = resolve(GROOM, groom, "groom.")
         cfg["groom"] = g
-        specs, seeds, gpath = (), (), find_shared(g["path"], base)
+        specs, seeds, gpath = (), (), resolve_path(g["path"], base)
     else:
         if not isinstance(clusters, list) or not clusters:
             raise errors.ValidationError("clusters", clusters, "need a non-empty array of cluster tables")

@@ -1,6 +1,6 @@
 """The scene planner: the assets a scene needs, what the cache already holds, and the work it skips.
 
-:func:`plan` reads a scene (``hairlut.synth`` format) and decides, rule by rule, each in words:
+:func:`plan` reads a scene (:mod:`hairlut.scene` format) and decides, rule by rule, each in words:
 
 * **HRIR database** (always: the SATF online module reads it).  Its recipe is the
   defaults with ``[tables.hrir]`` over them; with ``tables.restrict`` (the default) the
@@ -37,8 +37,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import cache, errors
-from .assets import recipe_hash
+from .. import cache, errors
+from ..assets import recipe_hash
+from ._schema import as_scene
+from ._sectors import SceneSectors, grid_coverage, restricted_space, scene_sectors
 
 #: HRIR tracer throughput, (sector · view · light · pixel · step) per second, with and without
 #: in-sector self-shadowing (benchmarks/hrir_bake.py: 35 and 49 sectors/s at 32 × 32 angles, 64², 2 cores).
@@ -47,7 +49,6 @@ TRACE_RATE = {True: 1.47e8, False: 2.07e8}
 BAKE_OVERHEAD = {"hrir_db": 6.0, "sh_tables": 4.0}
 #: Voxel SH transmittance: casts (voxel · direction · step) per second (benchmarks/plan.py).
 CAST_RATE = 6.0e7
-MARGIN = 0.1  # relative widening of each measured sector-space range
 
 
 @dataclass(frozen=True)
@@ -84,87 +85,12 @@ class Plan:
                            "reused_bytes": sum(s.bytes for s in self.steps if s.action == "reuse")}}
 
 
-# ----------------------------------------------------------------------------- scene geometry
-
-
-@dataclass(frozen=True, eq=False)
-class SceneSectors:
-    """What the planner measures on a scene's own sectors: per sector ``aspect`` (B/A ≤ 1),
-    ``v_range`` (N, 2), ``strands`` crossing it, strand ``radius`` / √area (NaN when empty),
-    and the in-plane azimuths ``theta_v`` (N,) and ``theta_l`` (N, L) of the view and lights."""
-
-    s_u: int
-    aspect: np.ndarray
-    v_range: np.ndarray
-    strands: np.ndarray
-    radius: np.ndarray
-    theta_v: np.ndarray
-    theta_l: np.ndarray
-
-
-def scene_sectors(scene) -> SceneSectors:
-    """Build every cluster's sectors (no features) and measure them (see :class:`SceneSectors`)."""
-    from .geometry import ClusterGeometry, build_sectors
-    from .synth._maps import azimuths, sector_axes
-    from .synth._synth import _clusters
-
-    cols = {k: [] for k in ("aspect", "v_range", "strands", "radius", "theta_v", "theta_l")}
-    s_u = None
-    for spec, strands in _clusters(scene):
-        geom = ClusterGeometry(spec)
-        table = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))
-        s_u = table.shape[3]
-        A, B = table.half_axes[:, 0], table.half_axes[:, 1]
-        v0, v1 = table.v_range[:, 0], table.v_range[:, 1]
-        du = table.u_range[:, 1] - table.u_range[:, 0]
-        n = np.bincount(table.crossing_sector, minlength=table.n_sectors)
-        rsum = np.bincount(table.crossing_sector, weights=table.crossing_radius, minlength=table.n_sectors)
-        area = A * B * du * 0.5 * (v1**2 - v0**2)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            cols["radius"].append(np.where(n > 0, rsum / np.maximum(n, 1) / np.sqrt(area), np.nan))
-        cols["aspect"].append(np.minimum(A, B) / np.maximum(A, B))
-        cols["v_range"].append(table.v_range)
-        cols["strands"].append(n)
-        tv, tl = azimuths(*sector_axes(geom, table), scene.view, scene.lights)
-        cols["theta_v"].append(tv)
-        cols["theta_l"].append(tl)
-    return SceneSectors(s_u, *(np.concatenate(cols[k]) for k in cols))
-
-
-def grid_coverage(theta: np.ndarray, n: int) -> float:
-    """Fraction of a periodic grid 2πi/n whose nodes bilinear interpolation reads at ``theta``."""
-    cell = np.floor(np.mod(np.ravel(theta), 2 * np.pi) / (2 * np.pi) * n).astype(np.int64) % n
-    return float(np.unique(np.concatenate([cell, (cell + 1) % n])).size / n)
-
-
-def _widen(lo: float, hi: float, floor: float, ceil: float) -> list[float]:
-    pad = MARGIN * max(hi - lo, abs(hi), 1e-3)
-    return [float(max(floor, lo - pad)), float(min(ceil, hi + pad))]
-
-
-def restricted_space(ss: SceneSectors, base: dict) -> dict:
-    """The base sector space fitted to the scene's sectors (module docstring); spread, clumps and
-    profile weights are not measured and stay as given."""
-    out = dict(base)
-    v0, th = ss.v_range[:, 0], ss.v_range[:, 1] - ss.v_range[:, 0]
-    r = ss.radius[np.isfinite(ss.radius)]
-    out["s_u"] = [int(ss.s_u), int(ss.s_u)]
-    out["aspect"] = _widen(ss.aspect.min(), ss.aspect.max(), 1e-3, 1.0)
-    out["v_inner"] = _widen(v0.min(), v0.max(), 0.0, 0.9)
-    out["thickness"] = _widen(th.min(), th.max(), 1e-3, 1.0)
-    hi = int(ss.strands.max())
-    out["strands"] = [int(ss.strands.min()), hi + max(1, math.ceil(MARGIN * hi))]
-    if r.size:
-        out["radius"] = [float(r.min() / (1 + MARGIN)), float(r.max() * (1 + MARGIN))]
-    return out
+# ----------------------------------------------------------------------------- rules
 
 
 def _contains(outer: dict, inner: dict) -> bool:
     return all(k == "profile_weights" and outer[k] == inner[k] or
                k != "profile_weights" and outer[k][0] <= inner[k][0] and inner[k][1] <= outer[k][1] for k in inner)
-
-
-# ----------------------------------------------------------------------------- rules
 
 
 def _cached(kind: str, recipe: dict, root) -> tuple[Path, bool]:
@@ -173,7 +99,7 @@ def _cached(kind: str, recipe: dict, root) -> tuple[Path, bool]:
 
 
 def _hrir_step(scene, ss: SceneSectors, root) -> Step:
-    from .hrir import resolve_recipe
+    from ..hrir import resolve_recipe
 
     tab = scene.config["tables"]
     try:
@@ -222,7 +148,7 @@ def _hrir_step(scene, ss: SceneSectors, root) -> Step:
 
 def environment_light(scene):
     """The scene's environment light projected to the bands its SH tables need, or None."""
-    from .envlight import load_env_light, sky_light
+    from ..envlight import load_env_light, sky_light
 
     env = scene.environment
     if env is None:
@@ -230,14 +156,14 @@ def environment_light(scene):
     lmax = max(3, sh_bands(scene)) - 1
     light = sky_light(lmax) if env["map"] == "sky" else load_env_light(env["map"], lmax, env["layout"], env["up"])
     if env["intensity"] != 1.0:
-        from .envlight import EnvLight
+        from ..envlight import EnvLight
         light = EnvLight(light.coeffs * env["intensity"], light.channels, light.lmax, light.band_error, light.layout,
                          f"{light.source_sha256}×{env['intensity']!r}")
     return light
 
 
 def sh_bands(scene) -> int:
-    from .shtables._bake import specular_band_rule
+    from ..shtables import specular_band_rule
 
     b = scene.config["environment"]["bands"]
     return specular_band_rule(scene.material["p_I"]) if b == "auto" else int(b)
@@ -254,7 +180,8 @@ def sh_recipe(scene) -> dict | None:
 
 
 def _sh_step(scene, root) -> Step:
-    from .shtables._bake import band_truncation_error, full_recipe
+    from ..shtables import full_recipe
+    from ..shtables._bake import band_truncation_error  # not yet public in hairlut.shtables
 
     env = scene.environment
     if env is None:
@@ -329,8 +256,6 @@ def _online_steps(scene) -> list[Step]:
 
 def plan(scene, cache_root=None) -> Plan:
     """Decide, rule by rule, what ``scene`` needs (module docstring)."""
-    from .synth import as_scene
-
     sc = as_scene(scene)
     root = cache.cache_dir(cache_root)
     ss = scene_sectors(sc)
@@ -345,8 +270,8 @@ def bake(p: Plan, progress=None) -> dict[str, dict]:
     """Bake (or reuse) every asset step of a plan through the cache; ``progress(name, done, total)``.
 
     Returns {name: {"path", "status", "seconds"}} for the asset steps that are not skipped."""
-    from .hrir import bake as bake_hrir
-    from .shtables import bake_sh, write_sh_tables
+    from ..hrir import bake as bake_hrir
+    from ..shtables import bake_sh, write_sh_tables
 
     out = {}
     for s in p.steps:

@@ -1,0 +1,42 @@
+"""A scene's clusters and their strands (satf §3): what both the planner and the online module build on.
+
+``[[clusters]]`` scenes grow procedural strands in each cluster
+(:func:`~hairlut.geometry.generate_strands` with the ``[strands]`` table and each cluster's
+seed); ``[groom]`` scenes read the strand file and group its strands into fitted clusters
+(:func:`~hairlut.geometry.fit_clusters`), each cluster keeping the strands assigned to it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._schema import Scene
+
+
+def scene_clusters(scene: Scene) -> list:
+    """[(ClusterSpec, Strands)] for each cluster of the scene, in the scene's order."""
+    from ..geometry import ClusterGeometry, Strands, fit_clusters, generate_strands, read_strands
+
+    if scene.groom_path is not None:
+        g = scene.config["groom"]
+        strands = read_strands(scene.groom_path)
+        if strands.thickness is None:
+            strands = Strands(strands.points, strands.counts,
+                              thickness=np.full(strands.n_points, 2.0 * g["radius"], np.float32))
+        batch, labels = fit_clusters(strands, min(g["clusters"], strands.n_strands), layer_radii=g["layer_radii"],
+                                     core_radius=g["core_radius"], s_t=g["s_t"], s_u=g["s_u"], seed=g["seed"])
+        off = strands.offsets
+        out = []
+        for c, spec in enumerate(batch.specs):
+            idx = np.flatnonzero(labels == c)
+            pts = np.concatenate([strands.points[off[i]:off[i + 1]] for i in idx])
+            thick = np.concatenate([strands.thickness[off[i]:off[i + 1]] for i in idx])
+            out.append((spec, Strands(pts, strands.counts[idx], thickness=thick)))
+        return out
+    s = scene.config["strands"]
+    out = []
+    for spec, seed in zip(scene.specs, scene.cluster_seeds):
+        strands, _ = generate_strands(ClusterGeometry(spec), s["count"], radius=s["radius"], profile=s["profile"],
+                                      spread=s["spread"], jitter=s["jitter"], seed=int(seed))
+        out.append((spec, strands))
+    return out

@@ -1,0 +1,89 @@
+"""What the planner measures on a scene's own sectors, before anything is baked (satf §3, §5).
+
+:func:`scene_sectors` builds every cluster's sectors (no features) and measures their shape,
+strand counts and the in-plane view and light azimuths they produce;
+:func:`restricted_space` fits the HRIR database's sampled sector space to them (each range
+widened by ``MARGIN``) and :func:`grid_coverage` says how much of a periodic angle grid the
+scene reads.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._clusters import scene_clusters
+
+MARGIN = 0.1  # relative widening of each measured sector-space range
+
+
+@dataclass(frozen=True, eq=False)
+class SceneSectors:
+    """What the planner measures on a scene's own sectors: per sector ``aspect`` (B/A ≤ 1),
+    ``v_range`` (N, 2), ``strands`` crossing it, strand ``radius`` / √area (NaN when empty),
+    and the in-plane azimuths ``theta_v`` (N,) and ``theta_l`` (N, L) of the view and lights."""
+
+    s_u: int
+    aspect: np.ndarray
+    v_range: np.ndarray
+    strands: np.ndarray
+    radius: np.ndarray
+    theta_v: np.ndarray
+    theta_l: np.ndarray
+
+
+def scene_sectors(scene) -> SceneSectors:
+    """Build every cluster's sectors (no features) and measure them (see :class:`SceneSectors`)."""
+    from ..geometry import ClusterGeometry, azimuths, build_sectors, sector_axes
+
+    cols = {k: [] for k in ("aspect", "v_range", "strands", "radius", "theta_v", "theta_l")}
+    s_u = None
+    for spec, strands in scene_clusters(scene):
+        geom = ClusterGeometry(spec)
+        table = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))
+        s_u = table.shape[3]
+        A, B = table.half_axes[:, 0], table.half_axes[:, 1]
+        v0, v1 = table.v_range[:, 0], table.v_range[:, 1]
+        du = table.u_range[:, 1] - table.u_range[:, 0]
+        n = np.bincount(table.crossing_sector, minlength=table.n_sectors)
+        rsum = np.bincount(table.crossing_sector, weights=table.crossing_radius, minlength=table.n_sectors)
+        area = A * B * du * 0.5 * (v1**2 - v0**2)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cols["radius"].append(np.where(n > 0, rsum / np.maximum(n, 1) / np.sqrt(area), np.nan))
+        cols["aspect"].append(np.minimum(A, B) / np.maximum(A, B))
+        cols["v_range"].append(table.v_range)
+        cols["strands"].append(n)
+        tv, tl = azimuths(*sector_axes(geom, table), scene.view, scene.lights)
+        cols["theta_v"].append(tv)
+        cols["theta_l"].append(tl)
+    return SceneSectors(s_u, *(np.concatenate(cols[k]) for k in cols))
+
+
+def grid_coverage(theta: np.ndarray, n: int) -> float:
+    """Fraction of a periodic grid 2πi/n whose nodes bilinear interpolation reads at ``theta``."""
+    cell = np.floor(np.mod(np.ravel(theta), 2 * np.pi) / (2 * np.pi) * n).astype(np.int64) % n
+    return float(np.unique(np.concatenate([cell, (cell + 1) % n])).size / n)
+
+
+def _widen(lo: float, hi: float, floor: float, ceil: float) -> list[float]:
+    pad = MARGIN * max(hi - lo, abs(hi), 1e-3)
+    return [float(max(floor, lo - pad)), float(min(ceil, hi + pad))]
+
+
+def restricted_space(ss: SceneSectors, base: dict) -> dict:
+    """The base sector space fitted to the scene's sectors (module docstring); spread, clumps and
+    profile weights are not measured and stay as given."""
+    out = dict(base)
+    v0, th = ss.v_range[:, 0], ss.v_range[:, 1] - ss.v_range[:, 0]
+    r = ss.radius[np.isfinite(ss.radius)]
+    out["s_u"] = [int(ss.s_u), int(ss.s_u)]
+    out["aspect"] = _widen(ss.aspect.min(), ss.aspect.max(), 1e-3, 1.0)
+    out["v_inner"] = _widen(v0.min(), v0.max(), 0.0, 0.9)
+    out["thickness"] = _widen(th.min(), th.max(), 1e-3, 1.0)
+    hi = int(ss.strands.max())
+    out["strands"] = [int(ss.strands.min()), hi + max(1, math.ceil(MARGIN * hi))]
+    if r.size:
+        out["radius"] = [float(r.min() / (1 + MARGIN)), float(r.max() * (1 + MARGIN))]
+    return out
