@@ -48,8 +48,8 @@ def info_cmd(path, as_json):
 
     \b
     Examples:
-      hairlut strands info ../shared/data/hair/sintel_lite.tfx
-      hairlut strands info --json groom.hair
+      hairlut strands info tables/grooms/sintel_lite.tfx
+      hairlut strands info --json tables/grooms/ratboy_mohawk.tfx
     """
     summary = {"path": path, "format": format_of(path), **read_strands(path).summary()}
     click.echo(json.dumps(summary, indent=2) if as_json else _render(path, summary))
@@ -65,8 +65,9 @@ def convert_cmd(src, dst):
     .hair drops per-strand UVs and the TressFX movable flag.
 
     \b
-    Example:
-      hairlut strands convert ../shared/data/hair/ratboy_mohawk.tfx ratboy.usda
+    Examples:
+      hairlut strands convert tables/grooms/ratboy_mohawk.tfx ratboy.hair
+      hairlut strands convert tables/grooms/sintel_lite.tfx sintel.usda   # needs the usd extra
     """
     strands = read_strands(src)
     write_strands(dst, strands)
