@@ -2,8 +2,7 @@
 
     python benchmarks/light_oriented.py [--resolutions 32 64 128] [--reference 256] [--kappa 0.05] [--quick]
 
-On the shared Sintel groom (../shared/data/hair/sintel_lite.tfx; a procedural tuft if it is
-absent), for each resolution N:
+On the Sintel groom (tables/grooms/sintel_lite.tfx), for each resolution N:
 - hairlut: ``light_oriented_map`` (jitted, float64: density + transmittance in the light
   frame) plus ``.at`` at every strand vertex; best of 5 warm runs (first call reported too);
 - NumPy baseline: ``voxelize`` (world-aligned grid, N cells along the longest side) and a
@@ -29,20 +28,12 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import best_of, save, table  # noqa: E402
 
-from hairlut.geometry import Strands, read_strands  # noqa: E402
-from hairlut.shadows._reference import ray_march  # noqa: E402
-from hairlut.shadows._light_oriented import LightOrientedMap, light_oriented_map  # noqa: E402
+from hairlut.geometry import read_strands  # noqa: E402
+from hairlut.shadows import LightOrientedMap, light_oriented_map  # noqa: E402
+from hairlut.shadows._reference import ray_march  # noqa: E402  (not re-exported by hairlut.shadows yet)
 
-GROOM = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "hair" / "sintel_lite.tfx"
+GROOM = Path(__file__).resolve().parents[1] / "tables" / "grooms" / "sintel_lite.tfx"
 LIGHT = np.array([0.3, 0.8, 0.5]) / np.linalg.norm([0.3, 0.8, 0.5])
-
-
-def procedural_tuft(n: int = 2000, v: int = 16, seed: int = 1) -> Strands:
-    rng = np.random.default_rng(seed)
-    r, phi = np.sqrt(rng.uniform(0, 1, n)) * 5, rng.uniform(0, 2 * np.pi, n)
-    root = np.stack([r * np.cos(phi), np.zeros(n), r * np.sin(phi)], 1)
-    t = np.linspace(0, 1, v)[None, :, None]
-    return Strands.from_padded(root[:, None] + t * np.array([0, -20.0, 0]) + rng.normal(0, 1.5, (n, 1, 3)) * t**2)
 
 
 def numpy_baseline(strands, light, kappa, res, step=0.5):
@@ -60,10 +51,7 @@ def main() -> None:
     if args.quick:
         args.resolutions, args.reference = [32, 64], 128
 
-    if GROOM.is_file():
-        strands, source = read_strands(GROOM), GROOM.name
-    else:
-        strands, source = procedural_tuft(), "procedural tuft (sintel_lite.tfx not found)"
+    strands, source = read_strands(GROOM), GROOM.name
     pts = strands.points
     print(f"groom: {source}: {strands.n_strands} strands, {strands.n_points} vertices, "
           f"length {strands.lengths().sum():.1f}; light {np.round(LIGHT, 3).tolist()}, κ = {args.kappa}")

@@ -1,10 +1,10 @@
 """Opacity shadow maps (kim thesis §6.2, Table 6-1): build the maps and shadow every strand vertex.
 
-On the shared Sintel groom (../shared/data/hair/sintel_lite.tfx; a procedural tuft when it is
-absent), for a few (slices, resolution) settings, times
+On the Sintel groom (tables/grooms/sintel_lite.tfx), for a few (slices, resolution) settings, times
 - hairlut: ``opacity_shadow_maps`` (one jitted scatter-add + cumulative sum) and ``.at`` on every
   vertex, float64, best of the timed runs after a warm-up (first call, with compilation, too);
-- a straightforward NumPy version of the paper's procedure: the same pieces and grid, vertices
+- a straightforward NumPy version of the paper's procedure: the same pieces and grid (the layout of
+  hairlut's maps at that setting: frame, origin, texel edge, near depth, slice spacing), vertices
   bucketed by slice (loop 2), then per slice Ω_i = Ω_{i-1} + np.add.at of that slice's pieces and
   a bilinear + depth-linear lookup of that slice's vertices in Ω_{i-1}, Ω_i (loops 3 and 4).
 Errors are |Δτ| at the vertices against a many-slice, high-resolution hairlut reference; against
@@ -30,27 +30,19 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import best_of, save, table  # noqa: E402
 
 from hairlut.geometry import Strands, read_strands  # noqa: E402
-from hairlut.shadows._light import light_frame  # noqa: E402
-from hairlut.shadows._opacity import map_grid, opacity_shadow_maps  # noqa: E402
+from hairlut.shadows import OpacityMaps, opacity_shadow_maps  # noqa: E402
 
-GROOM = Path(__file__).resolve().parents[2] / "shared" / "data" / "hair" / "sintel_lite.tfx"
+GROOM = Path(__file__).resolve().parents[1] / "tables" / "grooms" / "sintel_lite.tfx"
 LIGHT = np.array([0.3, 1.0, 0.5])
 
 
-def procedural_tuft(n: int = 400, v: int = 32, seed: int = 1) -> Strands:
-    rng = np.random.default_rng(seed)
-    a = rng.uniform(0, 2 * np.pi, n)
-    root = np.c_[8 * np.cos(a), 40 + rng.normal(0, 1, n), 8 * np.sin(a)]
-    steps = rng.normal(0, 0.15, (n, v - 1, 3)) + np.c_[np.cos(a), -np.full(n, 3.0), np.sin(a)][:, None, :] * 0.3
-    pts = root[:, None, :] + np.concatenate([np.zeros((n, 1, 3)), np.cumsum(steps, axis=1)], axis=1)
-    return Strands.from_padded(pts)
-
-
-def numpy_osm(strands: Strands, light, n_slices: int, resolution: int, kappa: float) -> np.ndarray:
-    """τ at every vertex by Table 6-1, in NumPy, with hairlut's grid and pieces (width 1)."""
-    frame = light_frame(light)
-    q = np.asarray(strands.points, np.float64) @ frame.T
-    (ox, oy), h, near, dz, (H, W) = map_grid(q, n_slices, resolution)
+def numpy_osm(strands: Strands, layout: OpacityMaps, kappa: float) -> np.ndarray:
+    """τ at every vertex by Table 6-1, in NumPy, on the grid of ``layout`` (hairlut's maps at the same
+    setting: only their layout is used, never their Ω) and with hairlut's pieces (width 1)."""
+    q = np.asarray(strands.points, np.float64) @ layout.frame.T
+    (ox, oy), h, near = layout.origin, layout.spacing, layout.near
+    n_slices, H, W = layout.shape
+    dz = float(layout.depths[0] - near)
     step = 0.25 * min(h, dz)
     seg = strands.segments
     a, b = q[seg[:, 0]], q[seg[:, 1]]
@@ -103,10 +95,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="two small settings and a smaller reference")
     args = ap.parse_args()
 
-    if GROOM.exists():
-        strands, source = read_strands(GROOM), GROOM.name
-    else:
-        strands, source = procedural_tuft(), "procedural tuft (sintel_lite.tfx not found)"
+    strands, source = read_strands(GROOM), GROOM.name
     verts = strands.points
     settings = [(8, 32), (16, 64)] if args.quick else [(8, 32), (16, 64), (32, 128)]
     ref_setting = (64, 128) if args.quick else (128, 256)
@@ -124,8 +113,8 @@ def main() -> None:
         hairlut_run(n_slices, res)
         t_first = time.perf_counter() - t0
         t_jax, tau_j = best_of(lambda: hairlut_run(n_slices, res), repeat=repeat)
-        t_np, tau_n = best_of(lambda: numpy_osm(strands, LIGHT, n_slices, res, args.kappa), repeat=repeat)
         m = opacity_shadow_maps(strands, LIGHT, n_slices=n_slices, resolution=res, kappa=args.kappa)
+        t_np, tau_n = best_of(lambda: numpy_osm(strands, m, args.kappa), repeat=repeat)
         dj, dn, dx = tau_j - ref, tau_n - ref, tau_j - tau_n
         dd = tau_j - hairlut_run(ref_setting[0], res)
         rows.append({"setting": f"{n_slices} × {res}", "maps": "×".join(map(str, m.shape)), "t_jax": t_jax * 1e3,
