@@ -40,6 +40,7 @@ def test_layout_follows_the_design(tmp_path):
         datasets = []
         f.visititems(lambda n, o: datasets.append(o) if isinstance(o, h5py.Dataset) else None)
         assert len(datasets) == 5  # 3 axes + 2 tables
+        assert "axes" not in f, "schema 2 keeps the axes at the root, where netCDF-4 readers look"
         for ds in datasets:
             assert ds.chunks is not None and ds.compression == "gzip" and ds.shuffle and ds.fletcher32, ds.name
             assert "units" in ds.attrs and "long_name" in ds.attrs
@@ -47,8 +48,9 @@ def test_layout_follows_the_design(tmp_path):
         assert spec.chunks == (1, 33, 17)
         for dim, name in zip(spec.dims, ("exponent", "theta", "theta_v")):
             assert dim.label == name
-            assert len(dim) == 1 and dim[0].name == f"/axes/{name}"
-            assert f[f"axes/{name}"].is_scale
+            assert len(dim) == 1 and dim[0].name == f"/{name}"
+            assert f[name].is_scale
+            assert f[name].attrs["NAME"] in (name, name.encode()), "a netCDF-4 coordinate variable, not a bare dimension"
 
 
 def test_same_recipe_gives_identical_bytes(tmp_path, monkeypatch):
@@ -146,11 +148,11 @@ def test_flipped_byte_inside_a_chunk_fails_the_checksum(tmp_path, where):
 
 def test_flipped_byte_in_an_axis_is_caught(tmp_path):
     path, _ = lobes_table(tmp_path / "t.h5")
-    offset, size = _chunk_span(path, "axes/theta")
+    offset, size = _chunk_span(path, "theta")
     raw = bytearray(path.read_bytes())
     raw[offset + size // 2] ^= 0x01
     path.write_bytes(bytes(raw))
-    with pytest.raises(errors.ChecksumError, match="axes/theta"):
+    with pytest.raises(errors.ChecksumError, match="'theta' fails its fletcher32 checksum"):
         read_table(path)
 
 
@@ -172,7 +174,7 @@ def test_unknown_kind_in_file(tmp_path):
         read_table(path)
 
 
-@pytest.mark.parametrize("schema", [0, 2, 99])
+@pytest.mark.parametrize("schema", [0, SCHEMA + 1, 99])
 def test_unknown_schema(tmp_path, schema):
     path, _ = lobes_table(tmp_path / "t.h5")
     _edit(path, lambda f: f.attrs.__setitem__("hairlut_schema", np.int32(schema)))
@@ -214,3 +216,123 @@ def test_h5dump_lists_a_table(tmp_path):
         assert word in run.stdout
     data = subprocess.run(["h5dump", "-d", "/diffuse", str(path)], capture_output=True, text=True, timeout=60)
     assert data.returncode == 0 and "error" not in data.stderr.lower()
+
+
+# ----------------------------------------------------------------------------- groups and the old layout
+
+
+def _grouped(path):
+    """A table whose group 'theta' shares its name with an axis, and a plain group 'extra'."""
+    theta = np.linspace(0, np.pi, 5)
+    phi = np.linspace(0, 2 * np.pi, 4, endpoint=False)
+    axes = [Axis("theta", theta, "rad", "polar angle"), Axis("phi", phi, "rad", "azimuth", period=2 * np.pi)]
+    variables = [
+        Variable("diffuse", np.sin(theta), ("theta",), "1", "d"),
+        Variable("specular", np.outer(theta, np.cos(phi)).astype(np.float32), ("theta", "phi"), "1", "s"),
+        Variable("theta/weight", np.arange(5.0), ("theta",), "sr", "w", attrs={"names": "[1, 2]"}),
+        Variable("extra/deep/phase", np.arange(4, dtype=np.int32), ("phi",), "1", "p"),
+    ]
+    write_table(path, "kk_lobes", {"g": 1}, axes, variables)
+    return path, {v.name: v for v in variables}
+
+
+def test_a_group_named_like_an_axis_is_stored_beside_it_and_read_back_under_its_name(tmp_path):
+    path, ref = _grouped(tmp_path / "g.h5")
+    t = read_table(path)
+    assert list(t.variables) == ["diffuse", "specular", "theta/weight", "extra/deep/phase"]
+    for name, var in ref.items():
+        np.testing.assert_array_equal(t[name], var.data)
+        assert t.variables[name].dims == var.dims and t.variables[name].units == var.units
+    assert t.variables["theta/weight"].attrs["names"] == "[1, 2]"
+    with h5py.File(path, "r") as f:
+        assert f["theta"].is_scale and f["theta_group"].attrs["hairlut_name"] == "theta"
+        assert f["theta_group/weight"].dims[0][0].name == "/theta"
+        assert f["extra/deep/phase"].dims[0][0].name == "/phi" and "hairlut_name" not in f["extra"].attrs
+
+
+@pytest.mark.parametrize(
+    "names, message",
+    [
+        (["theta"], "shares its name with an axis"),
+        (["theta_group"], "is taken by group of 'theta/w'"),
+        (["diffuse/x"], "is taken by table 'diffuse'"),
+    ],
+)
+def test_names_that_would_share_a_path_are_rejected(tmp_path, names, message):
+    theta = np.linspace(0, 1, 3)
+    variables = [Variable(n, theta, ("theta",), "1", n) for n in ["diffuse", "specular", "theta/w", *names]]
+    with pytest.raises(errors.ValidationError, match=message) as info:
+        write_table(tmp_path / "x.h5", "kk_lobes", {}, [Axis("theta", theta, "1", "t")], variables)
+    assert info.value.field == "variable.name"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_inspect_and_preview_use_table_names(tmp_path):
+    from hairlut.assets import preview, summarize
+
+    path, ref = _grouped(tmp_path / "g.h5")
+    s = summarize(path)
+    assert s["schema"] == SCHEMA and list(s["axes"]) == ["theta", "phi"] and s["axes"]["phi"]["periodic"]
+    by_name = {d["name"]: d for d in s["datasets"]}
+    assert list(by_name) == ["diffuse", "specular", "theta/weight", "extra/deep/phase"]
+    assert by_name["theta/weight"]["h5_path"] == "/theta_group/weight" and by_name["theta/weight"]["dims"] == ["theta"]
+    assert by_name["specular"]["max"] == pytest.approx(float(ref["specular"].data.max()))
+    png = preview(path, tmp_path / "w.png", dataset="theta/weight")
+    assert png.read_bytes().startswith(b"\x89PNG")
+    preview(path, tmp_path / "a.png", dataset="phi")
+    with pytest.raises(errors.MissingDatasetError, match="no dataset 'nope'"):
+        preview(path, tmp_path / "n.png", dataset="nope")
+
+
+def _write_schema_1(path, t):
+    """``t`` (a Table) in the schema 1 layout: axes as scales in /axes, tables at their names."""
+    with h5py.File(path, "w", libver=("earliest", "v110"), track_order=True) as f:
+        for key, value in {"hairlut_schema": np.int32(1), "kind": t.kind, "hairlut_version": t.version,
+                           "created": t.created, "recipe": json.dumps(t.recipe, sort_keys=True, separators=(",", ":")),
+                           "recipe_hash": t.recipe_hash}.items():
+            f.attrs[key] = value
+        scales, group = {}, f.create_group("axes", track_order=True)
+        for ax in t.axes.values():
+            ds = group.create_dataset(ax.name, data=ax.values, chunks=True, fletcher32=True)
+            ds.attrs.update({"units": ax.units, "long_name": ax.long_name, "periodic": np.int8(ax.periodic)})
+            if ax.periodic:
+                ds.attrs["period"] = ax.period
+            ds.make_scale(ax.name)
+            scales[ax.name] = ds
+        for var in t.variables.values():
+            ds = f.create_dataset(var.name, data=var.data, chunks=True, fletcher32=True)
+            ds.attrs.update({"units": var.units, "long_name": var.long_name, **var.attrs})
+            for i, dim in enumerate(var.dims):
+                ds.dims[i].label = dim
+                ds.dims[i].attach_scale(scales[dim])
+
+
+def test_schema_1_files_are_still_read(tmp_path):
+    from hairlut.assets import summarize
+
+    path, _ = _grouped(tmp_path / "g.h5")
+    new = read_table(path)
+    _write_schema_1(tmp_path / "old.h5", new)
+    old = read_table(tmp_path / "old.h5", kind="kk_lobes", required=["theta/weight"])
+    assert old.schema == 1 and old.recipe_hash == new.recipe_hash
+    assert list(old.axes) == list(new.axes) and list(old.variables) == list(new.variables)
+    for name, ax in new.axes.items():
+        np.testing.assert_array_equal(old.axes[name].values, ax.values)
+        assert (old.axes[name].units, old.axes[name].period) == (ax.units, ax.period)
+    for name, var in new.variables.items():
+        np.testing.assert_array_equal(old[name], var.data)
+        assert old.variables[name].dims == var.dims and old.variables[name].attrs == var.attrs
+    s = summarize(tmp_path / "old.h5")
+    assert s["schema"] == 1 and list(s["axes"]) == ["theta", "phi"]
+    assert [d["name"] for d in s["datasets"]] == list(new.variables)
+
+
+@pytest.mark.skipif(shutil.which("h5dump") is None, reason="h5dump (Debian hdf5-tools) not installed")
+def test_h5dump_reads_groups_and_root_scales(tmp_path):
+    path, _ = _grouped(tmp_path / "g.h5")
+    run = subprocess.run(["h5dump", "-A", str(path)], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0 and "error" not in (run.stdout + run.stderr).lower(), run.stderr
+    for word in ('GROUP "theta_group"', 'DATASET "weight"', 'DATASET "phase"', '"DIMENSION_SCALE"', "REFERENCE_LIST"):
+        assert word in run.stdout
+    data = subprocess.run(["h5dump", "-d", "/theta_group/weight", str(path)], capture_output=True, text=True, timeout=60)
+    assert data.returncode == 0 and "error" not in data.stderr.lower() and "(0): 0, 1, 2, 3, 4" in data.stdout

@@ -1,17 +1,29 @@
-"""HDF5 table files: self-describing, checksummed, readable by HDF5 1.10 tools.
+"""HDF5 table files: self-describing, checksummed, readable by HDF5 1.10 tools and netCDF-4 readers.
 
-Layout of a table file::
+Layout of a table file (``hairlut_schema`` 2)::
 
     /                      attrs: hairlut_schema, kind, hairlut_version, created,
                                   recipe (canonical JSON), recipe_hash (SHA-256)
-    /axes/<axis>           1-D dimension scale; attrs units, long_name, periodic[, period]
+    /<axis>                1-D dimension scale named after its axis (a netCDF-4
+                           coordinate variable); attrs units, long_name, periodic[, period]
     /<variable>            N-D table; attrs units, long_name; dims labelled and
-                           attached to their /axes scales
+                           attached to the root scales
+    /<group>/<variable>    a table named ``group/variable``; its dims attach to the
+                           same root scales (the root is every group's ancestor)
 
-Every dataset (scales included) is chunked with gzip + shuffle + fletcher32, and
-the file is written with ``libver=("earliest", "v110")``.  Nothing time-dependent
-is stored except ``created``, which honours ``SOURCE_DATE_EPOCH``; so the same
-recipe gives a bitwise-identical file.
+netCDF-4 readers (h5netcdf, so ``xarray.open_dataset(path, engine="h5netcdf")``
+and ``xarray.open_datatree``) look for a variable's dimension scales in its own
+group or an ancestor; at the root they serve every group, and xarray shows the
+axes as coordinates.  A table group cannot share the root with an axis of the
+same name (HDF5 names are unique in a group), so such a group is stored as
+``<group>_group`` with a ``hairlut_name`` attribute giving its name; readers
+here map it back, so tables keep the names they were written with.
+
+Schema 1 files (axes in ``/axes``, where netCDF readers do not find them) are
+still read.  Every dataset (scales included) is chunked with gzip + shuffle +
+fletcher32, and the file is written with ``libver=("earliest", "v110")``.
+Nothing time-dependent is stored except ``created``, which honours
+``SOURCE_DATE_EPOCH``; so the same recipe gives a bitwise-identical file.
 """
 
 from __future__ import annotations
@@ -32,11 +44,11 @@ from .. import errors
 from .._version import __version__
 from .atomic import atomic_path
 from .kinds import KINDS, SCHEMA, SUPPORTED_SCHEMAS
+from .layout import AXES_GROUP, NAME_ATTR, check_layout, disk_name, layout, table  # noqa: F401  (re-exported)
 from .recipe import canonical_json, recipe_hash
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 LIBVER = ("earliest", "v110")
-AXES_GROUP = "axes"
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*$")
 
 
@@ -145,6 +157,7 @@ def _validate(axes: Iterable[Axis], variables: Iterable[Variable]) -> tuple[dict
         if var.chunks is not None and (len(var.chunks) != data.ndim or any(c < 1 for c in var.chunks)):
             raise errors.ValidationError(f"{var.name}.chunks", var.chunks, f"need {data.ndim} positive chunk sizes")
         out.append((var, data))
+    check_layout(by_name, [var.name for var, _ in out])
     return by_name, out
 
 
@@ -180,10 +193,9 @@ def write_table(
             for key, value in (attrs or {}).items():
                 f.attrs[key] = value
             scales = {}
-            group = f.create_group(AXES_GROUP, track_order=True)
             for ax in by_name.values():
                 values = np.asarray(ax.values)
-                ds = group.create_dataset(ax.name, data=values, **_dataset_kwargs(values.shape, None))
+                ds = f.create_dataset(ax.name, data=values, **_dataset_kwargs(values.shape, None))
                 ds.attrs["units"] = ax.units
                 ds.attrs["long_name"] = ax.long_name
                 ds.attrs["periodic"] = np.int8(ax.periodic)
@@ -192,7 +204,15 @@ def write_table(
                 ds.make_scale(ax.name)
                 scales[ax.name] = ds
             for var, data in checked:
-                ds = f.create_dataset(var.name, data=data, **_dataset_kwargs(data.shape, var.chunks))
+                where = disk_name(var.name, by_name)
+                parts = where.split("/")
+                for depth in range(1, len(parts)):  # groups list their tables in the order written
+                    group = "/".join(parts[:depth])
+                    if group not in f:
+                        f.create_group(group, track_order=True)
+                if where != var.name:
+                    f[parts[0]].attrs[NAME_ATTR] = var.name.split("/")[0]
+                ds = f.create_dataset(where, data=data, **_dataset_kwargs(data.shape, var.chunks))
                 ds.attrs["units"] = var.units
                 ds.attrs["long_name"] = var.long_name
                 for key, value in var.attrs.items():
@@ -273,8 +293,9 @@ def _validate_root(path: Path, f: h5py.File, kind: str | None, required: Iterabl
         raise errors.KindError(path, f"unknown kind {file_kind!r}")
     if recipe_hash(_text(attrs["recipe"])) != _text(attrs["recipe_hash"]):
         raise errors.ChecksumError(path, "recipe_hash does not match the stored recipe")
+    tables = layout(f)[1]
     for name in (*KINDS[file_kind].required, *required):
-        if name not in f or not isinstance(f[name], h5py.Dataset):
+        if name not in tables:
             raise errors.MissingDatasetError(path, f"required dataset {name!r} is missing")
 
 
@@ -294,8 +315,7 @@ def open_table(path: str | os.PathLike, kind: str | None = None, required: Itera
         f.close()
 
 
-def _read_axis(path: Path, ds: h5py.Dataset) -> Axis:
-    name = ds.name.rsplit("/", 1)[-1]
+def _read_axis(path: Path, name: str, ds: h5py.Dataset) -> Axis:
     try:
         values = ds[()]
     except OSError as exc:
@@ -321,26 +341,20 @@ def read_table(path: str | os.PathLike, kind: str | None = None, required: Itera
     """
     with open_table(path, kind, required) as f:
         path = Path(path)
+        on_disk, tables = layout(f)
         axes = {}
-        if AXES_GROUP in f:
-            for ds in f[AXES_GROUP].values():
-                ax = _read_axis(path, ds)
-                axes[ax.name] = ax
+        for name, ds in on_disk.items():
+            axes[name] = _read_axis(path, name, ds)
         variables = {}
-
-        def visit(name, obj):
-            if isinstance(obj, h5py.Dataset) and not name.startswith(AXES_GROUP + "/"):
-                try:
-                    data = obj[()]
-                except OSError as exc:
-                    raise data_fault(path, obj, exc) from None
-                extra = {k: v for k, v in obj.attrs.items() if k not in {"units", "long_name", "DIMENSION_LIST"}}
-                variables[name] = Variable(
-                    name, data, dims_of(obj), _text(obj.attrs.get("units", "")), _text(obj.attrs.get("long_name", name)),
-                    obj.chunks, extra,
-                )
-
-        f.visititems(visit)
+        for name, ds in tables.items():
+            try:
+                data = ds[()]
+            except OSError as exc:
+                raise data_fault(path, ds, exc) from None
+            extra = {k: v for k, v in ds.attrs.items() if k not in {"units", "long_name", "DIMENSION_LIST", "DIMENSION_LABELS"}}
+            variables[name] = Variable(
+                name, data, dims_of(ds), _text(ds.attrs.get("units", "")), _text(ds.attrs.get("long_name", name)), ds.chunks, extra
+            )
         a = f.attrs
         known = {"hairlut_schema", "kind", "hairlut_version", "created", "recipe", "recipe_hash"}
         return Table(

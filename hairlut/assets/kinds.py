@@ -9,8 +9,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 #: The ``hairlut_schema`` this version writes, and the ones it can read.
-SCHEMA = 1
-SUPPORTED_SCHEMAS = frozenset({1})
+#: 1: axes in /axes (netCDF readers miss them); 2: axes as root dimension scales.
+SCHEMA = 2
+SUPPORTED_SCHEMAS = frozenset({1, 2})
 
 
 @dataclass(frozen=True)

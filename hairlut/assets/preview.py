@@ -14,12 +14,13 @@ import struct
 import zlib
 from pathlib import Path
 
+import h5py
 import numpy as np
 
 from .. import errors
 from .atomic import atomic_write_bytes
 from .exr import read_exr
-from .h5 import data_fault, open_table
+from .h5 import data_fault, layout, open_table
 
 
 def encode_png(pixels: np.ndarray) -> bytes:
@@ -115,9 +116,12 @@ def preview(
         with open_table(path) as f:
             if dataset is None:
                 raise errors.ValidationError("dataset", None, f"name the dataset to preview in {path}")
-            if dataset not in f:
-                raise errors.MissingDatasetError(path, f"no dataset {dataset!r}")
-            ds = f[dataset]
+            axes, tables = layout(f)
+            ds = tables.get(dataset, axes.get(dataset))
+            if ds is None and isinstance(f.get(dataset.lstrip("/")), h5py.Dataset):  # its HDF5 path
+                ds = f[dataset.lstrip("/")]
+            if ds is None:
+                raise errors.MissingDatasetError(path, f"no dataset {dataset!r} (tables: {', '.join(tables)})")
             key = parse_slice(index, ds.ndim)
             try:
                 img = np.asarray(ds[key])

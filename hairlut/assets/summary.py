@@ -15,7 +15,7 @@ import numpy as np
 
 from .. import errors
 from .exr import EXR_MAGIC, read_exr
-from .h5 import AXES_GROUP, HDF5_SIGNATURE, data_fault, dims_of, open_table
+from .h5 import HDF5_SIGNATURE, data_fault, dims_of, layout, open_table
 
 _BLOCK_ELEMENTS = 1 << 22
 
@@ -107,36 +107,33 @@ def _summarize_h5(path: Path) -> dict:
             "attrs": root,
             "datasets": [],
         }
+        on_disk, tables = layout(f)
         axes = {}
-        if AXES_GROUP in f:
-            for name, ds in f[AXES_GROUP].items():
-                axes[name] = {
-                    "units": _text(ds.attrs.get("units", "")),
-                    "long_name": _text(ds.attrs.get("long_name", name)),
-                    "periodic": bool(int(ds.attrs.get("periodic", 0))),
-                    "size": int(ds.shape[0]) if ds.ndim else 1,
-                    **{k: v for k, v in _dataset_stats(path, ds).items() if k in ("min", "max")},
-                }
+        for name, ds in on_disk.items():
+            axes[name] = {
+                "units": _text(ds.attrs.get("units", "")),
+                "long_name": _text(ds.attrs.get("long_name", name)),
+                "periodic": bool(int(ds.attrs.get("periodic", 0))),
+                "size": int(ds.shape[0]) if ds.ndim else 1,
+                **{k: v for k, v in _dataset_stats(path, ds).items() if k in ("min", "max")},
+            }
         out["axes"] = axes
-
-        def visit(name, obj):
-            if isinstance(obj, h5py.Dataset) and not name.startswith(AXES_GROUP + "/"):
-                out["datasets"].append(
-                    {
-                        "name": name,
-                        "shape": list(obj.shape),
-                        "dtype": str(obj.dtype),
-                        "dims": list(dims_of(obj)),
-                        "units": _text(obj.attrs.get("units", "")),
-                        "long_name": _text(obj.attrs.get("long_name", name)),
-                        "chunks": list(obj.chunks) if obj.chunks else None,
-                        "compression": obj.compression,
-                        "fletcher32": bool(obj.fletcher32),
-                        **_dataset_stats(path, obj),
-                    }
-                )
-
-        f.visititems(visit)
+        for name, obj in tables.items():
+            out["datasets"].append(
+                {
+                    "name": name,
+                    "h5_path": obj.name,
+                    "shape": list(obj.shape),
+                    "dtype": str(obj.dtype),
+                    "dims": list(dims_of(obj)),
+                    "units": _text(obj.attrs.get("units", "")),
+                    "long_name": _text(obj.attrs.get("long_name", name)),
+                    "chunks": list(obj.chunks) if obj.chunks else None,
+                    "compression": obj.compression,
+                    "fletcher32": bool(obj.fletcher32),
+                    **_dataset_stats(path, obj),
+                }
+            )
     return out
 
 
