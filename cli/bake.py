@@ -1,22 +1,107 @@
-"""``hairlut bake``: bake tables from a recipe."""
+"""``hairlut bake`` and ``hairlut merge``: bake any registered table kind, join shards.
+
+Every ``hairlut bake KIND`` command is built from the kind's :class:`hairlut.baker.Baker`
+(found in :mod:`hairlut.registry` when the command is looked up): the common options
+below plus the kind's own :class:`~hairlut.baker.Option` s.  Nothing here names a kind.
+"""
 
 from __future__ import annotations
 
 import json
 import time
-from pathlib import Path
 
 import click
 
-from hairlut import errors
-from hairlut.envlight import LAYOUTS, load_light
+from hairlut import errors, registry
 from hairlut.recipes import apply_overrides, load_toml
-from hairlut.shtables import bake_sh, full_recipe, resolve_recipe, write_sh_tables, write_textures
 
-from .format import num
+from .progress import Bars, Progress
 
 
-@click.group("bake", invoke_without_command=True)
+def _click_option(opt) -> click.Option:
+    flag = "--" + opt.name.replace("_", "-")
+    if opt.type is bool:
+        return click.Option([flag, opt.name], is_flag=True, default=bool(opt.default), help=opt.help)
+    if isinstance(opt.type, tuple):
+        kind, show = click.Choice(opt.type), True
+    elif opt.type == "path":
+        kind, show = click.Path(dir_okay=False), False
+    elif opt.type is int:
+        kind, show = click.IntRange(opt.minimum) if opt.minimum is not None else click.INT, True
+    else:
+        kind, show = {float: click.FLOAT, str: click.STRING}[opt.type], opt.default is not None
+    return click.Option([flag, opt.name], type=kind, default=opt.default, show_default=show and opt.default is not None,
+                        help=opt.help)
+
+
+def _common_options() -> list[click.Option]:
+    return [
+        click.Option(["--recipe"], type=click.Path(dir_okay=False), help="TOML recipe (default: the built-in defaults)."),
+        click.Option(["--out"], type=click.Path(dir_okay=False),
+                     help="Output HDF5 file; default: the table cache, reused when the recipe hash matches."),
+        click.Option(["--set", "sets"], multiple=True, metavar="KEY=VALUE",
+                     help="Override a recipe key (a TOML value), e.g. --set kernel.p=100; repeatable."),
+        click.Option(["--shard"], metavar="K/N",
+                     help="Bake only the K-th of N slices (K from 0) into a shard file for `hairlut merge` "
+                          "(kinds that shard; needs --out)."),
+        click.Option(["--no-progress", "no_progress"], is_flag=True, help="No progress bar on stderr."),
+        click.Option(["--json", "as_json"], is_flag=True, help="Print the bake report as JSON."),
+    ]
+
+
+def kind_command(kind: str, name: str | None = None) -> click.Command:
+    """The ``hairlut bake KIND`` command of a registered kind."""
+    baker = registry.get(kind)
+
+    def callback(recipe, out, sets, shard, no_progress, as_json, **values):
+        given = load_toml(recipe) if recipe else {}
+        shortcuts = tuple(f"{o.sets}={values[o.name]!r}" for o in baker.options if o.sets and values[o.name] is not None)
+        given = apply_overrides(given, (*sets, *shortcuts))
+        options = {o.name: values[o.name] for o in baker.options if not o.sets}
+        bar = Progress(not no_progress and baker.unit is not None, label=baker.command, unit=baker.unit or "")
+        try:
+            if out is not None:
+                report = registry.bake(baker.kind, given, out, progress=bar, shard=shard, options=options)
+                report["status"] = "baked"
+            else:
+                if shard is not None:
+                    raise errors.ValidationError("shard", shard, "give --out: shard files are not cached")
+                root = click.get_current_context().meta.get("hairlut.cache")
+                path, status, report = registry.bake_cached(baker.kind, given, root=root, progress=bar, options=options)
+                report["status"] = status
+        finally:
+            bar.close()
+        if report["status"] == "reused":
+            click.echo(f"reused {report['out']} (recipe hash matches)", err=True)
+        if as_json:
+            click.echo(json.dumps(report, indent=2, default=str))
+        elif report["status"] == "baked":
+            for line in baker.describe(report) or [f"wrote {report['out']} ({report['bytes'] / 1024:.1f} KiB)"]:
+                click.echo(line)
+
+    params = _common_options() + [_click_option(o) for o in baker.options]
+    return click.Command(name or baker.command, callback=callback, params=params,
+                         help=baker.help or baker.description, short_help=baker.description)
+
+
+class KindGroup(click.Group):
+    """``hairlut bake``: its sub-commands are the registered kinds, by command name or kind name."""
+
+    def list_commands(self, ctx):
+        return sorted({*super().list_commands(ctx), *(registry.get(k).command for k in registry.kinds())})
+
+    def get_command(self, ctx, cmd_name):
+        cmd = super().get_command(ctx, cmd_name)
+        if cmd is not None:
+            return cmd
+        try:
+            baker = registry.get(cmd_name)
+        except errors.ValidationError:
+            return None
+        return kind_command(baker.kind, cmd_name)
+
+
+@click.group("bake", cls=KindGroup, invoke_without_command=True)
 @click.option("--scene", type=click.Path(dir_okay=False),
               help="Bake exactly what this scene needs (see `hairlut plan`), into the table cache.")
 @click.option("--cache", "cache_root", type=click.Path(file_okay=False),
@@ -25,14 +110,20 @@ from .format import num
 @click.option("--json", "as_json", is_flag=True, help="With --scene: print the plan and the bake report as JSON.")
 @click.pass_context
 def bake_group(ctx, scene, cache_root, no_progress, as_json):
-    """Bake lookup tables: for a scene (--scene), or from a recipe (sh, hrir).
+    """Bake lookup tables: for a scene (--scene), or one table kind from a recipe (KIND).
+
+    Each KIND command takes --recipe, --set KEY=VALUE, --out (without it the bake goes
+    through the table cache and is reused when the recipe hash matches), --shard K/N
+    (kinds that shard), --json and --no-progress, plus the kind's own options.
 
     \b
     Examples:
       hairlut bake --scene tables/scenes/two-clusters.toml
       hairlut bake sh --recipe tables/sh-default.toml --out tables/sh.h5
       hairlut bake hrir --recipe tables/hrir-default.toml --out tables/hrir-default.h5
+      hairlut bake sh --p 16                      # into the cache; `hairlut cache ls` lists it
     """
+    ctx.meta["hairlut.cache"] = cache_root  # `hairlut bake --cache DIR KIND` bakes into DIR
     if ctx.invoked_subcommand is not None:
         if scene or as_json:
             raise click.UsageError("--scene and --json go without a sub-command")
@@ -40,9 +131,8 @@ def bake_group(ctx, scene, cache_root, no_progress, as_json):
     if scene is None:
         click.echo(ctx.get_help())
         return
-    from hairlut.plan import bake, plan
+    from hairlut.scene import bake, plan
 
-    from .hrir import Bars
     from .plan import echo_plan
 
     p = plan(scene, cache_root)
@@ -61,91 +151,27 @@ def bake_group(ctx, scene, cache_root, no_progress, as_json):
     click.echo(f"scene tables ready in {time.perf_counter() - start:.1f} s")
 
 
-@bake_group.command("sh")
-@click.option("--recipe", type=click.Path(dir_okay=False), help="TOML recipe (default: the built-in defaults).")
-@click.option("--out", type=click.Path(dir_okay=False),
-              help="Output HDF5 file (kind sh_tables); default: the table cache, reused when the recipe hash matches.")
-@click.option("--set", "sets", multiple=True, metavar="KEY=VALUE",
-              help="Override a recipe key, e.g. --set kernel.p=100 --set dense.t_resolution=16.")
-@click.option("--p", "p", type=float, help="Shortcut for --set kernel.p=P.")
-@click.option("--light", type=click.Path(dir_okay=False), help="Environment map (.exr) or sh_light table: also bake Cd/Cs.")
-@click.option("--layout", type=click.Choice(LAYOUTS), default="auto", show_default=True, help="Layout of an EXR --light.")
-@click.option("--up", type=click.Choice(["z", "y"]), default="z", show_default=True, help="Up axis of an EXR --light.")
-@click.option("--textures", type=click.Path(dir_okay=False),
-              help="Also write Cd/Cs shader textures (EXR); needs --light and dense.t_resolution > 0.")
-@click.option("--json", "as_json", is_flag=True, help="Print the bake report as JSON.")
-def bake_sh_cmd(recipe, out, sets, p, light, layout, up, textures, as_json):
-    """Exact SH convolution tables Rd, Rs for Kajiya–Kay hair (xing §4).
+@click.command("merge")
+@click.argument("shards", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--out", required=True, type=click.Path(dir_okay=False), help="Output HDF5 file (the shards' table kind).")
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
+def merge_cmd(shards, out, as_json):
+    """Join shard files (from `hairlut bake KIND --shard K/N`) into one table.
 
-    Stores the compact exact form (kernel Legendre coefficients over θ′ and the
-    Gaunt tensor), optional dense Rd/Rs on cube-map tangents, and with --light
-    the contracted Cd/Cs.
+    The kind that wrote the shards merges them; the result is byte-identical to a
+    one-shot bake of the same recipe.
 
     \b
     Examples:
-      hairlut bake sh --recipe tables/sh-default.toml --out tables/sh.h5
-      hairlut bake sh --recipe tables/sh-paper.toml --out paper.h5 --light env.exr --textures paper_tex.exr
-      hairlut bake sh --out p200.h5 --p 200 --set bands.light_specular=auto
+      hairlut bake hrir --recipe tables/hrir-default.toml --out s0.h5 --shard 0/2
+      hairlut bake hrir --recipe tables/hrir-default.toml --out s1.h5 --shard 1/2
+      hairlut merge s0.h5 s1.h5 --out tables/hrir-default.h5
     """
-    given = load_toml(recipe) if recipe else {}
-    if p is not None:
-        sets = (*sets, f"kernel.p={p!r}")
-    given = apply_overrides(given, sets)
-    start = time.perf_counter()
-    r = resolve_recipe(given)  # validate everything before any work or output
-    if textures and (not light or r["dense"]["t_resolution"] == 0):
-        raise errors.ValidationError("textures", textures, "needs --light and dense.t_resolution > 0")
-    env = None
-    if light:
-        env = load_light(light, max(r["bands"]["light_diffuse"], r["bands"]["light_specular"]) - 1, layout, up)
-    status = "baked"
-    if out is None:
-        if textures:
-            raise errors.ValidationError("textures", textures, "give --out too (textures are not cached)")
-        from hairlut.cache import ensure
-
-        result = {}
-
-        def produce(target):
-            result.update(bake_sh(given, env))
-            write_sh_tables(target, result["tables"], result["info"], result["dense"], result["light"])
-
-        r = full_recipe(given, env)
-        path, status = ensure("sh_tables", r, produce)
-        if status == "reused":
-            click.echo(f"reused {path} (recipe hash matches)", err=True)
-            if as_json:
-                click.echo(json.dumps({"out": str(path), "status": status, "recipe": r}, indent=2))
-            return
-    else:
-        result = bake_sh(given, env)
-        path = write_sh_tables(out, result["tables"], result["info"], result["dense"], result["light"])
-    tex = None
-    if textures:
-        lp = result["light"]
-        tex = write_textures(textures, lp.get("cd"), lp.get("cs"), result["dense"]["n"], lp["channels"], result["recipe"])
-    info = result["info"]
-    report = {
-        "out": str(path),
-        "status": status,
-        "textures": None if tex is None else str(tex),
-        "seconds": time.perf_counter() - start,
-        "bytes": Path(path).stat().st_size,
-        "recipe": result["recipe"],
-        "chebyshev_nodes": info["chebyshev_nodes"],
-        "chebyshev_tail": info["chebyshev_tail"],
-        "specular_truncation_error": info.get("truncation_error"),
-    }
+    shards = list(shards)
+    baker = registry.for_shard_kind(registry.kind_of(shards[0]))
+    report = baker.merge(shards, out)
     if as_json:
-        click.echo(json.dumps(report, indent=2))
+        click.echo(json.dumps(report, indent=2, default=str))
         return
-    r = result["recipe"]
-    b = r["bands"]
-    click.echo(f"wrote {path} ({report['bytes'] / 1024:.1f} KiB) in {report['seconds']:.2f} s")
-    click.echo(f"  p = {num(r['kernel']['p'])}; light bands diffuse {b['light_diffuse']} ({b['light_diffuse']**2} coeffs), "
-               f"specular {b['light_specular']} ({b['light_specular']**2}); transmittance {b['transmittance']} ({b['transmittance']**2})")
-    if r["kernel"]["specular"]:
-        click.echo(f"  θ′ dependence: {info['chebyshev_nodes']} Chebyshev nodes per half, series tail {info['chebyshev_tail']:.1e}")
-        click.echo(f"  specular energy beyond the light bands (relative L2, worst θ′): {info['truncation_error']:.3e}")
-    if tex:
-        click.echo(f"wrote {tex}")
+    count = f"{report[baker.unit]} {baker.unit} " if baker.unit in report else ""
+    click.echo(f"wrote {report['out']} ({count}from {report['shards']} shards, {report['bytes'] / 2**20:.1f} MiB)")

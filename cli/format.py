@@ -29,7 +29,7 @@ def render(summary: dict) -> str:
     lines = []
     if summary["format"] == "hdf5":
         lines.append(f"{summary['path']}  (HDF5 table)")
-        lines.append(f"  kind      {summary['kind']}")
+        lines.append(f"  kind      {summary['kind']}" + (f"  ({summary['description']})" if summary.get("description") else ""))
         lines.append(f"  schema    {summary['schema']}   written by hairlut {summary['hairlut_version']} at {summary['created']}")
         _recipe(lines, summary)
         for key, value in summary.get("attrs", {}).items():

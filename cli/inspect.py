@@ -6,6 +6,7 @@ import json
 
 import click
 
+from hairlut import registry
 from hairlut.assets import preview, summarize
 
 from .format import render
@@ -24,20 +25,24 @@ from .format import render
 def inspect_cmd(paths, as_json, png, channel, part, dataset, index, exposure, normalize):
     """Summarise hairlut tables (.h5) and images (.exr).
 
-    Shows kind, schema, the recipe, and for each dataset or channel its shape,
-    dtype, axes and units, min/max/mean and NaN/Inf counts.  Every checksum is
-    verified on the way.  EXR files from other tools are read too.
+    Shows kind (and what the kind is, from the kind registry), schema, the recipe,
+    and for each dataset or channel its shape, dtype, axes and units, min/max/mean
+    and NaN/Inf counts.  Every checksum is verified on the way.  EXR files from
+    other tools are read too.
 
     \b
-    Examples:
-      hairlut inspect tables/kk_lobes.h5
-      hairlut inspect --json out/*.exr
-      hairlut inspect env.exr --png env.png --exposure -2
-      hairlut inspect lobes.h5 --dataset specular --slice "1,:,:" --png p49.png
+    Examples (after `hairlut bake sh --out tables/sh.h5 --set dense.t_resolution=8` and `hairlut demo`):
+      hairlut inspect tables/sh.h5
+      hairlut inspect tables/sh.h5 --dataset dense/rd --slice ":,0,:" --normalize --png rd.png
+      hairlut inspect --json out/demo/sky-clusters/*.exr
+      hairlut inspect out/demo/sky-clusters/cluster000.exr --channel layer2.A --png alpha.png
     """
     if png and len(paths) != 1:
         raise click.UsageError("--png takes exactly one input file")
     summaries = [summarize(p) for p in paths]
+    for s in summaries:
+        if s.get("kind"):
+            s["description"] = registry.describe(s["kind"])
     if png:
         preview(paths[0], png, channel=channel, part=part, dataset=dataset, index=index, exposure=exposure, normalize=normalize)
     if as_json:

@@ -60,9 +60,8 @@ def cli(verbose: int, quiet: bool) -> None:
 def _register() -> None:
     from . import bake, cache, demo, hrir, inspect, plan, sh, strands, synth
 
-    bake.bake_group.add_command(hrir.hrir_cmd)
-    cli.add_command(bake.bake_group)
-    cli.add_command(hrir.merge_cmd)
+    cli.add_command(bake.bake_group)  # its KIND sub-commands come from hairlut.registry
+    cli.add_command(bake.merge_cmd)
     cli.add_command(hrir.hrir_slice_cmd)
     cli.add_command(cache.cache_group)
     cli.add_command(demo.demo_cmd)

@@ -6,6 +6,10 @@ asset when one with the same kind and full recipe hash validates, and bakes it
 otherwise.  Concurrent callers with the same recipe serialise on an advisory
 lock (``fcntl.flock``) beside the asset: one bakes, the others wait and reuse
 its file.  Writes are atomic, so no reader ever sees a half-written asset.
+
+The cache knows no kind: it validates files against whatever kind their declaration
+(see :mod:`hairlut.registry`) says they hold.  :func:`hairlut.registry.ensure` is the
+cached bake of a registered kind.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from pathlib import Path
 
 from . import errors
 from .assets import open_table, recipe_hash, stale_temporaries
+from .assets.kinds import KINDS, known_kinds
 
 ENV = "HAIRLUT_CACHE"
 STALE_SECONDS = 3600
@@ -107,6 +112,9 @@ def entries(root=None) -> list[Entry]:
 def prune(root=None, *, kinds=None, older_than_days: float | None = None, everything: bool = False,
           dry_run: bool = False) -> list[Path]:
     """Remove cached assets (by kind and/or age, or all), stale temporaries and unused locks."""
+    for kind in kinds or ():
+        if kind not in KINDS:
+            raise errors.ValidationError("kind", kind, f"unknown asset kind; known: {', '.join(known_kinds())}")
     if not (everything or kinds or older_than_days is not None):
         victims = []
     else:

@@ -2,7 +2,10 @@
 
 import numpy as np
 
-from hairlut.assets import Axis, Variable, write_table
+from hairlut.assets import Axis, Variable, register_kind, write_table
+
+# a test-only kind (hairlut itself bakes no kk_lobes tables): declared here, as a kind's module would
+register_kind("kk_lobes", ("diffuse", "specular"), "Kajiya-Kay diffuse and specular kernels sampled on (theta, theta') grids")
 
 RECIPE = {"n_theta": 33, "n_theta_v": 17, "exponents": [8.0, 49.0], "storage": "float32", "nested": {"a": [1, 2], "b": None}}
 

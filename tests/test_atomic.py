@@ -12,10 +12,13 @@ import pytest
 
 from hairlut.assets import atomic_path, read_exr, read_table, stale_temporaries
 
+from . import _tables  # noqa: F401  (declares the test kind kk_lobes)
+
 WRITER = textwrap.dedent(
     """
     import sys, numpy as np
-    from hairlut.assets import Axis, Variable, write_exr, write_table
+    from hairlut.assets import Axis, Variable, register_kind, write_exr, write_table
+    register_kind("kk_lobes", ("diffuse", "specular"), "Kajiya-Kay diffuse and specular kernels sampled on (theta, theta') grids")
     path, fmt = sys.argv[1], sys.argv[2]
     seed = 0
     while True:

@@ -12,6 +12,8 @@ import numpy as np
 from hairlut.assets import Axis, Variable, read_table, write_table
 from hairlut.cache import asset_path, ensure, entries, prune
 
+from . import _tables  # noqa: F401  (declares the test kind kk_lobes)
+
 
 def _bake_lobes(recipe, calls):
     def bake(path):

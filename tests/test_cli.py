@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from hairlut import __version__
-from hairlut.assets import ExrPart, write_exr
+from hairlut.assets import SCHEMA, Axis, ExrPart, Variable, write_exr, write_table
 from hairlut_cli.main import cli
 
 from ._tables import lobes_table
@@ -52,7 +52,7 @@ def test_inspect_table_text_and_json(tmp_path):
     path, ref = lobes_table(tmp_path / "t.h5")
     res = run("inspect", path)
     assert res.exit_code == 0
-    for word in ("kk_lobes", "schema    1", "specular", "2×33×17 float32", "dims (exponent, theta, theta_v)", "fletcher32 on", "n_theta"):
+    for word in ("kk_lobes", f"schema    {SCHEMA}", "specular", "2×33×17 float32", "dims (exponent, theta, theta_v)", "fletcher32 on", "n_theta"):
         assert word in res.output, word
     doc = json.loads(run("inspect", "--json", path).output)
     spec = next(d for d in doc["datasets"] if d["name"] == "specular")
@@ -170,9 +170,11 @@ def test_demo_writes_and_inspects(tmp_path):
 
 
 def test_real_subprocess(tmp_path, hairlut_exe):
-    path, _ = lobes_table(tmp_path / "t.h5")
+    # a fresh process knows only the kinds hairlut ships (kk_lobes is the tests' own), so inspect an sh_light
+    path = write_table(tmp_path / "t.h5", "sh_light", {"lmax": 0}, [Axis("sh_i", np.arange(1), "1", "i"),
+                       Axis("channel", np.arange(3), "1", "c")], [Variable("a", np.ones((1, 3)), ("sh_i", "channel"), "1", "a")])
     ok = subprocess.run([hairlut_exe, "inspect", "--json", str(path)], capture_output=True, text=True, timeout=120)
-    assert ok.returncode == 0 and json.loads(ok.stdout)["kind"] == "kk_lobes"
+    assert ok.returncode == 0 and json.loads(ok.stdout)["kind"] == "sh_light"
     bad = subprocess.run([hairlut_exe, "inspect", str(tmp_path / "none.exr")], capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and bad.stdout == ""
     assert bad.stderr.strip() == f"hairlut: error: {tmp_path / 'none.exr'}: no such file"

@@ -2,15 +2,16 @@
 
 ``bake`` samples random sectors, traces each under V in-plane view and L light angles
 with one jitted kernel (:func:`trace_kernel`), and writes an ``hrir_db`` asset; see
-``_tracer`` for the frame, pixel, opacity and reflectance conventions.
+``_tracer`` for the frame, pixel, opacity and reflectance conventions.  ``BAKER`` is the
+kind's declaration for :mod:`hairlut.registry`.
 
-Importing the package registers the asset kinds only; the baker (JAX) loads on first
+Importing the package loads the declaration only (no JAX); the baker loads on first
 use of one of its names.
 """
 
 from .._lazy import lazy_exports
 
-from ._kinds import KIND, SHARD_KIND
+from ._kind import BAKE_OVERHEAD, BAKER, KIND, SHARD_KIND, TRACE_RATE, estimate
 
 _LAZY = {
     "bake": "_bake", "bake_block": "_bake", "blocks_of": "_bake", "merge": "_bake", "parse_shard": "_bake",
@@ -18,11 +19,13 @@ _LAZY = {
     "SMOOTH_RATIO": "_geometry", "disc_params": "_geometry", "sector_geometry": "_geometry",
     "HRIRDB": "_io", "angles": "_io", "export_slice": "_io", "load_hrir_db": "_io", "read_shard": "_io",
     "SCHEMA": "_recipe", "resolve_recipe": "_recipe", "sector_space": "_recipe",
-    "gaussian_smooth": "_reference", "reference_hrir": "_reference", "satf_query": "_query", "query_kernel": "_query",
+    "gaussian_smooth": "_reference", "reference_hrir": "_reference",
+    "satf_query": "_query", "query_kernel": "_query", "device_arrays": "_query", "interpolate": "_query",
+    "neighbours": "_query", "neighbours_kernel": "_query",
     "GEOM": "_tracer", "trace_kernel": "_tracer",
 }
 
-__all__ = ["KIND", "SHARD_KIND", *sorted(_LAZY)]
+__all__ = ["BAKER", "BAKE_OVERHEAD", "KIND", "SHARD_KIND", "TRACE_RATE", "estimate", *sorted(_LAZY)]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

@@ -21,6 +21,7 @@ import numpy as np
 
 from .. import errors
 from ..assets import canonical_json, recipe_hash
+from ..baker import parse_shard
 from ..geometry.density import sector_density
 from ..geometry.sampler import sample_sectors
 from ..geometry.splats import SplatBatch
@@ -80,18 +81,6 @@ def bake_block(recipe: dict, start: int, stop: int) -> dict:
             "params": {k: params[k] for k in PARAMS}}
 
 
-def parse_shard(text: str) -> tuple[int, int]:
-    """'K/N' → (K, N), 0 ≤ K < N (shards are numbered from 0, like JAX process indices)."""
-    k, sep, n = str(text).partition("/")
-    try:
-        k, n = int(k), int(n)
-    except ValueError:
-        k = n = -1
-    if not sep or n < 1 or not 0 <= k < n:
-        raise errors.ValidationError("shard", text, "use K/N with 0 ≤ K < N")
-    return k, n
-
-
 def blocks_of(total: int, block: int, shard: tuple[int, int] | None = None) -> list[tuple[int, int]]:
     """The (start, stop) blocks of a bake, or of shard (K, N): the K-th of N contiguous runs of blocks."""
     blocks = [(s, min(s + block, total)) for s in range(0, total, block)]
@@ -116,7 +105,7 @@ def _intact(part, recipe_hash: str) -> bool:
 
 
 def bake(given: dict | None, out, *, shard=None, block: int = BLOCK, progress=None, keep_parts: bool = False) -> dict:
-    """Bake (or resume) the HRIR-DB of a recipe into ``out``.
+    """Bake (or resume) the HRIR-DB of a recipe into ``out`` (written atomically).
 
     ``shard`` ('K/N' or (K, N)) bakes only that slice into an ``hrir_shard`` file for
     :func:`merge`.  ``progress(done, total)`` is called with sector counts as blocks
@@ -125,9 +114,7 @@ def bake(given: dict | None, out, *, shard=None, block: int = BLOCK, progress=No
     r = resolve_recipe(given)
     if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1:
         raise errors.ValidationError("block", block, "must be an integer ≥ 1")
-    sh = parse_shard(shard) if isinstance(shard, str) else shard
-    if sh is not None:
-        parse_shard(f"{sh[0]}/{sh[1]}")
+    sh = None if shard is None else parse_shard(shard)
     total = r["sectors"]["count"]
     todo = blocks_of(total, int(block), sh)
     if not todo:

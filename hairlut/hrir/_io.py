@@ -32,7 +32,7 @@ import numpy as np
 from .. import errors
 from ..assets import Axis, Variable, read_table, write_exr, write_table
 from ..geometry.features import FeatureStats, feature_names, sector_features
-from ._kinds import KIND, SHARD_KIND
+from ._kind import KIND, SHARD_KIND
 from ._tracer import GEOM
 
 PARAMS = ("strands", "radius", "spread", "clumps", "aspect", "v_inner", "thickness", "s_u", "phase", "profile")

@@ -107,7 +107,13 @@ SCHEMA = {
 
 
 def resolve_recipe(given: dict | None = None) -> dict:
-    """Validated recipe with every default explicit (raises ValidationError naming the key path)."""
+    """Validated recipe with every default explicit (raises ValidationError naming the key path).
+
+    Idempotent: a resolved recipe (with its ``method``) resolves to itself."""
+    given = dict(given or {})
+    method = given.pop("method", METHOD)
+    if method != METHOD:
+        raise errors.ValidationError("method", method, f"baked by another method; this hairlut bakes {METHOD}")
     r = resolve(SCHEMA, given)
     sp = r["sectors"]["space"]
     if sp["v_inner"][1] >= 1:

@@ -1,13 +1,31 @@
-"""Exact SH convolution tables for Kajiya–Kay hair under environment light (xing §4)."""
+"""Exact SH convolution tables for Kajiya–Kay hair under environment light (xing §4).
 
-from ._bake import bake as bake_sh
-from ._bake import full_recipe, resolve_recipe, specular_band_rule, truncation_error
-from ._io import KIND, load_sh_tables, write_sh_tables, write_textures
-from ._paper import paper_tables
-from ._reference import reference_r
-from ._tables import Bands, Contracted, SHTables
+``BAKER`` is the kind's declaration for :mod:`hairlut.registry`; ``bake(recipe, out,
+light=...)`` writes an ``sh_tables`` asset, ``compute`` (alias ``bake_sh``) returns the
+tables in memory, ``load_sh_tables`` / ``SHTables.load`` read one.  Importing the package
+loads the declaration only (no JAX); the rest loads on first use of one of its names.
+"""
 
-__all__ = [
-    "KIND", "Bands", "Contracted", "SHTables", "bake_sh", "full_recipe", "load_sh_tables", "paper_tables", "reference_r",
-    "resolve_recipe", "specular_band_rule", "truncation_error", "write_sh_tables", "write_textures",
-]
+from .._lazy import lazy_exports
+
+from ._kind import BAKE_OVERHEAD, BAKER, KIND, LIGHT_KIND, estimate
+from ._recipe import METHOD, SCHEMA, full_recipe, light_identity, resolve_recipe, specular_band_rule
+
+_LAZY = {
+    "bake": "_bake", "compute": "_bake", "bake_compact": "_bake", "band_truncation_error": "_bake",
+    "truncation_error": "_bake",
+    "write_sh_tables": "_io", "write_textures": "_io", "cube_strip": "_io",
+    "paper_tables": "_paper", "reference_r": "_reference",
+    "Bands": "_tables", "Contracted": "_tables", "SHTables": "_tables", "load_sh_tables": "_tables",
+}
+
+__all__ = ["BAKER", "BAKE_OVERHEAD", "KIND", "LIGHT_KIND", "METHOD", "SCHEMA", "bake_sh", "estimate", "full_recipe",
+           "light_identity", "resolve_recipe", "specular_band_rule", *sorted(_LAZY)]
+
+_get, __dir__ = lazy_exports(__name__, globals(), _LAZY)
+
+
+def __getattr__(name: str):
+    if name == "bake_sh":  # the in-memory bake under its former name
+        return _get("compute")
+    return _get(name)

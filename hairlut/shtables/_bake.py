@@ -10,92 +10,25 @@ for shaders that want textures.
 from __future__ import annotations
 
 import functools
-import hashlib
-import math
+import time
+from pathlib import Path
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ..kernels import check_exponent
-from ..recipes import Field, resolve
+from ..assets import recipe_hash
+from ..baker import no_shard
 from ..sh import gaunt
+from ._io import write_sh_tables, write_textures
+from ._kind import KIND
+from ._recipe import full_recipe, resolve_recipe, specular_band_rule
 from ._tables import Bands, SHTables
 from ._zonal import cheb_coeffs, diffuse_coeffs, diffuse_nodes, lobatto_nodes, specular_coeffs, specular_nodes
 
 CHEB_TOL = 1e-14
 CHEB_START, CHEB_MAX = 16, 512
-METHOD = "legendre-gaunt/1"
-
-
-def _positive_int(v):
-    return None if v >= 1 else "must be ≥ 1"
-
-
-def _bands(v):
-    if v == "auto":
-        return None
-    if isinstance(v, str) or v < 1:
-        return "use an integer ≥ 1 (number of bands, lmax + 1) or 'auto'"
-    return None
-
-
-def _exponent(v):
-    return None if math.isfinite(v) and v > 0 else "the specular exponent p must be finite and > 0"
-
-
-def _cheb(v):
-    if v == "auto":
-        return None
-    return None if not isinstance(v, str) and 2 <= v <= 4096 else "use 'auto' or an integer in [2, 4096]"
-
-
-def _storage(v):
-    return None if v in ("float16", "float32", "float64") else "use float16, float32 or float64"
-
-
-SCHEMA = {
-    "kernel": {
-        "p": Field(49.0, (float, int), _exponent, "specular exponent p"),
-        "diffuse": Field(True, (bool,), None, "bake Rd"),
-        "specular": Field(True, (bool,), None, "bake Rs"),
-    },
-    "bands": {
-        "light_diffuse": Field(3, (int,), _positive_int, "light bands for Rd (9 coefficients)"),
-        "light_specular": Field("auto", (int, str), _bands, "light bands for Rs; auto = ceil(√p) + 1"),
-        "transmittance": Field(3, (int,), _positive_int, "transmittance bands"),
-    },
-    "quadrature": {
-        "chebyshev": Field("auto", (int, str), _cheb, "Chebyshev nodes per θ′ half (auto: until converged)"),
-    },
-    "dense": {
-        "t_resolution": Field(0, (int,), lambda v: None if v >= 0 else "must be ≥ 0 (0: no dense tables)",
-                              "cube-map face size of the tangent grid"),
-        "theta_v_steps": Field(9, (int,), lambda v: None if v >= 2 else "must be ≥ 2", "θ′ samples over [0, π]"),
-        "storage": Field("float32", (str,), _storage, "dtype of the dense tables"),
-    },
-}
-
-
-def specular_band_rule(p: float) -> int:
-    """Light bands for the specular term: ceil(√p) + 1, i.e. (√p + 1)² coefficients (xing §4, after King)."""
-    return int(math.ceil(math.sqrt(p) - 1e-12)) + 1
-
-
-def resolve_recipe(given: dict | None = None) -> dict:
-    """Validated recipe with every default and 'auto' made explicit."""
-    r = resolve(SCHEMA, given)
-    if not (r["kernel"]["diffuse"] or r["kernel"]["specular"]):
-        raise errors.ValidationError("kernel", r["kernel"], "bake at least one of diffuse and specular")
-    r["kernel"]["p"] = check_exponent(r["kernel"]["p"], "kernel.p")
-    if r["bands"]["light_specular"] == "auto":
-        r["bands"]["light_specular"] = specular_band_rule(r["kernel"]["p"])
-    for key, limit in (("light_diffuse", 33), ("light_specular", 65), ("transmittance", 33)):
-        if r["bands"][key] > limit:
-            raise errors.ValidationError(f"bands.{key}", r["bands"][key], f"at most {limit} bands")
-    r["method"] = METHOD
-    return r
 
 
 @functools.partial(jax.jit, static_argnames=("lmax_d", "lmax_s", "n_d", "n_s"))
@@ -167,17 +100,8 @@ def truncation_error(tables: SHTables, theta_v) -> float:
     return band_truncation_error(tables.p, tables.bands.light_specular, theta_v)
 
 
-def full_recipe(recipe: dict | None, light=None) -> dict:
-    """The resolved recipe plus, when a light is folded in, that light's identity (the cache key)."""
-    r = resolve_recipe(recipe)
-    if light is not None:
-        r["light"] = {"lmax": int(light.lmax), "channels": list(light.channels), "layout": light.layout,
-                      "source_sha256": light.source_sha256, "coeffs_sha256": _sha(light.coeffs)}
-    return r
-
-
-def bake(recipe: dict | None = None, light=None) -> dict:
-    """Bake everything a recipe asks for; ``light`` is an :class:`hairlut.envlight.EnvLight` or None.
+def compute(recipe: dict | None = None, light=None) -> dict:
+    """Compute everything a recipe asks for, in memory; ``light`` is an :class:`hairlut.envlight.EnvLight` or None.
 
     Returns a dict with the resolved ``recipe``, the exact ``tables``, bake
     ``info`` (Chebyshev nodes and tail, truncation error), optional ``dense``
@@ -212,5 +136,35 @@ def bake(recipe: dict | None = None, light=None) -> dict:
     return {"recipe": r, "tables": tables, "info": info, "dense": dense, "light": products}
 
 
-def _sha(array) -> str:
-    return hashlib.sha256(np.ascontiguousarray(array, np.float64).tobytes()).hexdigest()
+def bake(recipe: dict | None, out, *, progress=None, shard=None, light=None, textures=None) -> dict:
+    """Bake a recipe into the ``sh_tables`` asset ``out`` (written atomically); the baker protocol's bake.
+
+    ``light`` (an :class:`hairlut.envlight.EnvLight`) also bakes the contracted Cd/Cs; a recipe that
+    names a light (its ``light`` section) needs that light.  ``textures``: also write Cd/Cs shader
+    textures (EXR), which need a light and ``dense.t_resolution`` > 0.  SH tables cannot shard.
+    ``progress(done, total)`` counts the two stages (tables, file)."""
+    no_shard(KIND, shard)
+    t0 = time.perf_counter()
+    r = resolve_recipe(recipe, light)
+    if "light" in r and light is None:
+        raise errors.ValidationError("light", None, "the recipe names an environment light (source sha256 "
+                                     f"{str(r['light']['source_sha256'])[:16]}…): pass that light")
+    if textures and (light is None or r["dense"]["t_resolution"] == 0):
+        raise errors.ValidationError("textures", str(textures), "needs --light and dense.t_resolution > 0")
+    if progress:
+        progress(0, 2)
+    result = compute(r, light)
+    if progress:
+        progress(1, 2)
+    path = write_sh_tables(out, result["tables"], result["info"], result["dense"], result["light"])
+    tex = None
+    if textures:
+        lp = result["light"]
+        tex = write_textures(textures, lp.get("cd"), lp.get("cs"), result["dense"]["n"], lp["channels"], r)
+    if progress:
+        progress(2, 2)
+    info = result["info"]
+    return {"out": str(path), "kind": KIND, "textures": None if tex is None else str(tex),
+            "seconds": time.perf_counter() - t0, "bytes": Path(path).stat().st_size, "recipe": r,
+            "recipe_hash": recipe_hash(r), "chebyshev_nodes": info["chebyshev_nodes"],
+            "chebyshev_tail": info["chebyshev_tail"], "specular_truncation_error": info.get("truncation_error")}

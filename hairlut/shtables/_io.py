@@ -1,4 +1,5 @@
-"""The ``sh_tables`` HDF5 asset and its shader-ready EXR textures.
+"""Writing the ``sh_tables`` HDF5 asset and its shader-ready EXR textures (the reader is
+:func:`hairlut.shtables.load_sh_tables`, beside :class:`SHTables`).
 
 HDF5 layout (axes in /axes, see hairlut.assets.h5):
 
@@ -26,11 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from .. import errors
-from ..assets import Axis, ExrPart, Variable, read_table, write_exr, write_table
-from ._tables import Bands, SHTables
-from ._zonal import cheb_coeffs
-
-KIND = "sh_tables"
+from ..assets import Axis, ExrPart, Variable, write_exr, write_table
+from ._kind import KIND
+from ._tables import SHTables
 
 
 def _index_axis(name, n, long_name):
@@ -86,31 +85,6 @@ def write_sh_tables(path, tables: SHTables, info: dict, dense: dict | None = Non
     if "truncation_error" in info:
         attrs["specular_truncation_error"] = float(info["truncation_error"])
     return write_table(path, KIND, tables.recipe, axes, variables, attrs=attrs)
-
-
-def load_sh_tables(path: str | os.PathLike) -> SHTables:
-    """Read a ``sh_tables`` asset (validated) into exact lookup tables."""
-    t = read_table(path, kind=KIND)
-    r = t.recipe
-    try:
-        bands = Bands(r["bands"]["light_diffuse"], r["bands"]["light_specular"], r["bands"]["transmittance"])
-        kern = r["kernel"]
-    except (KeyError, TypeError) as exc:
-        raise errors.CorruptAssetError(path, f"recipe lacks {exc}") from None
-    kd = t["kernel/diffuse_k"] if kern["diffuse"] else None
-    ks = None
-    if kern["specular"]:
-        if "kernel/specular_k" not in t.variables:
-            raise errors.MissingDatasetError(path, "required dataset 'kernel/specular_k' is missing")
-        values = t["kernel/specular_k"]
-        ks = cheb_coeffs(values.reshape(2, values.shape[0] // 2, values.shape[1]))
-    elif kd is None:
-        raise errors.CorruptAssetError(path, "neither diffuse nor specular tables")
-    if kern["diffuse"] and "kernel/diffuse_k" not in t.variables:
-        raise errors.MissingDatasetError(path, "required dataset 'kernel/diffuse_k' is missing")
-    tables = SHTables(bands, float(kern["p"]), kd, ks, t["gaunt"], r)
-    tables.source = t
-    return tables
 
 
 def cube_strip(values: np.ndarray, n: int) -> np.ndarray:

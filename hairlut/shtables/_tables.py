@@ -18,6 +18,7 @@ O((l_light + l_trans + 1)²·n) instead of O(m·n) table reads.
 from __future__ import annotations
 
 import functools
+import os
 from dataclasses import dataclass
 
 import jax
@@ -26,8 +27,10 @@ import numpy as np
 
 from .. import errors
 from .._blocks import map_blocks
+from ..assets import read_table
 from ..sh._basis import _real_sh_kernel, check_dirs, real_sh_soa
-from ._zonal import cheb_eval
+from ._kind import KIND
+from ._zonal import cheb_coeffs, cheb_eval
 
 Array = jax.Array
 
@@ -129,9 +132,7 @@ class SHTables:
 
     @classmethod
     def load(cls, path) -> SHTables:
-        """Read a validated ``sh_tables`` asset (see :func:`hairlut.shtables.load_sh_tables`)."""
-        from ._io import load_sh_tables
-
+        """Read a validated ``sh_tables`` asset (see :func:`load_sh_tables`)."""
         return load_sh_tables(path)
 
     @property
@@ -264,3 +265,28 @@ class Contracted:
                 max(tb.lmax_d, 0), max(tb.lmax_s, 0),
             ).reshape(*shape, -1)
             return self._out(out)
+
+
+def load_sh_tables(path: str | os.PathLike) -> SHTables:
+    """Read a ``sh_tables`` asset (validated) into exact lookup tables."""
+    t = read_table(path, kind=KIND)
+    r = t.recipe
+    try:
+        bands = Bands(r["bands"]["light_diffuse"], r["bands"]["light_specular"], r["bands"]["transmittance"])
+        kern = r["kernel"]
+    except (KeyError, TypeError) as exc:
+        raise errors.CorruptAssetError(path, f"recipe lacks {exc}") from None
+    kd = t["kernel/diffuse_k"] if kern["diffuse"] else None
+    ks = None
+    if kern["specular"]:
+        if "kernel/specular_k" not in t.variables:
+            raise errors.MissingDatasetError(path, "required dataset 'kernel/specular_k' is missing")
+        values = t["kernel/specular_k"]
+        ks = cheb_coeffs(values.reshape(2, values.shape[0] // 2, values.shape[1]))
+    elif kd is None:
+        raise errors.CorruptAssetError(path, "neither diffuse nor specular tables")
+    if kern["diffuse"] and "kernel/diffuse_k" not in t.variables:
+        raise errors.MissingDatasetError(path, "required dataset 'kernel/diffuse_k' is missing")
+    tables = SHTables(bands, float(kern["p"]), kd, ks, t["gaunt"], r)
+    tables.source = t
+    return tables

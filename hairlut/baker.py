@@ -1,0 +1,145 @@
+"""The baker protocol: what every table kind declares, in one place.
+
+Each table kind is one subpackage whose ``_kind.py`` builds one :class:`Baker`,
+``BAKER``, re-exported by the subpackage and named by one line of
+:mod:`hairlut.registry`.  The declaration module stays light (no JAX): the
+callables it holds import the baking code on first call.
+
+The protocol (every callable raises :mod:`hairlut.errors` exceptions naming the
+field and value):
+
+``resolve_recipe(given, **inputs) -> dict``
+    every default made explicit; idempotent (a resolved recipe resolves to itself).
+    ``inputs`` are the kind's *keyed* inputs (``Baker.keyed``, e.g. the SH tables'
+    ``light``): their identity is folded into the recipe, so it is part of the cache key.
+``bake(recipe, out, *, progress=None, shard=None, **options) -> dict``
+    writes the asset ``out`` atomically (temporary file + ``os.replace``) and returns a
+    report with at least ``out``, ``kind``, ``bytes``, ``seconds`` and ``recipe_hash``.
+    ``progress(done, total)`` counts ``Baker.unit``; ``shard`` ('K/N') bakes the K-th of
+    N slices into a ``Baker.shard_kind`` file, or raises ValidationError when the kind
+    cannot shard (:func:`no_shard`).
+``load(path)``
+    the validated asset as the kind's in-memory object.
+``estimate(recipe) -> (bytes, seconds)``
+    the planner's size and time estimate of a bake.
+``merge(shards, out) -> dict`` (only kinds that shard)
+    joins ``shard_kind`` files into one asset, byte-identical to a one-shot bake.
+``describe(report) -> list[str]``
+    human-readable lines about a bake report (the CLI prints them).
+
+Kind-specific keyword arguments of ``bake`` are :class:`Option` s, so that the CLI
+offers them (``--light``, ``--block``) without naming a kind.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+from . import errors
+from .assets.kinds import register_kind
+
+
+@dataclass(frozen=True)
+class Option:
+    """A kind-specific keyword argument of ``bake`` (the CLI's ``--name``).
+
+    ``type`` is ``str``, ``int``, ``float``, ``bool`` (a flag), ``"path"`` or a tuple of
+    choices.  ``load(value, recipe, options)`` turns the command-line value into the
+    input object (a path into a light, say) once the recipe is resolved.  ``sets`` makes
+    the option a shortcut for ``--set KEY=VALUE``.  ``cached=False``: the option writes
+    something the cache does not hold, so it needs ``--out``.  ``keyed`` (on the
+    :class:`Baker`) names the options whose identity enters the recipe.
+    """
+
+    name: str
+    type: object = str
+    default: object = None
+    help: str = ""
+    load: Callable | None = None
+    sets: str | None = None
+    cached: bool = True
+    minimum: int | None = None
+
+
+@dataclass(frozen=True)
+class Baker:
+    """One table kind: its asset, recipe, bake, reader, estimate (see the module docstring)."""
+
+    kind: str
+    command: str
+    description: str
+    required: tuple[str, ...]
+    schema: Mapping
+    resolve_recipe: Callable[..., dict]
+    bake: Callable[..., dict]
+    load: Callable
+    estimate: Callable[[dict], tuple[int, float]]
+    describe: Callable[[dict], list] = lambda report: []
+    options: tuple[Option, ...] = ()
+    keyed: tuple[str, ...] = ()
+    unit: str | None = "steps"  # what progress(done, total) counts; None: no progress bar on the command line
+    shard_kind: str | None = None
+    shard_required: tuple[str, ...] = ()
+    merge: Callable | None = None
+    assets: tuple[tuple[str, tuple[str, ...], str], ...] = field(default=())
+    help: str = ""
+
+    def __post_init__(self):
+        register_kind(self.kind, self.required, self.description)
+        if self.shard_kind is not None:
+            if self.merge is None:
+                raise ValueError(f"{self.kind}: a shard kind needs a merge")
+            register_kind(self.shard_kind, self.shard_required, f"a slice of a {self.kind} bake (merge joins them)")
+        for name, required, description in self.assets:
+            register_kind(name, required, description)
+
+    @property
+    def can_shard(self) -> bool:
+        return self.shard_kind is not None
+
+
+def no_shard(kind: str, shard) -> None:
+    """Raise the ValidationError of a kind that cannot shard when ``shard`` is given."""
+    if shard is not None:
+        raise errors.ValidationError("shard", shard, f"{kind} bakes cannot be sharded; bake without --shard")
+
+
+def parse_shard(text) -> tuple[int, int]:
+    """'K/N' (or (K, N)) → (K, N), 0 ≤ K < N (shards are numbered from 0, like JAX process indices)."""
+    if isinstance(text, tuple | list) and len(text) == 2:
+        text = f"{text[0]}/{text[1]}"
+    k, sep, n = str(text).partition("/")
+    try:
+        k, n = int(k), int(n)
+    except ValueError:
+        k = n = -1
+    if not sep or n < 1 or not 0 <= k < n:
+        raise errors.ValidationError("shard", text, "use K/N with 0 ≤ K < N")
+    return k, n
+
+
+def prepare(baker: Baker, given: dict | None, options: Mapping | None = None) -> tuple[dict, dict]:
+    """(recipe, bake keyword arguments) from a recipe and option values (CLI text or objects).
+
+    Validates the recipe first, then loads each option that has a ``load`` against it, then
+    folds the keyed inputs into the recipe (the cache key)."""
+    options = dict(options or {})
+    known = {o.name: o for o in baker.options}
+    for name in options:
+        if name not in known:
+            raise errors.ValidationError(name, options[name], f"not an option of {baker.kind}; "
+                                         f"known: {', '.join(known) or 'none'}")
+    recipe = baker.resolve_recipe(given)
+    inputs = {}
+    for name, value in options.items():
+        opt = known[name]
+        if opt.sets is not None:
+            continue
+        if value is not None and opt.load is not None:
+            value = opt.load(value, recipe, options)
+        inputs[name] = value
+    keyed = {k: inputs[k] for k in baker.keyed if inputs.get(k) is not None}
+    if keyed:
+        recipe = baker.resolve_recipe(recipe, **keyed)
+    return recipe, inputs

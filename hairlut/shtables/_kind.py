@@ -1,0 +1,109 @@
+"""The ``sh_tables`` table kind: its declaration for :mod:`hairlut.registry` (light: no JAX).
+
+The environment light is a keyed input: ``resolve_recipe(given, light=EnvLight)`` folds its
+identity into the recipe (so the cache key changes with the light) and
+``bake(recipe, out, light=EnvLight)`` also bakes Cd/Cs.  On the command line ``--light`` is a
+path (an EXR map, projected with ``--layout``/``--up`` to the recipe's bands, or an
+``sh_light`` table).  The kind also declares ``sh_light``, the light's own asset.
+"""
+
+from __future__ import annotations
+
+from ..baker import Baker, Option
+from ._recipe import SCHEMA, light_bands, resolve_recipe
+
+KIND = "sh_tables"
+LIGHT_KIND = "sh_light"
+#: EXR environment-map layouts (``hairlut.envlight.LAYOUTS``, which needs JAX to import).
+LAYOUTS = ("auto", "latlong", "cube")
+#: Start-up of a bake (imports, jit compilation), seconds; the bake itself is far shorter.
+BAKE_OVERHEAD = 4.0
+
+
+def estimate(recipe: dict) -> tuple[int, float]:
+    """(bytes, seconds) of a bake: the float64 Gaunt tensor dominates the file."""
+    r = resolve_recipe(recipe)
+    k, b = r["kernel"], r["bands"]
+    li = max(b["light_specular"] if k["specular"] else 0, b["light_diffuse"])
+    nbytes = 8 * (li + b["transmittance"] - 1) ** 2 * li**2 * b["transmittance"] ** 2
+    return int(nbytes), BAKE_OVERHEAD
+
+
+def load_light_option(value, recipe: dict, options: dict):
+    """``--light``: an EnvLight as is; ``sky``, the built-in sky; else a path (EXR map or sh_light
+    table), projected to the recipe's bands."""
+    if hasattr(value, "coeffs"):
+        return value
+    from ..envlight import load_light, sky_light
+
+    if str(value) == "sky":
+        return sky_light(light_bands(recipe) - 1)
+    return load_light(value, light_bands(recipe) - 1, options.get("layout") or "auto", options.get("up") or "z")
+
+
+def _bake(recipe, out, *, progress=None, shard=None, light=None, textures=None, layout=None, up=None):
+    from ._bake import bake
+
+    return bake(recipe, out, progress=progress, shard=shard, light=light, textures=textures)
+
+
+def _load(path):
+    from ._tables import load_sh_tables
+
+    return load_sh_tables(path)
+
+
+def describe(report: dict) -> list[str]:
+    r = report["recipe"]
+    b = r["bands"]
+    lines = [f"wrote {report['out']} ({report['bytes'] / 1024:.1f} KiB) in {report['seconds']:.2f} s",
+             f"  p = {r['kernel']['p']:.6g}; light bands diffuse {b['light_diffuse']} ({b['light_diffuse']**2} coeffs), "
+             f"specular {b['light_specular']} ({b['light_specular']**2}); transmittance {b['transmittance']} "
+             f"({b['transmittance']**2})"]
+    if r["kernel"]["specular"]:
+        lines.append(f"  θ′ dependence: {report['chebyshev_nodes']} Chebyshev nodes per half, series tail "
+                     f"{report['chebyshev_tail']:.1e}")
+        lines.append("  specular energy beyond the light bands (relative L2, worst θ′): "
+                     f"{report['specular_truncation_error']:.3e}")
+    if report.get("textures"):
+        lines.append(f"wrote {report['textures']}")
+    return lines
+
+
+BAKER = Baker(
+    kind=KIND,
+    command="sh",
+    description="exact SH convolution tables for Kajiya-Kay hair (xing §4)",
+    required=("gaunt",),
+    schema=SCHEMA,
+    resolve_recipe=resolve_recipe,
+    bake=_bake,
+    load=_load,
+    estimate=estimate,
+    describe=describe,
+    options=(
+        Option("p", float, None, "Shortcut for --set kernel.p=P.", sets="kernel.p"),
+        Option("light", "path", None, "Environment map (.exr), sh_light table or `sky` (built-in): also bake Cd/Cs.",
+               load=load_light_option),
+        Option("layout", LAYOUTS, "auto", "Layout of an EXR --light."),
+        Option("up", ("z", "y"), "z", "Up axis of an EXR --light."),
+        Option("textures", "path", None, "Also write Cd/Cs shader textures (EXR); needs --light and "
+               "dense.t_resolution > 0.", cached=False),
+    ),
+    keyed=("light",),
+    unit=None,  # a bake of seconds: no progress bar
+    assets=((LIGHT_KIND, ("a",), "SH coefficients of an environment light (xing §4)"),),
+    help="""Exact SH convolution tables Rd, Rs for Kajiya–Kay hair (xing §4).
+
+    Stores the compact exact form (kernel Legendre coefficients over θ′ and the
+    Gaunt tensor), optional dense Rd/Rs on cube-map tangents, and with --light
+    the contracted Cd/Cs.  SH tables cannot be sharded.
+
+    \b
+    Examples:
+      hairlut bake sh --recipe tables/sh-default.toml --out tables/sh.h5
+      hairlut bake sh --recipe tables/sh-paper.toml --out paper.h5 --light sky --textures paper_tex.exr
+      hairlut bake sh --out p200.h5 --p 200 --set bands.light_specular=auto
+      hairlut bake sh --p 16                     # into the table cache (tables/), reused when baked
+    """,
+)

@@ -1,0 +1,128 @@
+"""The SH-table recipe: schema, defaults, validation, and the light folded into it (xing §4).
+
+Light (no JAX): the planner, the registry and the CLI resolve recipes without baking.
+A recipe baked with an environment light carries the light's identity in ``light``
+(band count, channels, layout, the SHA-256 of its source and of its coefficients), so
+the recipe hash (the cache key) changes with the light.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+
+from .. import errors
+from ..recipes import Field, resolve
+
+METHOD = "legendre-gaunt/1"
+LIGHT_KEYS = ("channels", "coeffs_sha256", "layout", "lmax", "source_sha256")
+
+
+def _positive_int(v):
+    return None if v >= 1 else "must be ≥ 1"
+
+
+def _bands(v):
+    if v == "auto":
+        return None
+    if isinstance(v, str) or v < 1:
+        return "use an integer ≥ 1 (number of bands, lmax + 1) or 'auto'"
+    return None
+
+
+def _exponent(v):
+    return None if math.isfinite(v) and v > 0 else "the specular exponent p must be finite and > 0"
+
+
+def _cheb(v):
+    if v == "auto":
+        return None
+    return None if not isinstance(v, str) and 2 <= v <= 4096 else "use 'auto' or an integer in [2, 4096]"
+
+
+def _storage(v):
+    return None if v in ("float16", "float32", "float64") else "use float16, float32 or float64"
+
+
+SCHEMA = {
+    "kernel": {
+        "p": Field(49.0, (float, int), _exponent, "specular exponent p"),
+        "diffuse": Field(True, (bool,), None, "bake Rd"),
+        "specular": Field(True, (bool,), None, "bake Rs"),
+    },
+    "bands": {
+        "light_diffuse": Field(3, (int,), _positive_int, "light bands for Rd (9 coefficients)"),
+        "light_specular": Field("auto", (int, str), _bands, "light bands for Rs; auto = ceil(√p) + 1"),
+        "transmittance": Field(3, (int,), _positive_int, "transmittance bands"),
+    },
+    "quadrature": {
+        "chebyshev": Field("auto", (int, str), _cheb, "Chebyshev nodes per θ′ half (auto: until converged)"),
+    },
+    "dense": {
+        "t_resolution": Field(0, (int,), lambda v: None if v >= 0 else "must be ≥ 0 (0: no dense tables)",
+                              "cube-map face size of the tangent grid"),
+        "theta_v_steps": Field(9, (int,), lambda v: None if v >= 2 else "must be ≥ 2", "θ′ samples over [0, π]"),
+        "storage": Field("float32", (str,), _storage, "dtype of the dense tables"),
+    },
+}
+
+
+def specular_band_rule(p: float) -> int:
+    """Light bands for the specular term: ceil(√p) + 1, i.e. (√p + 1)² coefficients (xing §4, after King)."""
+    return int(math.ceil(math.sqrt(p) - 1e-12)) + 1
+
+
+def light_bands(recipe: dict) -> int:
+    """The light bands a resolved recipe needs: the larger of its diffuse and specular bands."""
+    return max(recipe["bands"]["light_diffuse"], recipe["bands"]["light_specular"])
+
+
+def light_identity(light) -> dict:
+    """The identity of an :class:`hairlut.envlight.EnvLight` that a recipe records."""
+    coeffs = hashlib.sha256(np.ascontiguousarray(light.coeffs, np.float64).tobytes()).hexdigest()
+    return {"lmax": int(light.lmax), "channels": list(light.channels), "layout": light.layout,
+            "source_sha256": light.source_sha256, "coeffs_sha256": coeffs}
+
+
+def _check_light_section(section) -> dict:
+    if not isinstance(section, dict) or sorted(section) != list(LIGHT_KEYS):
+        raise errors.ValidationError("light", section, f"a light's identity has exactly the keys {', '.join(LIGHT_KEYS)}")
+    return dict(section)
+
+
+def resolve_recipe(given: dict | None = None, light=None) -> dict:
+    """Validated recipe with every default and 'auto' made explicit; with ``light``, its identity.
+
+    Idempotent: a resolved recipe (``method``, and ``light`` when it names one) resolves to
+    itself.  A recipe that names a light and a different ``light`` argument is an error."""
+    given = dict(given or {})
+    method = given.pop("method", METHOD)
+    if method != METHOD:
+        raise errors.ValidationError("method", method, f"baked by another method; this hairlut bakes {METHOD}")
+    named = given.pop("light", None)
+    r = resolve(SCHEMA, given)
+    if not (r["kernel"]["diffuse"] or r["kernel"]["specular"]):
+        raise errors.ValidationError("kernel", r["kernel"], "bake at least one of diffuse and specular")
+    r["kernel"]["p"] = float(r["kernel"]["p"])
+    if r["bands"]["light_specular"] == "auto":
+        r["bands"]["light_specular"] = specular_band_rule(r["kernel"]["p"])
+    for key, limit in (("light_diffuse", 33), ("light_specular", 65), ("transmittance", 33)):
+        if r["bands"][key] > limit:
+            raise errors.ValidationError(f"bands.{key}", r["bands"][key], f"at most {limit} bands")
+    r["method"] = METHOD
+    if light is not None:
+        ident = light_identity(light)
+        if named is not None and _check_light_section(named) != ident:
+            raise errors.ValidationError("light", ident["source_sha256"], "the recipe names another light "
+                                         f"(source sha256 {str(named.get('source_sha256'))[:16]}…)")
+        r["light"] = ident
+    elif named is not None:
+        r["light"] = _check_light_section(named)
+    return r
+
+
+def full_recipe(recipe: dict | None, light=None) -> dict:
+    """The resolved recipe plus, when a light is folded in, that light's identity (the cache key)."""
+    return resolve_recipe(recipe, light)
