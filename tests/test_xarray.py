@@ -36,16 +36,22 @@ def assets(tmp_path_factory):
 
     d = tmp_path_factory.mktemp("kinds")
     bake(SMALL_HRIR, d / "db.h5", block=4)
+    bake({**SMALL_HRIR, "storage": {"dtype": "float16"}}, d / "db16.h5", block=4)
     bake(SMALL_HRIR, d / "shard.h5", block=2, shard="1/2")
     write_exr(d / "sky.exr", sky(16))
     _cli("sh", "project", d / "sky.exr", "--bands", "3", "--out", d / "light.h5")
     recipe = d / "sh.toml"
     recipe.write_text("[kernel]\np = 8.0\n[dense]\nt_resolution = 2\ntheta_v_steps = 3\n")
     _cli("bake", "sh", "--recipe", recipe, "--out", d / "sh.h5", "--set", "bands.transmittance=2", "--light", d / "sky.exr")
-    return {"hrir_db": d / "db.h5", "hrir_shard": d / "shard.h5", "sh_light": d / "light.h5", "sh_tables": d / "sh.h5"}
+    return {"hrir_db": d / "db.h5", "hrir_db_float16": d / "db16.h5", "hrir_shard": d / "shard.h5",
+            "sh_light": d / "light.h5", "sh_tables": d / "sh.h5"}
 
 
-KINDS = ["hrir_db", "hrir_shard", "sh_light", "sh_tables"]
+KINDS = ["hrir_db", "hrir_db_float16", "hrir_shard", "sh_light", "sh_tables"]
+
+
+def _kind(case: str) -> str:
+    return case.removesuffix("_float16")
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> None:
@@ -55,10 +61,10 @@ def _same(a: np.ndarray, b: np.ndarray) -> None:
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_open_dataset_names_dims_and_shows_axes_as_coordinates(assets, kind):
-    t = read_table(assets[kind], kind=kind)
+    t = read_table(assets[kind], kind=_kind(kind))
     assert t.schema == SCHEMA
     with xr.open_dataset(assets[kind], engine="h5netcdf") as ds:
-        assert ds.attrs["kind"] == kind and ds.attrs["recipe_hash"] == t.recipe_hash
+        assert ds.attrs["kind"] == _kind(kind) and ds.attrs["recipe_hash"] == t.recipe_hash
         assert set(ds.coords) == set(t.axes)
         for name, ax in t.axes.items():
             c = ds.coords[name]
@@ -68,6 +74,8 @@ def test_open_dataset_names_dims_and_shows_axes_as_coordinates(assets, kind):
             assert bool(c.attrs["periodic"]) == ax.periodic
             if ax.periodic:
                 assert c.attrs["period"] == pytest.approx(ax.period)
+        if kind.endswith("_float16"):
+            assert ds["alpha"].dtype == np.float16 and ds["reflectance"].dtype == np.float16
         root = [n for n in t.variables if "/" not in n]
         assert root and set(ds.data_vars) == set(root)
         for name in root:
@@ -81,7 +89,7 @@ def test_open_dataset_names_dims_and_shows_axes_as_coordinates(assets, kind):
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_open_datatree_gives_every_table_its_dims_and_coordinates(assets, kind):
-    t = read_table(assets[kind], kind=kind)
+    t = read_table(assets[kind], kind=_kind(kind))
     with xr.open_datatree(assets[kind], engine="h5netcdf") as tree:
         seen = set()
         for name, var in t.variables.items():
@@ -102,7 +110,7 @@ def test_open_datatree_gives_every_table_its_dims_and_coordinates(assets, kind):
 
 @pytest.mark.parametrize("kind", ["hrir_db", "sh_tables"])
 def test_groups_open_alone_with_named_dims(assets, kind):
-    t = read_table(assets[kind], kind=kind)
+    t = read_table(assets[kind], kind=_kind(kind))
     groups = {disk_name(n, t.axes).rpartition("/")[0] for n in t.variables if "/" in n}
     assert groups
     for group in groups:

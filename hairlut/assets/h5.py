@@ -333,6 +333,9 @@ def dims_of(ds: h5py.Dataset) -> tuple[str, ...]:
     return tuple(names)
 
 
+_DIMENSION_ATTRS = {"units", "long_name", "DIMENSION_LIST", "DIMENSION_LABELS"}  # stored by the store itself
+
+
 def read_table(path: str | os.PathLike, kind: str | None = None, required: Iterable[str] = ()) -> Table:
     """Read and validate a whole table file.
 
@@ -351,10 +354,9 @@ def read_table(path: str | os.PathLike, kind: str | None = None, required: Itera
                 data = ds[()]
             except OSError as exc:
                 raise data_fault(path, ds, exc) from None
-            extra = {k: v for k, v in ds.attrs.items() if k not in {"units", "long_name", "DIMENSION_LIST", "DIMENSION_LABELS"}}
-            variables[name] = Variable(
-                name, data, dims_of(ds), _text(ds.attrs.get("units", "")), _text(ds.attrs.get("long_name", name)), ds.chunks, extra
-            )
+            extra = {k: v for k, v in ds.attrs.items() if k not in _DIMENSION_ATTRS}
+            units, long_name = _text(ds.attrs.get("units", "")), _text(ds.attrs.get("long_name", name))
+            variables[name] = Variable(name, data, dims_of(ds), units, long_name, ds.chunks, extra)
         a = f.attrs
         known = {"hairlut_schema", "kind", "hairlut_version", "created", "recipe", "recipe_hash"}
         return Table(
