@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import numpy as np
 import pytest
 from scipy.spatial import cKDTree
@@ -14,13 +11,9 @@ from hairlut.geometry import (ClusterGeometry, ClusterSpec, FeatureStats, Sector
                               build_sectors, generate_strands, groom_sectors, read_strands, sample_sectors,
                               sector_density, sector_features)
 
-
-def _shared() -> Path:
-    env = os.environ.get("HAIRLUT_SHARED")
-    return Path(env) if env else Path(__file__).resolve().parents[1].parent / "shared"
+from .conftest import groom_path
 
 
-HAIR = _shared() / "data" / "hair"
 WAVY = np.array([[0, 0, 0], [1, 0.5, 1.5], [2, 0, 3], [3, -0.5, 4.5], [4, 0, 6]], float)
 
 
@@ -134,9 +127,7 @@ def test_sampler_is_deterministic_and_stays_in_its_space():
 
 
 def _coverage(groom: str, n_clusters: int):
-    path = HAIR / groom
-    if not path.exists():
-        pytest.skip(f"shared groom {path} not found (set HAIRLUT_SHARED to the shared/ folder)")
+    path = groom_path(groom)
     strands = read_strands(path)
     sampled = sample_sectors(3000, seed=11)
     rho = sector_density(sampled.splats, 16, dtype=np.float64)

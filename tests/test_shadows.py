@@ -8,7 +8,7 @@ from hairlut.geometry import Strands
 from hairlut.sh import real_sh, sphere_grid
 from hairlut.shadows import Volume, gradient, transmittance, voxelize
 
-from .conftest import shared_dir
+from .conftest import groom_path
 
 
 def test_voxelize_conserves_length(rng):
@@ -75,9 +75,7 @@ def test_stride_one_is_the_samples_themselves():
 
 @pytest.mark.slow
 def test_sparse_samples_with_gradient_beat_plain_average_on_sintel():
-    path = shared_dir() / "data" / "hair" / "sintel_lite.tfx"
-    if not path.is_file():
-        pytest.skip(f"shared groom not found at {path}")
+    path = groom_path("sintel_lite.tfx")
     from hairlut.geometry import read_strands
 
     vol = voxelize(read_strands(path), 32)
