@@ -34,13 +34,20 @@ def _click_option(opt) -> click.Option:
                         help=opt.help)
 
 
-def _common_options() -> list[click.Option]:
+def _first_key(schema, where="") -> str:
+    """``a.b=default`` of a schema's first leaf (for help text)."""
+    key, spec = next(iter(schema.items()))
+    return _first_key(spec, f"{where}{key}.") if isinstance(spec, dict) else f"{where}{key}={spec.default!r}"
+
+
+def _common_options(baker) -> list[click.Option]:
+    example = _first_key(baker.schema) if baker.schema else "KEY=VALUE"
     return [
         click.Option(["--recipe"], type=click.Path(dir_okay=False), help="TOML recipe (default: the built-in defaults)."),
         click.Option(["--out"], type=click.Path(dir_okay=False),
                      help="Output HDF5 file; default: the table cache, reused when the recipe hash matches."),
         click.Option(["--set", "sets"], multiple=True, metavar="KEY=VALUE",
-                     help="Override a recipe key (a TOML value), e.g. --set kernel.p=100; repeatable."),
+                     help=f"Override a recipe key (a TOML value), e.g. --set {example}; repeatable."),
         click.Option(["--shard"], metavar="K/N",
                      help="Bake only the K-th of N slices (K from 0) into a shard file for `hairlut merge` "
                           "(kinds that shard; needs --out)."),
@@ -79,7 +86,7 @@ def kind_command(kind: str, name: str | None = None) -> click.Command:
             for line in baker.describe(report) or [f"wrote {report['out']} ({report['bytes'] / 1024:.1f} KiB)"]:
                 click.echo(line)
 
-    params = _common_options() + [_click_option(o) for o in baker.options]
+    params = _common_options(baker) + [_click_option(o) for o in baker.options]
     return click.Command(name or baker.command, callback=callback, params=params,
                          help=baker.help or baker.description, short_help=baker.description)
 

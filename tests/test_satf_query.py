@@ -7,7 +7,7 @@ import pytest
 
 from hairlut import errors
 from hairlut.geometry import FeatureStats
-from hairlut.hrir._query import satf_query
+from hairlut.hrir import satf_query
 
 M, V, L, P, F = 12, 8, 6, 5, 3
 

@@ -21,7 +21,6 @@ such strip per θ′ sample, top to bottom: (n·n_θ′) × 6n.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
