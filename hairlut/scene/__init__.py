@@ -14,7 +14,7 @@ on first use of a name.
 from .._lazy import lazy_exports
 
 _LAZY = {
-    "SCHEMA": "_schema", "Scene": "_schema", "as_scene": "_schema",
+    "SCHEMA": "_schema", "SHADOW_KEYS": "_schema", "SHADOW_METHODS": "_schema", "Scene": "_schema", "as_scene": "_schema",
     "load_scene": "_schema", "resolve_path": "_schema", "resolve_scene": "_schema",
     "scene_clusters": "_clusters",
     "MARGIN": "_sectors", "SceneSectors": "_sectors", "grid_coverage": "_sectors", "restricted_space": "_sectors",

@@ -19,8 +19,11 @@
   no Rd.  The light is projected (its hash is part of the recipe), so a new map re-bakes.
 * **Voxel SH transmittance** only when an environment light and ``self_shadow`` are on.
 * **Online work**: each shading term whose switch is off or whose coefficient is zero
-  is skipped (no secondary highlight → none of its lighting or noise), the s-map with
-  k_shadow = 0, and the uniformity test's fetch count follows k_threshold.
+  is skipped (no secondary highlight → none of its lighting or noise), and the uniformity
+  test's fetch count follows k_threshold.
+* **Shadows** (``[shadows] method``): eq 12's s-map (``s_map``; off with k_shadow = 0 or
+  ``effects.shadow`` off), or a light-oriented density map / opacity shadow maps per light
+  (``shadow_maps``; built per scene in ``prepare``, rebuilt when the lights change), or none.
 
 :func:`bake` carries a plan out through :mod:`hairlut.cache`; :func:`find_assets` gives
 the cached assets of a scene to ``synthesize`` without baking.  Estimated times use
@@ -228,6 +231,38 @@ def _transmittance_step(scene) -> Step:
                 details={"voxels": n, "kappa": env["kappa"]})
 
 
+SHADOW_WORDS = {"light_oriented": "light-oriented density map (bertails §2–3)",
+                "opacity_maps": "opacity shadow maps (kim ch. 6)"}
+
+
+def _shadow_steps(scene) -> list[Step]:
+    """The shadow seam: eq 12's s-map, a light-space map per light, or nothing, and why."""
+    method, given, cfg = scene.shadow_method, scene.config["shadows"]["method"], scene.config["shadows"]
+    off = ("effects.shadow is off" if not scene.config["effects"]["shadow"] else
+           "material.k_shadow = 0" if given == "smap" else "shadows.method = 'none'")
+    if method == "smap":
+        smap = Step("s_map", "run", "eq 12 s-map from the outer layers' α (shadows.method = 'smap'): one τ per texel "
+                    "for every light, no per-frame map")
+    elif method == "none":
+        smap = Step("s_map", "skip", f"{off}: τ = 1, no shadow work")
+    else:
+        smap = Step("s_map", "skip", f"shadows.method = {method!r}: each light's transmittance comes from its own map")
+    if method in SHADOW_WORDS:
+        n, k = cfg["resolution"], cfg["kappa"]
+        size = (f"{n + 1 + 2 * cfg['padding']}³ cells" if method == "light_oriented" else
+                f"{cfg['slices']} slices of ~{n}² texels")
+        kappa = "κ = the mean strand diameter" if k == "auto" else f"κ = {k:g}"
+        maps = Step("shadow_maps", "run", f"{SHADOW_WORDS[method]} of all strands, one per light ({len(scene.lights)}), "
+                    f"{size}, {kappa}, evaluated at the texels' 3-D positions; built in prepare (independent of the "
+                    "view), rebuilt only when the lights change",
+                    details={"method": method, "lights": len(scene.lights), **{key: cfg[key] for key in
+                             ("resolution", "kappa", "padding" if method == "light_oriented" else "slices")}})
+    else:
+        maps = Step("shadow_maps", "skip", "no light-space shadow map: " + (
+            "eq 12's s-map from the α-maps needs none" if method == "smap" else off))
+    return [smap, maps]
+
+
 def _online_steps(scene) -> list[Step]:
     fx, m, cfg = scene.effects, scene.material, scene.config["effects"]
 
@@ -244,8 +279,7 @@ def _online_steps(scene) -> list[Step]:
     if fx["secondary"]:
         out.append(Step("noise", "run" if fx["noise"] else "skip", "noise-modulated secondary (Scheuermann)"
                         if fx["noise"] else ("effects.noise is off" if not cfg["noise"] else "material.noise_amount = 0")))
-    out.append(Step("s_map", "run" if fx["shadow"] else "skip", "eq 12 s-map from the outer layers' α" if fx["shadow"]
-                    else why("shadow", m["k_shadow"], "material.k_shadow") + ": τ = 1"))
+    out.extend(_shadow_steps(scene))
     kt = m["k_threshold"]
     fetch = ("k_threshold = ∞: every HSV uniform, one fetch each" if math.isinf(kt) else
              "k_threshold = 0: every HSV fetches two HRIRs (eq 7)" if kt == 0 else

@@ -9,6 +9,13 @@ from ``[groom]``: a strand file whose strands are grouped into ``clusters`` fitt
 clusters (:func:`~hairlut.geometry.fit_clusters`).  Directions point *toward* the viewer
 and the lights (DESIGN.md).  A relative groom or environment-map path is resolved next to
 the scene file (:func:`resolve_path`), and nowhere else.
+
+``[shadows] method`` picks where each light's transmittance T at a texel comes from
+(:data:`SHADOW_METHODS`): ``smap``, eq 12 from the α-maps (``material.k_shadow``,
+``material.shadow_form``; the default); ``light_oriented``, the light-oriented density map
+(bertails; ``resolution``, ``kappa``, ``padding``); ``opacity_maps``, opacity shadow maps
+(kim ch. 6; ``resolution``, ``slices``, ``kappa``); or ``none``.  A key the chosen method
+does not read is rejected (``shadows.slices`` with ``light_oriented``, say).
 """
 
 from __future__ import annotations
@@ -64,6 +71,20 @@ def _pair(check):
 
 
 REQUIRED = ("camera.view", "lights.directions")
+
+#: ``[shadows] method``: where each light's transmittance at a texel comes from (eq 13 with one τ per light).
+SHADOW_METHODS = ("smap", "light_oriented", "opacity_maps", "none")
+#: The ``[shadows]`` keys each method reads (``smap`` reads material.k_shadow and material.shadow_form).
+SHADOW_KEYS = {"smap": (), "none": (), "light_oriented": ("resolution", "kappa", "padding"),
+               "opacity_maps": ("resolution", "slices", "kappa")}
+
+
+def _kappa(x):
+    if x == "auto":
+        return None
+    if isinstance(x, str) or not (math.isfinite(x) and x > 0):
+        return "'auto' (the mean strand diameter) or a fibre width > 0"
+    return None
 _F, _I, _B, _L, _S = (float, int), (int,), (bool,), (list,), (str,)
 
 SCHEMA = {
@@ -110,6 +131,17 @@ SCHEMA = {
         "self_shadow": Field(False, _B, None, "shadow the environment with the strands' voxel SH transmittance (xing §5)"),
         "kappa": Field(0.5, _F, _pos, "extinction per unit of voxel strand density"),
         "voxels": Field(32, _I, lambda x: None if 8 <= x <= 256 else "must lie in [8, 256]", "voxel grid side"),
+    },
+    "shadows": {
+        "method": Field("smap", _S, lambda x: None if x in SHADOW_METHODS else "one of " + ", ".join(map(repr, SHADOW_METHODS)),
+                        "smap (eq 12 from the α-maps), light_oriented (bertails), opacity_maps (kim ch. 6) or none"),
+        "resolution": Field(32, _I, lambda x: None if 2 <= x <= 512 else "must lie in [2, 512]",
+                            "cells (light_oriented) or texels (opacity_maps) along the hair's longest extent"),
+        "slices": Field(16, _I, lambda x: None if 1 <= x <= 256 else "must lie in [1, 256]", "opacity_maps: depth slices"),
+        "kappa": Field("auto", (float, int, str), _kappa, "light-blocking width of a fibre, scene units ('auto': the "
+                       "mean strand diameter); τ = exp(−κ · hair length per unit area toward the light)"),
+        "padding": Field(2, _I, lambda x: None if 0 <= x <= 16 else "must lie in [0, 16]",
+                         "light_oriented: empty cells around the hair"),
     },
     "tables": {
         "hrir": Field({}, (dict,), None, "hrir_db recipe keys over the defaults (as hairlut bake hrir --set)"),
@@ -175,9 +207,18 @@ class Scene:
         coefficient is zero (no work is done for a term that contributes nothing)."""
         fx, m = self.config["effects"], self.material
         out = {"diffuse": fx["diffuse"] and m["kd"] > 0, "primary": fx["primary"] and m["ks_I"] > 0,
-               "secondary": fx["secondary"] and m["ks_II"] > 0, "shadow": fx["shadow"] and m["k_shadow"] > 0}
+               "secondary": fx["secondary"] and m["ks_II"] > 0, "shadow": self.shadow_method != "none"}
         out["noise"] = fx["noise"] and out["secondary"] and m["noise_amount"] > 0
         return out
+
+    @property
+    def shadow_method(self) -> str:
+        """The shadow method the online module runs: ``shadows.method``, or ``none`` when
+        ``effects.shadow`` is off or the s-map's k_shadow is 0 (no shadow work at all)."""
+        method = self.config["shadows"]["method"]
+        if not self.config["effects"]["shadow"] or method == "smap" and self.material["k_shadow"] <= 0:
+            return "none"
+        return method
 
     @property
     def environment(self) -> dict | None:
@@ -243,6 +284,11 @@ def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -
         if _get(given, key) is None:
             raise errors.ValidationError(key, None, "missing required key")
     cfg = resolve(SCHEMA, given)
+    method, shadow_given = cfg["shadows"]["method"], given.get("shadows", {})
+    for key in shadow_given:
+        if key != "method" and key not in SHADOW_KEYS[method]:
+            raise errors.ValidationError(f"shadows.{key}", shadow_given[key], f"shadows.method = {method!r} does not read "
+                                         f"it (it reads: {', '.join(SHADOW_KEYS[method]) or 'no [shadows] keys'})")
     view = _unit("camera.view", cfg["camera"]["view"])
     dirs = cfg["lights"]["directions"]
     if not dirs:

@@ -18,11 +18,12 @@ _LAZY = {
     "sector_params": "_maps", "sweep_kernel": "_maps", "texel_grid": "_maps", "texels": "_maps",
     "blend": "_shading", "compose_clusters_kernel": "_shading", "compose_kernel": "_shading", "diffuse": "_shading",
     "lighting_kernel": "_shading",
-    "shade": "_shading", "shadow_map": "_shading", "specular": "_shading", "value_noise": "_shading",
+    "shade": "_shading", "shade_lights": "_shading", "shadow_map": "_shading", "specular": "_shading", "value_noise": "_shading",
     "ClusterResult": "_synth", "KIND": "_synth", "Prepared": "_synth", "PreparedCluster": "_synth",
     "SynthResult": "_synth", "channels": "_synth", "ortho_preview": "_synth", "prepare": "_synth",
     "prepare_cluster": "_synth", "render": "_synth", "render_clusters": "_synth", "synthesize": "_synth",
     "write_outputs": "_synth",
+    "Shadows": "_shadowing", "prepare_shadows": "_shadowing",
 }
 
 __all__ = sorted(_LAZY)

@@ -13,7 +13,9 @@ viewer, l toward the light; sin(X, Y) = √(1 − (X·Y)²) for unit vectors.
 - Lighting (eq 8) is the sum, per light, times the light's RGB.
 - s-map (eq 12): τ_k = exp(−k_shadow Σ_{m>k} α_m) over the outer layers m > k (layer
   indices grow outward); the linear form max(0, 1 − k_shadow Σ α_m) as an option.
-- Shading (eq 13): Ψ_k = τ_k Σ_lights Ψ^lighting_k,j · re_k,j.
+- Shading (eq 13): Ψ_k = τ_k Σ_lights Ψ^lighting_k,j · re_k,j; with a light-space shadow
+  method (the light-oriented map, opacity maps: ``hairlut.shadows.light_transmittance``)
+  each light has its own transmittance, Ψ_k = Σ_lights T_k,j Ψ^lighting_k,j · re_k,j.
 - Blending (eq 14): Ψ^final = Ψ^bk Π_k (1 − α_k) + Σ_k Ψ_k α_k Π_{j>k} (1 − α_j), over the
   background; the composite's alpha is 1 − Π_k (1 − α_k).
 
@@ -105,6 +107,13 @@ def shade(lighting, re, tau):
     return jnp.asarray(tau)[..., None] * total
 
 
+def shade_lights(lighting, re, transmittance):
+    """Eq 13 with one τ per light: Ψ_k = Σ_j T_j · Ψ^lighting_j · re_j; lighting (K, ..., L, 3), re (K, L, ...),
+    T (K, ..., L) → (K, ..., 3)."""
+    lighting, re, tr = jnp.asarray(lighting), jnp.asarray(re), jnp.asarray(transmittance)
+    return sum(tr[..., j, None] * lighting[..., j, :] * re[:, j, ..., None] for j in range(re.shape[1]))
+
+
 def blend(rgb, alpha, background):
     """Eq 14 over the background: rgb (K, ..., 3), α (K, ...) → composite RGB (..., 3) and alpha (...)."""
     rgb, alpha = jnp.asarray(rgb), jnp.asarray(alpha)
@@ -114,9 +123,13 @@ def blend(rgb, alpha, background):
     return out, 1.0 - through
 
 
-def _compose(lighting, re, alpha, k_shadow, background, shadow, linear, extra=None):
-    tau = shadow_map(alpha, k_shadow, linear) if shadow else jnp.ones_like(alpha)
-    rgb = shade(lighting, re, tau)
+def _compose(lighting, re, alpha, k_shadow, background, shadow, linear, extra=None, transmittance=None):
+    if transmittance is not None:  # one τ per (texel, light) from a light-space method
+        tau = transmittance
+        rgb = shade_lights(lighting, re, transmittance)
+    else:
+        tau = shadow_map(alpha, k_shadow, linear) if shadow else jnp.ones_like(alpha)
+        rgb = shade(lighting, re, tau)
     if extra is not None:  # light that does not pass through the SATF (the environment term)
         rgb = rgb + extra
     final, a = blend(rgb, alpha, background)
@@ -130,11 +143,14 @@ def compose_kernel(lighting, re, alpha, k_shadow, background, *, shadow=True, li
 
 
 @partial(jax.jit, static_argnames=("shadow", "linear"))
-def compose_clusters_kernel(lighting, re, alpha, k_shadow, background, extra=None, *, shadow=True, linear=False):
+def compose_clusters_kernel(lighting, re, alpha, k_shadow, background, extra=None, transmittance=None, *, shadow=True,
+                            linear=False):
     """:func:`compose_kernel` over a leading cluster axis (every input gains it); ``extra``
-    (C, K, ..., 3), when given, is added to each layer's shaded colour before blending."""
-    return jax.vmap(lambda li, r, a, e: _compose(li, r, a, k_shadow, background, shadow, linear, e))(
-        lighting, re, alpha, extra)
+    (C, K, ..., 3), when given, is added to each layer's shaded colour before blending;
+    ``transmittance`` (C, K, ..., L), when given, replaces eq 12's τ by one τ per light
+    (:func:`shade_lights`) and is returned as τ."""
+    return jax.vmap(lambda li, r, a, e, tr: _compose(li, r, a, k_shadow, background, shadow, linear, e, tr))(
+        lighting, re, alpha, extra, transmittance)
 
 
 def value_noise(shape, frequency: float, seed: int) -> np.ndarray:

@@ -6,7 +6,9 @@ the SATF neighbours of every sector and averaged HSV, texel → HSV and image-li
 → per-texel frames on each layer surface (tangent ∂P/∂t, normal ∂P/∂u × ∂P/∂t, as in
 ``layer_meshes``).  :func:`render` (per frame, any view and lights): Params(b) angles, the
 uniformity test, SATF fetches and re-/α-maps (``_maps.frame_maps``, eqs 6–7) → lighting
-(eqs 8–11), s-map, shading and blending (eqs 12–14) in one kernel.
+(eqs 8–11), shadows, shading and blending (eqs 12–14) in one kernel.  Shadows come from the
+scene's method (``_shadowing``): eq 12's s-map in the kernel, or one transmittance per
+(texel, light) from a light-space map built in ``prepare`` (rebuilt when the lights change).
 Each cluster's strands, sectors and features are its own (so results do not depend on the
 order of the clusters); a frame then runs all clusters together through each kernel once.
 :func:`write_outputs` writes one EXR and one PNG per cluster plus an orthographic preview
@@ -33,6 +35,7 @@ from ._frame import frame_maps, map_index
 from ._maps import SectorFrames, sector_frames, texel_grid
 from ._environment import prepare_environment
 from ._shading import compose_clusters_kernel, lighting_kernel, value_noise
+from ._shadowing import prepare_shadows
 
 KIND = "synth_maps"
 
@@ -40,7 +43,8 @@ KIND = "synth_maps"
 @dataclass(frozen=True, eq=False)
 class ClusterResult:
     """One cluster's maps, per layer k (innermost first) on the (n_t, n_u) texture:
-    ``re`` (K, Lt, n_t, n_u) per light, ``alpha``, ``shadow`` (K, n_t, n_u), ``lighting``
+    ``re`` (K, Lt, n_t, n_u) per light, ``alpha`` (K, n_t, n_u), ``shadow`` (K, Ls, n_t, n_u) the
+    transmittance per light (Ls = Lt for a light-space shadow method, 1 for eq 12's τ or none), ``lighting``
     (K, n_t, n_u, 3; eq 8 summed over lights), ``rgba`` (K, n_t, n_u, 4; eq 13 and α),
     ``final`` (n_t, n_u, 4; eq 14), ``position`` (K, n_t, n_u, 3) of the texels."""
 
@@ -102,7 +106,8 @@ class Prepared:
     cluster, as in a multi-cluster :class:`~hairlut.geometry.SectorTable`) with stacked texel
     arrays (float32 device arrays) and the maps' ``index`` (``_frame.MapIndex``), so a frame runs
     every cluster through one call of each kernel; ``environment`` (``_environment.Environment``)
-    when the scene has an environment light."""
+    when the scene has an environment light; ``shadows`` (``_shadowing.Shadows``), the shadow method
+    and its per-light maps."""
 
     scene: Scene
     db: object
@@ -113,6 +118,7 @@ class Prepared:
     stacked: dict = field(default_factory=dict)
     index: object = None
     environment: object = None
+    shadows: object = None
 
 
 def _unit3(x):
@@ -165,18 +171,21 @@ def prepare(scene, db, sh=None) -> Prepared:
     env = prepare_environment(sc, sh, [s for _, s in pairs], np.stack([pc.tangent for pc in clusters]),
                               np.stack([pc.position for pc in clusters]))
     seconds = {"strands": t1 - t0, "index": t2 - t1} | ({"environment": time.perf_counter() - t2} if env else {})
-    return Prepared(sc, database, clusters, seconds, table, frames, stacked, index, env)
+    shadows = prepare_shadows(sc, [s for _, s in pairs], np.stack([pc.position for pc in clusters]), seconds)
+    return Prepared(sc, database, clusters, seconds, table, frames, stacked, index, env, shadows)
 
 
 @partial(jax.jit, static_argnames=("effects", "linear"))
 def shade_kernel(re, alpha, tangent, normal, noise, view, lights, light_rgb, mat, colours, k_shadow, background,
-                 extra=None, *, effects, linear):
-    """Eqs 8–11 (lighting) and 12–14 (s-map, shading, blend) of every cluster, one kernel: τ, lighting
-    summed over the lights, shaded RGBA per layer (plus ``extra``, the environment term) and the composite RGBA."""
+                 extra=None, transmittance=None, *, effects, linear):
+    """Eqs 8–11 (lighting) and 12–14 (shadows, shading, blend) of every cluster, one kernel: τ, lighting
+    summed over the lights, shaded RGBA per layer (plus ``extra``, the environment term) and the composite RGBA.
+    τ is eq 12's s-map when ``effects[-1]`` (the s-map switch) is on, 1 when off, or, when ``transmittance``
+    (C, K, n_t, n_u, L) is given, one τ per light (eq 13 per light)."""
     fx = dict(zip(("use_diffuse", "primary", "secondary", "noise"), effects))
     light = lighting_kernel(tangent, normal, view, lights, light_rgb, noise, mat, colours, **fx)
-    tau, rgb, final, a = compose_clusters_kernel(light, re, alpha, k_shadow, background, extra, shadow=effects[-1],
-                                                 linear=linear)
+    tau, rgb, final, a = compose_clusters_kernel(light, re, alpha, k_shadow, background, extra, transmittance,
+                                                 shadow=effects[-1], linear=linear)
     return (tau, light.sum(axis=-2), jnp.concatenate([rgb, alpha[..., None]], -1),
             jnp.concatenate([final, a[..., None]], -1))
 
@@ -184,10 +193,13 @@ def shade_kernel(re, alpha, tangent, normal, noise, view, lights, light_rgb, mat
 def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict | None = None, extra=None) -> list:
     """One frame of every prepared cluster, all clusters batched: eqs 6–7 from the index
     (``_frame.frame_maps``: three kernels, timed as "maps"), then eqs 8–14 (:func:`shade_kernel`, "shade");
-    ``extra`` (C, K, n_t, n_u, 3), the environment term, is added to each layer's shaded colour."""
+    ``extra`` (C, K, n_t, n_u, 3), the environment term, is added to each layer's shaded colour.  A light-space
+    shadow method's maps are rebuilt first (timed as "shadows") when ``lights`` differ from the prepared ones."""
     timing = {} if timing is None else timing
     scene, db = prepared.scene, prepared.db
     cfg, fx = scene.config, scene.effects
+    method = scene.shadow_method
+    transmittance = prepared.shadows.for_lights(lights, timing) if prepared.shadows is not None else None
     t0 = time.perf_counter()
     re, alpha, uniform = frame_maps(prepared.index, db, view, lights, scene.material["k_threshold"])
     jax.block_until_ready(alpha)
@@ -197,14 +209,15 @@ def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict
     f32 = partial(np.asarray, dtype=np.float32)
     out = shade_kernel(re, alpha, st["tangent"], st["normal"], st["noise"], f32(view), f32(lights), f32(light_colors),
                        mat, colours, f32(scene.material["k_shadow"]), f32(cfg["render"]["background"]),
-                       None if extra is None else f32(extra),
-                       effects=tuple(fx[k] for k in ("diffuse", "primary", "secondary", "noise", "shadow")),
+                       None if extra is None else f32(extra), transmittance,
+                       effects=(*(fx[k] for k in ("diffuse", "primary", "secondary", "noise")), method == "smap"),
                        linear=scene.material["shadow_form"] == "linear")
     re, alpha, tau, light, rgba, final = (np.asarray(x) for x in jax.block_until_ready((re, alpha, *out)))
     t2 = time.perf_counter()
     for key, dt in (("maps", t1 - t0), ("shade", t2 - t1)):
         timing[key] = timing.get(key, 0.0) + dt
     uniform = uniform.reshape(len(prepared.clusters), -1)
+    tau = np.moveaxis(tau, -1, 2) if transmittance is not None else tau[:, :, None]  # (C, K, Ls, n_t, n_u)
     return [ClusterResult(re[c], alpha[c], tau[c], light[c], rgba[c], final[c], pc.position,
                           float(uniform[c].mean()) if uniform.size else 1.0)
             for c, pc in enumerate(prepared.clusters)]
@@ -263,14 +276,17 @@ def _plain(x):
 
 def channels(res: ClusterResult) -> dict[str, np.ndarray]:
     """EXR channels of one cluster: ``layerK.re`` (light 0; ``layerK.re_l<j>`` for further lights),
-    ``layerK.A``, ``layerK.s``, ``layerK.R/G/B`` (eq 13), and the composite ``R, G, B, A`` (eq 14)."""
+    ``layerK.A``, ``layerK.s`` (the transmittance: light 0's, ``layerK.s_l<j>`` for further lights with a
+    light-space shadow method), ``layerK.R/G/B`` (eq 13), and the composite ``R, G, B, A`` (eq 14)."""
     out = {}
     for k in range(res.alpha.shape[0]):
         out[f"layer{k}.re"] = res.re[k, 0]
         for j in range(1, res.re.shape[1]):
             out[f"layer{k}.re_l{j}"] = res.re[k, j]
         out[f"layer{k}.A"] = res.alpha[k]
-        out[f"layer{k}.s"] = res.shadow[k]
+        out[f"layer{k}.s"] = res.shadow[k, 0]
+        for j in range(1, res.shadow.shape[1]):
+            out[f"layer{k}.s_l{j}"] = res.shadow[k, j]
         for c, name in enumerate("RGB"):
             out[f"layer{k}.{name}"] = res.rgba[k, ..., c]
     for c, name in enumerate("RGBA"):
