@@ -62,9 +62,7 @@ def test_missing_groom_file_is_an_asset_error(tmp_path):
 def test_example_scenes_parse():
     sc = load_scene(ROOT / "tables/scenes/two-clusters.toml")
     assert len(sc.specs) == 2
-    groom = ROOT / "tables/scenes/sintel-groom.toml"
-    try:
-        sg = load_scene(groom)
-    except errors.AssetNotFoundError:
-        pytest.skip("shared/data/hair/sintel_lite.tfx is not available")
-    assert sg.groom_path.name == "sintel_lite.tfx" and sg.config["groom"]["clusters"] == 6
+    sg = load_scene(ROOT / "tables/scenes/sintel-groom.toml")  # the groom is in the repository: no skip
+    assert sg.groom_path.resolve() == ROOT / "tables/grooms/sintel_lite.tfx" and sg.config["groom"]["clusters"] == 6
+    rb = load_scene(ROOT / "tables/scenes/ratboy-groom.toml")
+    assert rb.groom_path.resolve() == ROOT / "tables/grooms/ratboy_mohawk.tfx"
