@@ -249,3 +249,39 @@ def test_outputs_are_finite_or_an_error_never_a_silent_nan():
         assert "non-finite" in str(e)
     else:
         assert np.isfinite(a).all() and np.isfinite(r).all()
+
+
+# ------------------------------------------------------------------------------------------------
+# a scene's sectors as inputs
+
+
+def test_scene_sector_inputs_match_the_online_frames_and_densities():
+    from hairlut.geometry import ClusterGeometry, azimuths, build_sectors, sector_axes
+    from hairlut.scene import resolve_scene, scene_clusters
+    from hairlut.synth import sector_frames
+    from hairlut.synth._direct import scene_sector_inputs, sector_extent
+
+    from ._synth_fixtures import scene, synthetic_db
+
+    sc = resolve_scene(scene())
+    rec = resolve_recipe({"sectors": {"grid": [8, 8]}, "trace": {"pixels": 16, "steps": 32}})
+    spec, strands = scene_clusters(sc)[0]
+    geom = ClusterGeometry(spec)
+    tb = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))
+    fr = sector_frames(geom, tb, synthetic_db())
+    np.testing.assert_allclose(sector_extent(tb), fr.extent, rtol=1e-12)
+    dens, g = scene_sector_inputs(tb, rec, extent=fr)
+    a_axis = tb.half_axes[:, 0]
+    np.testing.assert_array_equal(dens, sector_density(tb.splats(), (8, 8)))
+    np.testing.assert_allclose(g[:, COL["extent"]], fr.extent / a_axis, rtol=1e-12)
+    np.testing.assert_allclose(g[:, COL["aspect"]], tb.half_axes[:, 1] / a_axis, rtol=1e-12)
+    _, g_default = scene_sector_inputs(tb, rec)
+    np.testing.assert_allclose(g_default, g, rtol=1e-12)
+    tv, tl = azimuths(*sector_axes(geom, tb), sc.view, sc.lights)
+    a, r = direct_sector_maps(dens, g, tv, tl, rec)
+    assert a.shape == (tb.n_sectors, 16) and r.shape == (tb.n_sectors, len(sc.lights), 16)
+    live = dens.reshape(len(dens), -1).max(1) > 0
+    assert live.any() and (a[live].max(1) > 0).all() and not a[~live].any()
+    with pytest.raises(ValidationError) as err:
+        scene_sector_inputs(tb, rec, extent=np.ones(3))
+    assert err.value.field == "extent"

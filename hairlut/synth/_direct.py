@@ -459,9 +459,10 @@ def scene_sector_inputs(table, recipe: dict, *, extent=None, n_pix: int | None =
     params = {"phase": table.twist + table.u_range[:, 0], "s_u": 2 * np.pi / du, "v_range": table.v_range,
               "aspect": b / a, "radius": r / np.sqrt(splats.sector_areas())}
     geometry = sector_geometry(params, kappa=kappa, n_pix=pixels, smooth_ratio=ratio)
-    ext = (sector_extent(table) if extent is None else np.asarray(getattr(extent, "extent", extent), np.float64)) / a
+    ext = sector_extent(table) if extent is None else np.asarray(getattr(extent, "extent", extent), np.float64)
     if ext.shape != (len(geometry),) or not (np.isfinite(ext).all() and (ext > 0).all()):
         raise errors.ValidationError("extent", ext.shape, f"need ({len(geometry)},) finite extents > 0")
+    ext = ext / a
     col_e, col_s = GEOM.index("extent"), GEOM.index("sigma_px")
     geometry[:, col_s] *= geometry[:, col_e] / ext
     geometry[:, col_e] = ext
