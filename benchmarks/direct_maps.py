@@ -12,8 +12,9 @@ each sector's exact θv and θl come from the scene's view and lights
   sector's own angles (how ``benchmarks/satf_accuracy.py`` builds its truth today; empty
   sectors are skipped there too);
 - **direct**: ``direct_sector_maps``, every sector in one jitted kernel (empty sectors
-  skipped), at the same settings — it should reproduce the baseline to float32 rounding —
-  and with finer sampling (2 rays per pixel; 2× steps);
+  skipped), at the same settings: with the tracer's light-depth grid it reproduces the baseline
+  to float32 rounding; with its default lookup (the light march read directly) it differs by
+  that one interpolation; then with finer sampling (2 rays per pixel; 2× steps);
 - **direct α only**: the same kernel with no lights (no shading work);
 - **converged**: the direct kernel at 4 rays per pixel, 2× steps and a 64² grid, the
   reference the finer settings are also measured against (issue 12, item 2).
@@ -128,12 +129,15 @@ def main(argv=None):
         cin = scene_inputs(args.scene, rec, grid=64)
         _, _, conv = timed(lambda: direct_sector_maps(cin["density"], cin["geometry"], cin["theta_v"], cin["theta_l"],
                                                       rec, rays=4, n_steps=96, block=args.block), repeat=1)
-    settings = [("direct", 1, 48, False)] + ([] if args.quick else [("direct", 2, 48, False), ("direct", 2, 96, False)])
-    settings.append(("direct α only", 1, 48, True))
-    for name, rays, steps, alpha_only in settings:
+    settings = [("direct, tracer's shadow grid", 1, 48, False, "grid"), ("direct", 1, 48, False, "march")]
+    if not args.quick:
+        settings += [("direct", 2, 48, False, "march"), ("direct", 2, 96, False, "march")]
+    settings.append(("direct α only", 1, 48, True, "march"))
+    for name, rays, steps, alpha_only, lookup in settings:
         tl = inp["theta_l"][:, :0] if alpha_only else inp["theta_l"]
         first, sec, (a, r) = timed(lambda: direct_sector_maps(inp["density"], inp["geometry"], inp["theta_v"], tl, rec,
-                                                              rays=rays, n_steps=steps, block=args.block))
+                                                              rays=rays, n_steps=steps, block=args.block,
+                                                              shadow_lookup=lookup))
         row = {"method": name, "rays": rays, "steps": steps, "seconds": sec, "first_call_s": first,
                "speedup": base_s / sec, **errors(a, r, a_base, r_base)}
         if conv is not None:
