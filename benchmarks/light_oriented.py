@@ -29,8 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import best_of, save, table  # noqa: E402
 
 from hairlut.geometry import read_strands  # noqa: E402
-from hairlut.shadows import LightOrientedMap, light_oriented_map  # noqa: E402
-from hairlut.shadows._reference import ray_march  # noqa: E402  (not re-exported by hairlut.shadows yet)
+from hairlut.shadows import LightOrientedMap, light_oriented_map, ray_march  # noqa: E402
 
 GROOM = Path(__file__).resolve().parents[1] / "tables" / "grooms" / "sintel_lite.tfx"
 LIGHT = np.array([0.3, 0.8, 0.5]) / np.linalg.norm([0.3, 0.8, 0.5])

@@ -8,7 +8,11 @@ implementation of the same steps (eq 7 sweep, eqs 8–11 lighting, eqs 12–14) 
 reference lookup (``_maps.fetch``: a k-NN search per query; every sector is fetched, not only
 those of non-uniform HSVs).  ``render``'s stages: "maps" (eq 6, the SATF fetches and the eq 7
 sweep: three kernels) and "shade" (lighting, s-map, shading and blend: one kernel).
-Prints a table (best and median of the timed runs) and writes benchmarks/results/online_frame.json.
+Then the shadow seam: the same frame for each ``[shadows] method`` (smap, light_oriented,
+opacity_maps, none); the light-space maps are built once in ``prepare`` for the scene's
+lights ("shadow build") and re-used each frame, and a frame with new lights rebuilds them
+("relit frame").  Public API only.
+Prints tables (best and median of the timed runs) and writes benchmarks/results/online_frame.json.
 
 Usage: python benchmarks/online_frame.py [--db hrir.h5] [--clusters 17] [--quick]
 """
@@ -27,13 +31,13 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import save, table  # noqa: E402
 
-from hairlut.scene import resolve_scene  # noqa: E402
-from hairlut.synth import prepare, render  # noqa: E402
-from hairlut.synth._maps import fetch, param_distance, sector_angles, texels, wrap  # noqa: E402
-from hairlut.synth._synth import _material  # noqa: E402
+from dataclasses import replace  # noqa: E402
+
+from hairlut.scene import SHADOW_METHODS, resolve_scene, scene_clusters  # noqa: E402
+from hairlut.synth import fetch, param_distance, prepare, prepare_shadows, render, sector_angles, texels, wrap  # noqa: E402
 
 
-def model(n_clusters: int, s_t: int, s_u: int, res: int, strands: int) -> dict:
+def model(n_clusters: int, s_t: int, s_u: int, res: int, strands: int, shadows: str = "smap") -> dict:
     clusters = []
     for c in range(n_clusters):
         a = 2 * np.pi * c / n_clusters
@@ -45,7 +49,7 @@ def model(n_clusters: int, s_t: int, s_u: int, res: int, strands: int) -> dict:
     return {"render": {"resolution": [res, res]}, "camera": {"view": [0.0, 0.3, 1.0]},
             "lights": {"directions": [[0.5, 0.8, 1.0]]}, "effects": {"noise": True},
             "strands": {"count": strands, "radius": 0.0015, "profile": "clumped", "spread": 0.25},
-            "clusters": clusters}
+            "shadows": {"method": shadows}, "clusters": clusters}
 
 
 def _sample(arr, pix):
@@ -68,7 +72,10 @@ def numpy_frame(prep) -> list[np.ndarray]:
     """The same frame in plain NumPy: maps (eqs 6–7), lighting (8–11), s-map, shading, blend (12–14)."""
     sc, db = prep.scene, prep.db
     m, fx = sc.material, sc.effects
-    (kd, ks1, ks2, p1, p2, s, scale, bias, amount), colours = _material(sc)
+    kd, ks1, ks2, p1, p2, s = (m[k] for k in ("kd", "ks_I", "ks_II", "p_I", "p_II", "shift"))
+    scale, bias, amount = m["diffuse_scale"], m["diffuse_bias"], m["noise_amount"]
+    hair = np.asarray(m["hair_color"])
+    colours = [hair, np.asarray(m["spec_color_I"]), np.asarray(m["spec_color_II"]) * (hair if m["secondary_hair_tint"] else 1)]
     n_u, n_t = sc.config["render"]["resolution"]
     out = []
     for pc in prep.clusters:
@@ -116,6 +123,29 @@ def numpy_frame(prep) -> list[np.ndarray]:
             np.sum(rgb * (al * above)[..., None], 0)
         out.append(final)
     return out
+
+
+def shadow_methods(prep, args, runs: int = 10) -> list[dict]:
+    """Frame time per shadow method on the prepared model: its maps built once for the scene's
+    lights (as ``prepare`` does), then ``runs`` frames, then one frame under a new light."""
+    strands = [s for _, s in scene_clusters(prep.scene)]
+    points = np.stack([pc.position for pc in prep.clusters])
+    rows = []
+    for method in SHADOW_METHODS:
+        sc = resolve_scene(model(args.clusters, args.s_t, args.s_u, args.res, args.strands, method))
+        build = {}
+        variant = replace(prep, scene=sc, shadows=prepare_shadows(sc, strands, points, build))
+        render(variant)  # warm-up: compiles
+        frames = [timed(lambda: render(variant)) for _ in range(runs)]
+        sec = np.array([t for t, _ in frames])
+        best = frames[int(np.argmin(sec))][1]
+        render(variant, lights=[[0.4, 0.9, -0.5]])  # a first relight compiles what a new map size needs
+        relit, _ = timed(lambda: render(variant, lights=[[-0.4, 0.9, 0.5]]))
+        render(variant)  # back to the scene's lights (rebuilds the maps outside the timings)
+        rows.append({"method": method, "build_s": build.get("shadows", 0.0), "ms": 1e3 * sec.min(),
+                     "median": 1e3 * float(np.median(sec)), "shade": 1e3 * best.stats["seconds"]["shade"],
+                     "relit_s": relit})
+    return rows
 
 
 def timed(fn):
@@ -180,10 +210,16 @@ def main(argv=None) -> None:
                        ("shade", "lighting+shadow+blend ms", ".1f")]))
     print("(stage times are those of the best run)")
     print(f"max |JAX − NumPy| of the composite: {err:.2e}")
+    shadow_rows = shadow_methods(prep, args)
+    print(table(shadow_rows, [("method", "[shadows] method", "s"), ("build_s", "shadow build s", ".2f"),
+                              ("ms", "best ms", ".1f"), ("median", "median ms", ".1f"), ("shade", "shade ms", ".1f"),
+                              ("relit_s", "relit frame s", ".2f")]))
+    print("(shadow build: the light-space maps for the scene's light, once per scene in prepare; relit frame: "
+          "a frame under a new light, which rebuilds them)")
     path = save("online_frame", {"device": str(jax.devices()[0]), "args": vars(args), "stats": res.stats,
                                  "prepare_s": t_prep, "frame_ms": {"jax": 1e3 * t_jax, "numpy": 1e3 * t_np},
                                  "median_ms": {"jax": rows[0]["median"], "numpy": rows[1]["median"]},
-                                 "max_abs_diff": err})
+                                 "max_abs_diff": err, "shadow_methods": shadow_rows})
     print(f"wrote {path}")
 
 

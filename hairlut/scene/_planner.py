@@ -183,8 +183,7 @@ def sh_recipe(scene) -> dict | None:
 
 
 def _sh_step(scene, root) -> Step:
-    from ..shtables import full_recipe
-    from ..shtables._bake import band_truncation_error  # not yet public in hairlut.shtables
+    from ..shtables import band_truncation_error, full_recipe
 
     env = scene.environment
     if env is None:

@@ -1,15 +1,16 @@
 """Volumetric self-shadowing of hair: density volumes and voxel SH transmittance (xing §5), the
 light-oriented density map (bertails) and opacity shadow maps (kim ch. 6), and
 ``light_transmittance``: either of the last two per light at arbitrary points (the online
-module's shadow seam)."""
+module's shadow seam); ``ray_march``, the NumPy reference transmittance they are checked against."""
 
 from ._light import light_frame
 from ._light_oriented import LightOrientedMap, light_oriented_map
 from ._methods import LIGHT_METHODS, fibre_width, light_transmittance
 from ._opacity import OpacityMaps, opacity_shadow_maps
+from ._reference import ray_march
 from ._transmittance import Transmittance, transmittance
 from ._volume import Volume, gradient, trilinear, voxelize
 
 __all__ = ["LIGHT_METHODS", "LightOrientedMap", "OpacityMaps", "Transmittance", "Volume", "fibre_width", "gradient",
-           "light_frame", "light_oriented_map", "light_transmittance", "opacity_shadow_maps", "transmittance", "trilinear",
-           "voxelize"]
+           "light_frame", "light_oriented_map", "light_transmittance", "opacity_shadow_maps", "ray_march",
+           "transmittance", "trilinear", "voxelize"]

@@ -14,7 +14,7 @@ _LAZY = {
     "Environment": "_environment", "prepare_environment": "_environment",
     "MapIndex": "_frame", "frame_maps": "_frame", "map_index": "_frame",
     "Maps": "_maps", "SectorFrames": "_maps", "SectorParams": "_maps", "Texels": "_maps", "build_maps": "_maps",
-    "fetch": "_maps", "param_distance": "_maps", "sector_angles": "_maps", "sector_frames": "_maps",
+    "fetch": "_maps", "param_distance": "_maps", "wrap": "_maps", "sector_angles": "_maps", "sector_frames": "_maps",
     "sector_params": "_maps", "sweep_kernel": "_maps", "texel_grid": "_maps", "texels": "_maps",
     "blend": "_shading", "compose_clusters_kernel": "_shading", "compose_kernel": "_shading", "diffuse": "_shading",
     "lighting_kernel": "_shading",

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ..hrir._query import interpolate, neighbours_kernel
+from ..hrir import interpolate, neighbours_kernel
 from ._maps import TWO_PI, SectorFrames, _bucket, _check_k, _device_db, _sample, _texel_cells, texel_offsets
 
 
