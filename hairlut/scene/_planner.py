@@ -25,10 +25,11 @@
   ``effects.shadow`` off), or a light-oriented density map / opacity shadow maps per light
   (``shadow_maps``; built per scene in ``prepare``, rebuilt when the lights change), or none.
 
-:func:`bake` carries a plan out through :mod:`hairlut.cache`; :func:`find_assets` gives
-the cached assets of a scene to ``synthesize`` without baking.  Estimated times use
-throughputs measured by ``benchmarks/hrir_bake.py`` and ``benchmarks/plan.py`` on the
-2-core development CPU; ``benchmarks/plan.py`` reports them beside the real times.
+:func:`bake` carries a plan out through :mod:`hairlut.registry` (and its cache) without
+naming a kind; :func:`find_assets` gives the cached assets of a scene to ``synthesize``
+without baking.  A bake's size and time are its kind's ``estimate`` (throughputs measured by
+``benchmarks/hrir_bake.py`` and ``benchmarks/plan.py`` on the 2-core development CPU;
+``benchmarks/plan.py`` reports them beside the real times).
 """
 
 from __future__ import annotations
@@ -38,18 +39,11 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-import numpy as np
-
-from .. import cache, errors
+from .. import cache, errors, registry
 from ..assets import recipe_hash
 from ._schema import as_scene
 from ._sectors import SceneSectors, grid_coverage, restricted_space, scene_sectors
 
-#: HRIR tracer throughput, (sector · view · light · pixel · step) per second, with and without
-#: in-sector self-shadowing (benchmarks/hrir_bake.py: 35 and 49 sectors/s at 32 × 32 angles, 64², 2 cores).
-TRACE_RATE = {True: 1.47e8, False: 2.07e8}
-#: Start-up of a bake (imports, jit compilation), seconds.
-BAKE_OVERHEAD = {"hrir_db": 6.0, "sh_tables": 4.0}
 #: Voxel SH transmittance: casts (voxel · direction · step) per second (benchmarks/plan.py).
 CAST_RATE = 6.0e7
 
@@ -69,6 +63,8 @@ class Step:
     bytes: int = 0
     seconds: float = 0.0
     details: dict = field(default_factory=dict)
+    #: the kind's keyed bake inputs (e.g. the SH tables' ``light``): passed to the baker, not serialised
+    inputs: dict = field(default_factory=dict, repr=False, compare=False)
 
 
 @dataclass(frozen=True)
@@ -82,7 +78,7 @@ class Plan:
 
     def to_json(self) -> dict:
         return {"scene": self.scene.source, "cache": self.cache_dir,
-                "steps": [{k: v for k, v in asdict(s).items()} for s in self.steps],
+                "steps": [{k: v for k, v in asdict(s).items() if k != "inputs"} for s in self.steps],
                 "totals": {"bake_seconds": sum(s.seconds for s in self.steps if s.action == "bake"),
                            "bake_bytes": sum(s.bytes for s in self.steps if s.action == "bake"),
                            "reused_bytes": sum(s.bytes for s in self.steps if s.action == "reuse")}}
@@ -119,11 +115,7 @@ def _hrir_step(scene, ss: SceneSectors, root) -> Step:
     a = recipe["angles"]
     cov = {"views": grid_coverage(ss.theta_v, a["views"]), "lights": grid_coverage(ss.theta_l, a["lights"])}
     details["angle_coverage"] = cov
-    n, t = recipe["sectors"]["count"], recipe["trace"]
-    work = n * a["views"] * a["lights"] * t["pixels"] * t["steps"] * t["rays_per_pixel"]
-    seconds = BAKE_OVERHEAD["hrir_db"] + work / TRACE_RATE[t["self_shadow"]]
-    item = np.dtype(recipe["storage"]["dtype"]).itemsize
-    nbytes = item * n * a["views"] * t["pixels"] * (a["lights"] + 1)
+    nbytes, seconds = registry.get("hrir_db").estimate(recipe)
     angle_words = (f"the scene's sectors read {100 * cov['views']:.0f} % of the {a['views']} view and "
                    f"{100 * cov['lights']:.0f} % of the {a['lights']} light grid angles; the grid is periodic, so the "
                    "full circle is kept")
@@ -208,13 +200,12 @@ def _sh_step(scene, root) -> Step:
     if not k["diffuse"]:
         words.append("kd = 0: no Rd")
     path, hit = _cached("sh_tables", recipe, root)
-    li = max(b["light_specular"] if k["specular"] else 0, b["light_diffuse"])
-    nbytes = 8 * (li + b["transmittance"] - 1) ** 2 * li**2 * b["transmittance"] ** 2  # the Gaunt tensor dominates
     if hit:
         return Step("sh_tables", "reuse", "recipe hash matches the cache; " + "; ".join(words), "sh_tables", recipe,
-                    str(path), path.stat().st_size, 0.0, details)
-    return Step("sh_tables", "bake", "; ".join(words), "sh_tables", recipe, str(path), int(nbytes),
-                BAKE_OVERHEAD["sh_tables"], details)
+                    str(path), path.stat().st_size, 0.0, details, {"light": light})
+    nbytes, seconds = registry.get("sh_tables").estimate(recipe)
+    return Step("sh_tables", "bake", "; ".join(words), "sh_tables", recipe, str(path), nbytes, seconds, details,
+                {"light": light})
 
 
 def _transmittance_step(scene) -> Step:
@@ -300,32 +291,21 @@ def plan(scene, cache_root=None) -> Plan:
 
 
 def bake(p: Plan, progress=None) -> dict[str, dict]:
-    """Bake (or reuse) every asset step of a plan through the cache; ``progress(name, done, total)``.
+    """Bake (or reuse) every asset step of a plan through the registry and the cache;
+    ``progress(name, done, total)``.  No kind is named here: each step carries its kind,
+    recipe and keyed inputs.
 
     Returns {name: {"path", "status", "seconds"}} for the asset steps that are not skipped."""
-    from ..hrir import bake as bake_hrir
-    from ..shtables import bake_sh, write_sh_tables
-
     out = {}
     for s in p.steps:
         if s.kind is None or s.action == "skip":
             continue
         t0 = time.perf_counter()
-        if s.name == "hrir_db":
-            if s.action == "reuse":
-                path, status = Path(s.path), "reused"
-            else:
-                cb = (lambda d, n: progress("hrir_db", d, n)) if progress else None
-                given = {k: v for k, v in s.recipe.items() if k != "method"}
-                path, status = cache.ensure("hrir_db", s.recipe, lambda f: bake_hrir(given, f, progress=cb), p.cache_dir)
+        if s.action == "reuse":
+            path, status = Path(s.path), "reused"
         else:
-            light = environment_light(p.scene)
-
-            def produce(f):
-                res = bake_sh(sh_recipe(p.scene), light)
-                write_sh_tables(f, res["tables"], res["info"], res["dense"], res["light"])
-
-            path, status = cache.ensure("sh_tables", s.recipe, produce, p.cache_dir)
+            cb = (lambda d, n, name=s.name: progress(name, d, n)) if progress else None
+            path, status = registry.ensure(s.kind, s.recipe, p.cache_dir, cb, **s.inputs)
         out[s.name] = {"path": str(path), "status": status, "seconds": time.perf_counter() - t0}
     return out
 

@@ -28,7 +28,7 @@ class MapIndex:
     device arrays over the sectors (S; grid (C, s_t + 1, G, s_u)), HSVs (H; (C, s_t, G, s_u))
     and texels ((C, K, n_t, n_u); texel (i, j) of layer k lies in HSV row ``rows[i]``, column
     ``cols[j]``, track k).  Per sector: ``axes`` (2, S, 3), its +x and +y in 3-D; ``nbr``,
-    ``wgt`` (S, k), the SATF neighbours of its features (``hairlut.hrir._query.neighbours``).
+    ``wgt`` (S, k), the SATF neighbours of its features (``hairlut.hrir.neighbours``).
     Per HSV: ``dz2``, eq 6's feature term Σ Δz²; ``nbr_ave``, ``wgt_ave``, the neighbours of
     its averaged features.  Per texel row: ``gamma`` (n_t,), γ along the HSV.  Per texel:
     ``offset`` (2, 2, …) of :func:`texel_offsets`."""
@@ -119,7 +119,7 @@ def params_kernel(ix: MapIndex, view, lights, k_threshold, *, n_v: int, n_l: int
 
 @partial(jax.jit, donate_argnames=("scratch",), keep_unused=True)
 def fetch_kernel(ix: MapIndex, alpha, refl, tv, tl, uniform, nonuniform, scratch):
-    """The SATF rows of a frame from the index's neighbours (``hairlut.hrir._query.interpolate``):
+    """The SATF rows of a frame from the index's neighbours (``hairlut.hrir.interpolate``):
     re (M, Lt, P), α (M, P).  Row h < H is HSV h's first HRIR (at Params_ave if it is uniform,
     else its top sector's); row H + i the bottom sector's HRIR of HSV ``nonuniform[i]``.
     ``scratch``: two arrays of those shapes, donated, so that the rows reuse their memory."""
