@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import best_of, save, table  # noqa: E402
 
 from hairlut.sh import n_coeffs, real_sh, real_sh_reference, real_sh_scipy  # noqa: E402
-from hairlut.sh._basis import check_dirs  # noqa: E402
+from hairlut.sh import check_dirs  # noqa: E402
 
 
 def max_abs_diff(a, b, rows: int = 65536) -> float:

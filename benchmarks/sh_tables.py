@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import best_of, save, table  # noqa: E402
 
 from hairlut.envlight import cube_dirs  # noqa: E402
-from hairlut.sh._gaunt import _gaunt_quadrature  # noqa: E402  (uncached Gaunt: not public in hairlut.sh yet)
+from hairlut.sh import gaunt_quadrature  # noqa: E402  (the uncached Gaunt tensor)
 from hairlut.shtables import bake_compact, compute, paper_tables, reference_r, resolve_recipe  # noqa: E402
 
 P = 49.0
@@ -46,7 +46,7 @@ def err(a, b):
 
 
 def hairlut_bake(recipe, t_dirs, theta_v):
-    _gaunt_quadrature(9, 7, 2)  # uncached: the Gaunt tensor is part of the bake
+    gaunt_quadrature(9, 7, 2)  # uncached: the Gaunt tensor is part of the bake
     tables, _ = bake_compact(recipe)
     rd = np.asarray(tables.rd(t_dirs))
     rs = np.asarray(tables.rs(t_dirs[:, None, :], theta_v[None, :]))
@@ -127,7 +127,7 @@ def bake_rows(args, recipe, t_dirs, theta_v):
     hairlut_bake(recipe, t_dirs, theta_v)
     cold = time.perf_counter() - start
     sec, (tables, rd, rs) = best_of(lambda: hairlut_bake(recipe, t_dirs, theta_v), repeat=5)
-    compact_sec, _ = best_of(lambda: (_gaunt_quadrature(9, 7, 2), bake_compact(recipe)), repeat=5)
+    compact_sec, _ = best_of(lambda: (gaunt_quadrature(9, 7, 2), bake_compact(recipe)), repeat=5)
     (dmax, drms), (smax, srms) = err(rd, ref_d), err(rs, ref_s)
     rows.append({"method": "hairlut Legendre-Gaunt (exact), + dense grid", "sec": sec, "cold": cold,
                  "rd_max": dmax, "rd_rms": drms, "rs_max": smax, "rs_rms": srms})

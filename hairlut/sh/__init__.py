@@ -9,24 +9,30 @@ Convention (DESIGN.md): real, orthonormal on the unit sphere, flat index
 
 Public API:
 
-* :func:`real_sh` — the basis at directions (one jitted kernel per lmax; float32/float64).
+* :func:`real_sh` — the basis at directions (one jitted kernel per lmax; float32/float64);
+  :func:`real_sh_kernel` its unchecked jitted kernel and :func:`real_sh_soa` the unrolled form,
+  for use inside other kernels; :func:`check_dirs` the directions check it applies.
 * :func:`n_coeffs`, :func:`lm_index`, :func:`index_lm`, :func:`lm_arrays` — index helpers.
 * :func:`sphere_grid` / :class:`GaussLegendreGrid` — product quadrature exact to degree 2L.
 * :func:`project`, :func:`project_function`, :func:`evaluate` — coefficients ↔ values.
-* :func:`gaunt`, :func:`gaunt_sparse` — real Gaunt coefficients ∫ Y_i Y_j Y_k dω.
+* :func:`gaunt`, :func:`gaunt_sparse` — real Gaunt coefficients ∫ Y_i Y_j Y_k dω
+  (:func:`gaunt_quadrature`: the same before the selection rules, uncached).
 * :func:`real_sh_reference`, :func:`real_sh_scipy` — slow float64 references (tests, benchmarks).
 """
 
-from ._basis import MAX_LMAX, index_lm, lm_arrays, lm_index, n_coeffs, normalize_dirs, real_sh
-from ._gaunt import gaunt, gaunt_sparse, selection_mask
+from ._basis import (MAX_LMAX, check_dirs, index_lm, lm_arrays, lm_index, n_coeffs, normalize_dirs, real_sh,
+                     real_sh_kernel, real_sh_soa)
+from ._gaunt import gaunt, gaunt_quadrature, gaunt_sparse, selection_mask
 from ._quadrature import GaussLegendreGrid, evaluate, project, project_function, sphere_grid
 from ._reference import real_sh_reference, real_sh_scipy
 
 __all__ = [
     "MAX_LMAX",
     "GaussLegendreGrid",
+    "check_dirs",
     "evaluate",
     "gaunt",
+    "gaunt_quadrature",
     "gaunt_sparse",
     "index_lm",
     "lm_arrays",
@@ -36,7 +42,9 @@ __all__ = [
     "project",
     "project_function",
     "real_sh",
+    "real_sh_kernel",
     "real_sh_reference",
     "real_sh_scipy",
+    "real_sh_soa",
     "selection_mask",
 ]

@@ -191,8 +191,9 @@ def real_sh_soa(x, y, z, lmax: int):
 
 
 @functools.partial(jax.jit, static_argnames=("lmax",))
-def _real_sh_kernel(dirs, lmax: int):
-    """The jitted kernel: (..., 3) directions (renormalised here) → (..., (lmax+1)²)."""
+def real_sh_kernel(dirs, lmax: int):
+    """The jitted kernel behind :func:`real_sh`, for callers that validate once and call it
+    inside their own kernels: (..., 3) directions (renormalised here, not checked) → (..., (lmax+1)²)."""
     x, y, z = dirs[..., 0], dirs[..., 1], dirs[..., 2]
     inv = jax.lax.rsqrt(x * x + y * y + z * z)
     return _sh_unit(x * inv, y * inv, z * inv, lmax)
@@ -270,11 +271,11 @@ def real_sh(lmax: int, dirs, *, normalize: bool = False):
     lmax = check_lmax(lmax)
     dirs = check_dirs(dirs, normalize=normalize)
     if isinstance(dirs, jax.core.Tracer):
-        return _real_sh_kernel(dirs, lmax=lmax)
+        return real_sh_kernel(dirs, lmax=lmax)
     if dirs.dtype == np.float64:
         with jax.enable_x64(True):
-            return _real_sh_kernel(jnp.asarray(dirs, dtype=jnp.float64), lmax=lmax)
-    return _real_sh_kernel(jnp.asarray(dirs), lmax=lmax)
+            return real_sh_kernel(jnp.asarray(dirs, dtype=jnp.float64), lmax=lmax)
+    return real_sh_kernel(jnp.asarray(dirs), lmax=lmax)
 
 
 def normalize_dirs(dirs):

@@ -44,8 +44,11 @@ def selection_mask(lmax1: int, lmax2: int, lmax3: int) -> np.ndarray:
     return parity & triangle & freq & sines
 
 
-def _gaunt_quadrature(lmax1: int, lmax2: int, lmax3: int) -> np.ndarray:
-    """Unmasked G by the product rule of order ⌈(lmax1+lmax2+lmax3)/2⌉ (float64)."""
+def gaunt_quadrature(lmax1: int, lmax2: int, lmax3: int) -> np.ndarray:
+    """Unmasked G by the product rule of order ⌈(lmax1+lmax2+lmax3)/2⌉ (float64), uncached.
+
+    :func:`gaunt` is this plus the selection rules and a cache; the uncached form is what a
+    bake pays (the SH-table benchmark times it)."""
     grid = sphere_grid(-(-(lmax1 + lmax2 + lmax3) // 2))
     lbig = max(lmax1, lmax2, lmax3)
     y = np.asarray(real_sh(lbig, grid.dirs))
@@ -72,7 +75,7 @@ def _check_all(lmax1, lmax2, lmax3) -> tuple[int, int, int]:
 
 @functools.lru_cache(maxsize=8)
 def _gaunt_cached(lmax1: int, lmax2: int, lmax3: int) -> np.ndarray:
-    g = _gaunt_quadrature(lmax1, lmax2, lmax3)
+    g = gaunt_quadrature(lmax1, lmax2, lmax3)
     g[~selection_mask(lmax1, lmax2, lmax3)] = 0.0
     g.setflags(write=False)
     return g

@@ -15,12 +15,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..envlight import cube_dirs
-from ..sh._basis import _real_sh_kernel
+from ..sh import real_sh_kernel
 
 
 @functools.partial(jax.jit, static_argnames=("lmax_i", "lmax_j", "specular"))
 def _quadrature(t, theta_v, omega, weight, p, lmax_i, lmax_j, specular):
-    y = _real_sh_kernel(omega, lmax=max(lmax_i, lmax_j))
+    y = real_sh_kernel(omega, lmax=max(lmax_i, lmax_j))
     prod = jnp.einsum("wi,wj,w->wij", y[:, : (lmax_i + 1) ** 2], y[:, : (lmax_j + 1) ** 2], weight)
     cos_theta = jnp.clip(t @ omega.T, -1.0, 1.0)  # (T, W)
     theta = jnp.arccos(cos_theta)

@@ -28,7 +28,8 @@ import numpy as np
 from .. import errors
 from .._blocks import map_blocks
 from ..assets import read_table
-from ..sh._basis import _real_sh_kernel, check_dirs, real_sh_soa
+from ..sh import check_dirs, real_sh_soa
+from ..sh import real_sh_kernel as _real_sh_kernel
 from ._kind import KIND
 from ._zonal import cheb_coeffs, cheb_eval
 
