@@ -69,6 +69,35 @@ class MissingDatasetError(AssetError):
     """A dataset, axis or channel that the kind requires is absent."""
 
 
+class ForeignReferenceError(CorruptAssetError):
+    """The file reaches outside itself: external raw storage, an external link, or a
+    virtual dataset whose sources are not the asset's own parts."""
+
+
+class ResourceError(HairlutError):
+    """A request would need more memory (or disk) than allowed; the message gives the estimate."""
+
+
+class BudgetError(ValidationError, ResourceError):
+    """A scene or recipe key asks for more memory than the budget (``hairlut.budget``) allows."""
+
+    def __init__(self, field: str, value: object, reason: str, estimate: int = 0, limit: int = 0):
+        self.estimate, self.limit = int(estimate), int(limit)
+        super().__init__(field, value, reason)
+
+
+class AssetTooLargeError(AssetError, ResourceError):
+    """A file declares tables larger than the memory budget allows to read."""
+
+
+class DiskFullError(AssetError, ResourceError):
+    """Writing the file failed for lack of space (ENOSPC, EDQUOT, EFBIG); nothing was left under its name."""
+
+
+class NonFiniteError(HairlutError, ArithmeticError):
+    """A computation produced NaN or infinity; the message names the inputs (recipe keys) that drive it."""
+
+
 __all__ = [
     "HairlutError",
     "ValidationError",
@@ -82,4 +111,10 @@ __all__ = [
     "KindError",
     "MissingDatasetError",
     "MissingDependencyError",
+    "ForeignReferenceError",
+    "ResourceError",
+    "BudgetError",
+    "AssetTooLargeError",
+    "DiskFullError",
+    "NonFiniteError",
 ]

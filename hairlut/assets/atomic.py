@@ -3,16 +3,55 @@
 A process killed at any moment leaves either the previous complete file or no
 file under the final name; at worst a stray ``.<name>.<pid>.<token>.tmp`` remains
 beside it, which :func:`stale_temporaries` finds.
+
+A full disk (``ENOSPC``, a quota's ``EDQUOT``, a file-size limit's ``EFBIG``) while
+writing, syncing or moving becomes :class:`hairlut.errors.DiskFullError` naming the
+final path; the temporary file is removed, so nothing partial is left under any name.
+Writers whose C libraries do not survive a full disk (HDF5 can segfault) build the
+file in memory and hand the bytes to :func:`write_bytes`, after :func:`ensure_space`.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import secrets
 from pathlib import Path
 
+from .. import errors
+
 TMP_SUFFIX = ".tmp"
+FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+
+
+def _size(n: float) -> str:
+    from ..budget import describe
+
+    return describe(n)
+
+
+def disk_full(final, exc: OSError) -> errors.DiskFullError:
+    """The DiskFullError for a write of ``final`` that failed with ``exc``."""
+    return errors.DiskFullError(final, f"cannot write: {os.strerror(exc.errno)} (errno {errno.errorcode.get(exc.errno, exc.errno)}); "
+                                       "nothing was left under this name")
+
+
+def free_bytes(folder: str | os.PathLike) -> int | None:
+    """Bytes an unprivileged writer may still use in ``folder``'s file system (None if unknown)."""
+    try:
+        st = os.statvfs(folder)
+    except (AttributeError, OSError):
+        return None
+    return st.f_bavail * st.f_frsize
+
+
+def ensure_space(final: str | os.PathLike, nbytes: int) -> None:
+    """Refuse (DiskFullError) before writing ``nbytes`` beside ``final`` when they cannot fit."""
+    final = Path(final)
+    free = free_bytes(final.parent if final.parent.exists() else Path.cwd())
+    if free is not None and nbytes > free:
+        raise errors.DiskFullError(final, f"needs {_size(nbytes)} but only {_size(free)} are free on its file system; nothing was written")
 
 
 def _fsync_path(path: Path) -> None:
@@ -41,15 +80,30 @@ def atomic_path(path: str | os.PathLike):
         _fsync_path(tmp)
         os.replace(tmp, final)
         _fsync_path(final.parent)
+    except OSError as exc:
+        if exc.errno in FULL_ERRNOS:
+            raise disk_full(final, exc) from None
+        raise
     finally:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
 
 
+def write_bytes(tmp: Path, data: bytes | memoryview) -> None:
+    """Write ``data`` to ``tmp`` (a new file) and flush it to disk; OSErrors propagate."""
+    with open(tmp, "xb") as fh:
+        view = memoryview(data)
+        for start in range(0, len(view), 1 << 24):
+            fh.write(view[start : start + (1 << 24)])
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically."""
+    """Write ``data`` to ``path`` atomically (after checking that it fits)."""
+    ensure_space(path, len(data))
     with atomic_path(path) as tmp:
-        tmp.write_bytes(data)
+        write_bytes(tmp, data)
     return Path(path)
 
 

@@ -32,7 +32,7 @@ import OpenEXR
 
 from .. import errors
 from .._version import __version__
-from .atomic import atomic_path
+from .atomic import FULL_ERRNOS, atomic_path
 from .h5 import check_file
 from .recipe import canonical_json, recipe_hash
 
@@ -180,8 +180,21 @@ def write_exr(
             exr = OpenEXR.File(headers[0], parts[0].channels)
         else:
             exr = OpenEXR.File([OpenEXR.Part(hd, p.channels, p.name) for hd, p in zip(headers, parts)])
-        exr.write(str(tmp))
+        try:
+            exr.write(str(tmp))
+        except (RuntimeError, OSError) as exc:  # the binding reports a full disk as RuntimeError
+            raise _write_fault(path, exc) from None
     return Path(path)
+
+
+def _write_fault(path, exc: Exception) -> errors.AssetError:
+    """The hairlut error for an EXR write that failed with ``exc`` (DiskFullError for a full disk)."""
+    msg = str(exc)
+    code = getattr(exc, "errno", None)
+    if code in FULL_ERRNOS or "No space left" in msg or "File too large" in msg or "quota" in msg.lower():
+        return errors.DiskFullError(path, f"cannot write the image: {msg.splitlines()[0] if msg else 'disk full'}; "
+                                          "nothing was left under this name")
+    return errors.AssetError(path, f"cannot write the image ({msg.splitlines()[0] if msg else type(exc).__name__})")
 
 
 @contextlib.contextmanager

@@ -42,10 +42,11 @@ import numpy as np
 
 from .. import errors
 from .._version import __version__
-from .atomic import atomic_path
+from .atomic import atomic_path, ensure_space, write_bytes
 from .kinds import KINDS, SCHEMA, SUPPORTED_SCHEMAS
 from .layout import AXES_GROUP, NAME_ATTR, check_layout, disk_name, layout, table  # noqa: F401  (re-exported)
 from .recipe import canonical_json, recipe_hash
+from .trust import check_dataset, check_links, check_readable, finite_fault, guard
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 LIBVER = ("earliest", "v110")
@@ -182,44 +183,54 @@ def write_table(
     if missing:
         raise errors.ValidationError("variables", missing, f"kind {kind!r} requires them")
     path = Path(path)
+    # Built in memory (HDF5's core driver, no backing store), then written by Python: HDF5
+    # itself never meets a full disk (it can segfault there), and a short write is a
+    # DiskFullError with nothing left under the final name.
+    f = h5py.File(f"{path.name}.in-memory", "w", driver="core", backing_store=False, libver=LIBVER, track_order=True)
+    try:
+        f.attrs["hairlut_schema"] = np.int32(SCHEMA)
+        f.attrs["kind"] = kind
+        f.attrs["hairlut_version"] = __version__
+        f.attrs["created"] = _created()
+        f.attrs["recipe"] = recipe_text
+        f.attrs["recipe_hash"] = recipe_hash(recipe_text)
+        for key, value in (attrs or {}).items():
+            f.attrs[key] = value
+        scales = {}
+        for ax in by_name.values():
+            values = np.asarray(ax.values)
+            ds = f.create_dataset(ax.name, data=values, **_dataset_kwargs(values.shape, None))
+            ds.attrs["units"] = ax.units
+            ds.attrs["long_name"] = ax.long_name
+            ds.attrs["periodic"] = np.int8(ax.periodic)
+            if ax.periodic:
+                ds.attrs["period"] = float(ax.period)
+            ds.make_scale(ax.name)
+            scales[ax.name] = ds
+        for var, data in checked:
+            where = disk_name(var.name, by_name)
+            parts = where.split("/")
+            for depth in range(1, len(parts)):  # groups list their tables in the order written
+                group = "/".join(parts[:depth])
+                if group not in f:
+                    f.create_group(group, track_order=True)
+            if where != var.name:
+                f[parts[0]].attrs[NAME_ATTR] = var.name.split("/")[0]
+            ds = f.create_dataset(where, data=data, **_dataset_kwargs(data.shape, var.chunks))
+            ds.attrs["units"] = var.units
+            ds.attrs["long_name"] = var.long_name
+            for key, value in var.attrs.items():
+                ds.attrs[key] = value
+            for i, dim in enumerate(var.dims):
+                ds.dims[i].label = dim
+                ds.dims[i].attach_scale(scales[dim])
+        f.flush()
+        image = f.id.get_file_image()
+    finally:
+        f.close()
+    ensure_space(path, len(image))
     with atomic_path(path) as tmp:
-        with h5py.File(tmp, "w", libver=LIBVER, track_order=True) as f:
-            f.attrs["hairlut_schema"] = np.int32(SCHEMA)
-            f.attrs["kind"] = kind
-            f.attrs["hairlut_version"] = __version__
-            f.attrs["created"] = _created()
-            f.attrs["recipe"] = recipe_text
-            f.attrs["recipe_hash"] = recipe_hash(recipe_text)
-            for key, value in (attrs or {}).items():
-                f.attrs[key] = value
-            scales = {}
-            for ax in by_name.values():
-                values = np.asarray(ax.values)
-                ds = f.create_dataset(ax.name, data=values, **_dataset_kwargs(values.shape, None))
-                ds.attrs["units"] = ax.units
-                ds.attrs["long_name"] = ax.long_name
-                ds.attrs["periodic"] = np.int8(ax.periodic)
-                if ax.periodic:
-                    ds.attrs["period"] = float(ax.period)
-                ds.make_scale(ax.name)
-                scales[ax.name] = ds
-            for var, data in checked:
-                where = disk_name(var.name, by_name)
-                parts = where.split("/")
-                for depth in range(1, len(parts)):  # groups list their tables in the order written
-                    group = "/".join(parts[:depth])
-                    if group not in f:
-                        f.create_group(group, track_order=True)
-                if where != var.name:
-                    f[parts[0]].attrs[NAME_ATTR] = var.name.split("/")[0]
-                ds = f.create_dataset(where, data=data, **_dataset_kwargs(data.shape, var.chunks))
-                ds.attrs["units"] = var.units
-                ds.attrs["long_name"] = var.long_name
-                for key, value in var.attrs.items():
-                    ds.attrs[key] = value
-                for i, dim in enumerate(var.dims):
-                    ds.dims[i].label = dim
-                    ds.dims[i].attach_scale(scales[dim])
+        write_bytes(tmp, image)
     return path
 
 
@@ -293,10 +304,29 @@ def _validate_root(path: Path, f: h5py.File, kind: str | None, required: Iterabl
         raise errors.KindError(path, f"unknown kind {file_kind!r}")
     if recipe_hash(_text(attrs["recipe"])) != _text(attrs["recipe_hash"]):
         raise errors.ChecksumError(path, "recipe_hash does not match the stored recipe")
-    tables = layout(f)[1]
+    stored_recipe(path, f)
+    check_links(path, f)  # before layout(), which resolves links
+    axes, tables = layout(f)
     for name in (*KINDS[file_kind].required, *required):
         if name not in tables:
             raise errors.MissingDatasetError(path, f"required dataset {name!r} is missing")
+    for what, found in (("axis", axes), ("table", tables)):
+        for name, ds in found.items():
+            check_dataset(path, name if what == "table" else f"axis {name}", ds, _text(attrs["recipe_hash"]))
+
+
+def stored_recipe(path, f: h5py.File) -> dict:
+    """The root ``recipe`` attribute, parsed: a JSON object, else CorruptAssetError naming the file."""
+    text = f.attrs["recipe"]
+    if not isinstance(text, (str, bytes)):
+        raise errors.CorruptAssetError(path, f"root attribute 'recipe' is a {type(text).__name__}, not JSON text")
+    try:
+        recipe = json.loads(_text(text))
+    except (ValueError, UnicodeError) as exc:
+        raise errors.CorruptAssetError(path, f"root attribute 'recipe' is not JSON ({exc})") from None
+    if not isinstance(recipe, dict):
+        raise errors.CorruptAssetError(path, f"root attribute 'recipe' is JSON {type(recipe).__name__}, not an object")
+    return recipe
 
 
 @contextlib.contextmanager
@@ -304,15 +334,20 @@ def open_table(path: str | os.PathLike, kind: str | None = None, required: Itera
     """Open a table file lazily after validating its root; yields the ``h5py.File``.
 
     Use for large tables read piecewise.  Reads that hit corrupt chunks should be
-    wrapped with :func:`data_fault`.
+    wrapped with :func:`data_fault`.  The root is validated, and every object checked
+    by :mod:`hairlut.assets.trust` (no links, external storage or foreign virtual
+    sources; numeric datasets with their storage present); an HDF5 library fault in
+    the body (corrupt metadata) becomes :class:`~hairlut.errors.CorruptAssetError`.
     """
     path = check_file(path, HDF5_SIGNATURE, "an HDF5 file")
     f = _open(path)
     try:
-        _validate_root(path, f, kind, required)
-        yield f
+        with guard(path):
+            _validate_root(path, f, kind, required)
+            yield f
     finally:
-        f.close()
+        with contextlib.suppress(Exception):
+            f.close()
 
 
 def _read_axis(path: Path, name: str, ds: h5py.Dataset) -> Axis:
@@ -320,6 +355,8 @@ def _read_axis(path: Path, name: str, ds: h5py.Dataset) -> Axis:
         values = ds[()]
     except OSError as exc:
         raise data_fault(path, ds, exc) from None
+    if values.ndim != 1 or finite_fault(values):
+        raise errors.CorruptAssetError(path, f"axis {name!r} is not a finite 1-D array (shape {values.shape})")
     period = float(ds.attrs["period"]) if int(ds.attrs.get("periodic", 0)) else None
     return Axis(name, values, _text(ds.attrs.get("units", "")), _text(ds.attrs.get("long_name", name)), period)
 
@@ -336,15 +373,20 @@ def dims_of(ds: h5py.Dataset) -> tuple[str, ...]:
 _DIMENSION_ATTRS = {"units", "long_name", "DIMENSION_LIST", "DIMENSION_LABELS"}  # stored by the store itself
 
 
-def read_table(path: str | os.PathLike, kind: str | None = None, required: Iterable[str] = ()) -> Table:
+def read_table(path: str | os.PathLike, kind: str | None = None, required: Iterable[str] = (), *,
+               finite: bool = True, memory_limit: int | None = None) -> Table:
     """Read and validate a whole table file.
 
     Every dataset is read, so every fletcher32 checksum is verified.  Raises a
-    :mod:`hairlut.errors` exception naming the file and the fault.
+    :mod:`hairlut.errors` exception naming the file and the fault.  The declared
+    sizes are checked against the memory budget (:mod:`hairlut.budget`,
+    ``memory_limit`` bytes when given) before anything is read; with ``finite``
+    (the default) a table holding NaN or infinity is refused, naming the table.
     """
     with open_table(path, kind, required) as f:
         path = Path(path)
         on_disk, tables = layout(f)
+        check_readable(path, {**{f"axis {k}": v for k, v in on_disk.items()}, **tables}, memory_limit)
         axes = {}
         for name, ds in on_disk.items():
             axes[name] = _read_axis(path, name, ds)
@@ -354,6 +396,9 @@ def read_table(path: str | os.PathLike, kind: str | None = None, required: Itera
                 data = ds[()]
             except OSError as exc:
                 raise data_fault(path, ds, exc) from None
+            bad = finite_fault(data) if finite else None
+            if bad:
+                raise errors.CorruptAssetError(path, f"table {name!r} holds non-finite values ({bad})")
             extra = {k: v for k, v in ds.attrs.items() if k not in _DIMENSION_ATTRS}
             units, long_name = _text(ds.attrs.get("units", "")), _text(ds.attrs.get("long_name", name))
             variables[name] = Variable(name, data, dims_of(ds), units, long_name, ds.chunks, extra)
@@ -365,7 +410,7 @@ def read_table(path: str | os.PathLike, kind: str | None = None, required: Itera
             schema=int(a["hairlut_schema"]),
             version=_text(a.get("hairlut_version", "")),
             created=_text(a.get("created", "")),
-            recipe=json.loads(_text(a["recipe"])),
+            recipe=stored_recipe(path, f),
             recipe_hash=_text(a["recipe_hash"]),
             attrs={k: v for k, v in a.items() if k not in known},
             axes=axes,

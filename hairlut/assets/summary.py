@@ -6,7 +6,6 @@ summarised; every block read also verifies the HDF5 fletcher32 checksums.
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
@@ -15,7 +14,7 @@ import numpy as np
 
 from .. import errors
 from .exr import EXR_MAGIC, read_exr
-from .h5 import HDF5_SIGNATURE, data_fault, dims_of, layout, open_table
+from .h5 import HDF5_SIGNATURE, data_fault, dims_of, layout, open_table, stored_recipe
 
 _BLOCK_ELEMENTS = 1 << 22
 
@@ -94,7 +93,8 @@ def _attr(value):
 def _summarize_h5(path: Path) -> dict:
     with open_table(path) as f:
         root = {k: _attr(v) for k, v in f.attrs.items()}
-        recipe = json.loads(root.pop("recipe"))
+        recipe = stored_recipe(path, f)
+        root.pop("recipe")
         out = {
             "path": str(path),
             "format": "hdf5",

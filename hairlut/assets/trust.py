@@ -1,0 +1,237 @@
+"""What a table file may contain, checked before anything in it is read.
+
+A hairlut table file is a tree of groups and numeric datasets that lives wholly
+inside itself.  Readers (:func:`hairlut.assets.open_table`, ``read_table``,
+``summarize``, ``preview`` and every loader built on them) refuse, with a
+:mod:`hairlut.errors` exception naming the file and the fault:
+
+* **links** other than the plain tree: external links (another file) and soft links;
+  an object reached twice (a hard-link cycle);
+* **external raw storage** (``ds.external``: the bytes live in another file);
+* **virtual datasets** whose sources are not the asset's own parts: see
+  :func:`allowed_virtual_sources` (the one exception, used by sharded bakes);
+* **datasets that do not hold numbers** (strings, compounds, references, opaque,
+  variable-length, complex);
+* **declared storage that is not there**: a chunked dataset with unallocated chunks
+  (hairlut writes every chunk) or a contiguous one shorter than its shape;
+* **shapes larger than the memory budget** (:mod:`hairlut.budget`), before a read;
+* metadata that HDF5 cannot decode (a flipped bit): :func:`guard` turns the
+  library's KeyError / OSError / ValueError / RuntimeError ... into
+  :class:`~hairlut.errors.CorruptAssetError`.
+
+A flipped bit can still crash the HDF5 C library itself (a double free), which no
+Python code can catch; in a fuzz of every 13th metadata byte of a small table that
+happened at 5 offsets out of 2,125.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import stat
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from .. import budget, errors
+
+#: The most objects a table file may hold (a tree-walk bomb is refused).
+MAX_OBJECTS = 100_000
+#: Kinds of NumPy dtype a table may hold: bool, signed and unsigned integers, floats.
+NUMERIC_KINDS = frozenset("biuf")
+PARTS_SUFFIX = ".parts"
+
+_H5_FAULTS = (KeyError, OSError, ValueError, RuntimeError, AttributeError, TypeError, IndexError, UnicodeError,
+              MemoryError, OverflowError)
+
+
+def _first_line(exc: BaseException) -> str:
+    msg = str(exc).strip().strip("'\"")
+    return msg.splitlines()[0] if msg else type(exc).__name__
+
+
+@contextlib.contextmanager
+def guard(path, what: str = "HDF5 metadata"):
+    """Turn an HDF5 library fault raised in the body into CorruptAssetError naming ``path``.
+
+    hairlut's own errors pass through unchanged.
+    """
+    try:
+        yield
+    except errors.HairlutError:
+        raise
+    except _H5_FAULTS as exc:
+        raise errors.CorruptAssetError(path, f"{what} cannot be read ({type(exc).__name__}: {_first_line(exc)})") from None
+
+
+def check_links(path, f: h5py.File) -> None:
+    """Walk the file's tree without following links; refuse external and soft links and cycles."""
+    seen: set = set()
+    count = 0
+    stack = [("", f)]
+    while stack:
+        prefix, group = stack.pop()
+        for key in group.keys():  # names only: nothing is resolved yet
+            name = f"{prefix}/{key}"
+            link = group.get(key, getlink=True)
+            if isinstance(link, h5py.ExternalLink):
+                raise errors.ForeignReferenceError(
+                    path, f"{name!r} is an external link to {link.filename}:{link.path}; table files never reach outside themselves")
+            if isinstance(link, h5py.SoftLink):
+                raise errors.ForeignReferenceError(path, f"{name!r} is a soft link to {link.path!r}; table files hold no links")
+            obj = group.get(key)
+            if obj is None or obj.id in seen:
+                raise errors.CorruptAssetError(path, f"{name!r} is reached twice (a hard-link cycle or shared object)")
+            seen.add(obj.id)
+            count += 1
+            if count > MAX_OBJECTS:
+                raise errors.CorruptAssetError(path, f"more than {MAX_OBJECTS} objects; not a hairlut table")
+            if isinstance(obj, h5py.Group):
+                stack.append((name, obj))
+            elif not isinstance(obj, h5py.Dataset):
+                raise errors.CorruptAssetError(path, f"{name!r} is a {type(obj).__name__}, neither a group nor a dataset")
+
+
+def declared_nbytes(ds: h5py.Dataset) -> float:
+    """Bytes the dataset's declared shape and dtype take in memory (a float: no overflow)."""
+    return budget.product(*ds.shape, ds.dtype.itemsize) if ds.shape is not None else 0.0
+
+
+def _expected_chunks(shape, chunks) -> int:
+    n = 1
+    for s, c in zip(shape, chunks):
+        n *= -(-int(s) // int(c))
+    return n
+
+
+def _part_folders(asset: Path) -> tuple[str, str]:
+    here = os.path.realpath(asset.parent)
+    return here, os.path.join(here, asset.name + PARTS_SUFFIX)
+
+
+def _part_fault(asset: Path, candidate: Path, recipe_hash: str) -> str | None:
+    """Why ``candidate`` may not feed a virtual dataset of ``asset`` (None: it may)."""
+    if os.path.realpath(candidate.parent) not in _part_folders(asset):
+        return "lies neither beside the asset nor in its .parts folder"
+    try:
+        st = os.lstat(candidate)
+    except OSError:
+        return "does not exist"
+    if not stat.S_ISREG(st.st_mode):
+        return "is not a regular file (symlinks are not followed)"
+    if os.path.realpath(candidate) == os.path.realpath(asset):
+        return None  # the asset itself
+    try:
+        with open(candidate, "rb") as fh:
+            if fh.read(8) != b"\x89HDF\r\n\x1a\n":
+                return "is not HDF5"
+        with guard(candidate), h5py.File(candidate, "r") as g:
+            theirs = g.attrs.get("recipe_hash")
+            theirs = theirs.decode("utf-8") if isinstance(theirs, bytes) else theirs
+    except errors.HairlutError as exc:
+        return str(exc)
+    if theirs != recipe_hash:
+        return "carries another recipe hash"
+    return None
+
+
+def allowed_virtual_sources(path, recipe_hash: str) -> list[Path]:
+    """The part files a virtual dataset in asset ``path`` may read.
+
+    The one exception to "files never reach outside themselves", for sharded bakes
+    that join their parts with an HDF5 virtual dataset: a source is allowed when it
+    is a regular file (not a symlink) directly beside the asset or directly inside
+    ``<asset name>.parts/`` beside it, is an HDF5 file, and its root ``recipe_hash``
+    attribute equals the asset's (``recipe_hash``).  The asset itself ("." in a
+    virtual mapping) is always allowed.  Readers apply the same rule to each source a
+    virtual dataset names, and refuse any other (:class:`~hairlut.errors.ForeignReferenceError`);
+    they also refuse a source dataset that is itself virtual or external.
+    """
+    asset = Path(path)
+    found = []
+    for folder in map(Path, _part_folders(asset)):
+        if not folder.is_dir() or folder.is_symlink():
+            continue
+        for candidate in sorted(folder.iterdir()):
+            if candidate.suffix == ".h5" and os.path.realpath(candidate) != os.path.realpath(asset) \
+                    and _part_fault(asset, candidate, recipe_hash) is None:
+                found.append(candidate)
+    return found
+
+
+def _check_virtual(path: Path, name: str, ds: h5py.Dataset, recipe_hash: str) -> None:
+    for src in ds.virtual_sources():
+        where = src.file_name
+        candidate = path if where == "." else (Path(where) if os.path.isabs(where) else path.parent / where)
+        fault = _part_fault(path, candidate, recipe_hash)
+        if fault is not None:
+            raise errors.ForeignReferenceError(
+                path, f"dataset {name!r} is virtual with source {where}:{src.dset_name}, which {fault}; "
+                      "only the asset's own parts (same recipe hash, beside it) may be sources")
+        if where != ".":
+            with guard(candidate), h5py.File(candidate, "r") as g:
+                link = g.get(src.dset_name, getlink=True)
+                obj = g.get(src.dset_name) if isinstance(link, h5py.HardLink) else None
+                if not isinstance(obj, h5py.Dataset) or obj.external or obj.is_virtual:
+                    raise errors.ForeignReferenceError(
+                        path, f"dataset {name!r} is virtual with source {where}:{src.dset_name}, "
+                              "which is not a plain dataset of that part")
+
+
+def check_dataset(path, name: str, ds: h5py.Dataset, recipe_hash: str) -> None:
+    """Refuse a dataset that reaches outside the file, holds no numbers, or lacks its storage."""
+    path = Path(path)
+    if ds.external:
+        files = ", ".join(str(e[0].decode() if isinstance(e[0], bytes) else e[0]) for e in ds.external)
+        raise errors.ForeignReferenceError(
+            path, f"dataset {name!r} keeps its data in external file(s) {files}; table files never reach outside themselves")
+    if ds.dtype.kind not in NUMERIC_KINDS or ds.dtype.names is not None or ds.dtype.subdtype is not None:
+        raise errors.CorruptAssetError(path, f"dataset {name!r} holds {ds.dtype} values, not numbers")
+    if ds.shape is None:
+        raise errors.CorruptAssetError(path, f"dataset {name!r} has an empty (null) dataspace")
+    if ds.is_virtual:
+        _check_virtual(path, name, ds, recipe_hash)
+        return
+    nbytes = declared_nbytes(ds)
+    if ds.chunks is not None:
+        want = _expected_chunks(ds.shape, ds.chunks)
+        have = ds.id.get_num_chunks()
+        if have < want:
+            raise errors.CorruptAssetError(
+                path, f"dataset {name!r} declares shape {ds.shape} in {want} chunks but stores {have} "
+                      "(unallocated chunks; hairlut writes every chunk)")
+    elif nbytes and ds.id.get_storage_size() < nbytes and not math.isclose(ds.id.get_storage_size(), nbytes):
+        raise errors.CorruptAssetError(
+            path, f"dataset {name!r} declares {budget.describe(nbytes)} but stores {ds.id.get_storage_size()} bytes")
+
+
+def check_readable(path, sizes: dict[str, h5py.Dataset], limit: int | None = None) -> None:
+    """Refuse to read datasets whose declared sizes add up to more than the memory budget."""
+    total = 0.0
+    biggest = None
+    for name, ds in sizes.items():
+        n = declared_nbytes(ds)
+        total += n
+        if biggest is None or n > declared_nbytes(sizes[biggest]):
+            biggest = name
+    cap = budget.memory_limit(limit)
+    if total > cap:
+        ds = sizes[biggest]
+        raise errors.AssetTooLargeError(
+            path, f"declares {budget.describe(total)} of tables (the largest, {biggest!r}, is {ds.shape} {ds.dtype}: "
+                  f"{budget.describe(declared_nbytes(ds))}), above the memory limit of {budget.describe(cap)} "
+                  f"({'the limit= argument' if limit is not None else budget.source()})")
+
+
+def finite_fault(data: np.ndarray) -> str | None:
+    """'3 NaN, 1 inf' when ``data`` (numeric) holds non-finite values, else None."""
+    data = np.asarray(data)
+    if data.dtype.kind != "f" and data.dtype.kind != "c":
+        return None
+    bad = ~np.isfinite(data)
+    if not bad.any():
+        return None
+    nan = int(np.isnan(data).sum())
+    return f"{nan} NaN, {int(bad.sum()) - nan} inf among {data.size} values"
