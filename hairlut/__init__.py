@@ -26,7 +26,7 @@ from . import errors
 from ._version import __version__
 
 _SUBMODULES = {"assets", "cache", "demo", "envlight", "geometry", "hrir", "kernels", "recipes", "scene", "sh",
-               "shadows", "shtables", "synth"}
+               "render", "shadows", "shtables", "synth"}
 _ATTRIBUTES = {"SHTables": "shtables", "HRIRDB": "hrir", "plan": "scene", "synthesize": "synth"}
 
 __all__ = ["__version__", "errors", *sorted(_SUBMODULES), *sorted(_ATTRIBUTES)]

@@ -17,10 +17,13 @@ _LAZY = {
     "SCHEMA": "_schema", "SHADOW_KEYS": "_schema", "SHADOW_METHODS": "_schema", "Scene": "_schema", "as_scene": "_schema",
     "load_scene": "_schema", "resolve_path": "_schema", "resolve_scene": "_schema",
     "scene_clusters": "_clusters",
+    "CAMERA": "_camera", "Camera": "_camera", "check_camera": "_camera", "check_memory": "_camera",
+    "frame_bytes": "_camera", "make_camera": "_camera",
     "MARGIN": "_sectors", "SceneSectors": "_sectors", "grid_coverage": "_sectors", "restricted_space": "_sectors",
     "scene_sectors": "_sectors",
     "Plan": "_planner", "Step": "_planner", "bake": "_planner", "environment_light": "_planner",
     "find_assets": "_planner", "plan": "_planner", "sh_bands": "_planner", "sh_recipe": "_planner",
+    "direct_recipe": "_planner", "map_method": "_planner", "scene_maps_recipe": "_planner",
 }
 
 __all__ = sorted(_LAZY)

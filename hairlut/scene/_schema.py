@@ -32,6 +32,7 @@ import numpy as np
 
 from .. import errors
 from ..recipes import Field, load_toml, resolve
+from ._camera import CAMERA, check_camera
 
 
 def _pos(x):
@@ -79,6 +80,13 @@ SHADOW_KEYS = {"smap": (), "none": (), "light_oriented": ("resolution", "kappa",
                "opacity_maps": ("resolution", "slices", "kappa")}
 
 
+#: ``[render] method``: how the online re- and α-maps are made (issue 12).
+MAP_METHODS = ("auto", "direct", "scene", "satf")
+#: The ``[render]`` knobs each map method reads (``auto`` accepts them all: the planner picks the method).
+MAP_KEYS = {"direct": ("rays",), "scene": ("rays", "views", "terms", "shading_pixels", "precision"), "satf": ()}
+MAP_KNOBS = ("rays", "views", "terms", "shading_pixels", "precision")
+
+
 def _kappa(x):
     if x == "auto":
         return None
@@ -93,8 +101,21 @@ SCHEMA = {
         "background": Field([0.0, 0.0, 0.0], _L, _colour, "RGB behind the innermost layer (eq 14)"),
         "neighbours": Field(4, _I, _int_at_least(1), "k of the SATF k-NN lookup"),
         "preview_size": Field(256, _I, _int_at_least(16), "pixels of the orthographic preview"),
+        "method": Field("auto", _S, lambda x: None if x in MAP_METHODS else "one of " + ", ".join(map(repr, MAP_METHODS)),
+                        "how the re-/α-maps are made: auto (the planner chooses), direct, scene or satf"),
+        "animated": Field(False, _B, None, "the hair moves between frames (auto then never picks a per-groom table)"),
+        "rays": Field(2, _I, lambda x: None if 1 <= x <= 64 else "must lie in [1, 64]",
+                      "direct and scene: rays per pixel of each sector's projection"),
+        "views": Field(64, _I, lambda x: None if 8 <= x <= 1024 and x % 2 == 0 else "an even number in [8, 1024]",
+                       "scene: view angles of the per-groom table"),
+        "terms": Field(4, _I, lambda x: None if 0 <= x <= 16 else "must lie in [0, 16]",
+                       "scene: Fourier terms of each sector's re/α ratio in θl − θv"),
+        "shading_pixels": Field(8, _I, lambda x: None if 1 <= x <= 8192 else "must lie in [1, 8192]",
+                                "scene: pixel bins of the re/α ratio (a divisor of tables.hrir trace.pixels)"),
+        "precision": Field("float16", _S, lambda x: None if x in ("float16", "float32") else "'float16' or 'float32'",
+                           "scene: storage precision of the per-groom table"),
     },
-    "camera": {"view": Field(None, _L, _vec3, "direction toward the viewer")},
+    "camera": CAMERA,
     "lights": {
         "directions": Field(None, _L, None, "list of directions toward the lights"),
         "colors": Field([], _L, None, "RGB intensity per light (default white)"),
@@ -289,7 +310,13 @@ def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -
         if key != "method" and key not in SHADOW_KEYS[method]:
             raise errors.ValidationError(f"shadows.{key}", shadow_given[key], f"shadows.method = {method!r} does not read "
                                          f"it (it reads: {', '.join(SHADOW_KEYS[method]) or 'no [shadows] keys'})")
+    map_method, render_given = cfg["render"]["method"], given.get("render", {})
+    for key in MAP_KNOBS:
+        if key in render_given and map_method != "auto" and key not in MAP_KEYS[map_method]:
+            raise errors.ValidationError(f"render.{key}", render_given[key], f"render.method = {map_method!r} does not "
+                                         f"read it (it reads: {', '.join(MAP_KEYS[map_method]) or 'none of ' + ', '.join(MAP_KNOBS)})")
     view = _unit("camera.view", cfg["camera"]["view"])
+    check_camera(cfg["camera"])
     dirs = cfg["lights"]["directions"]
     if not dirs:
         raise errors.ValidationError("lights.directions", dirs, "give at least one light direction")

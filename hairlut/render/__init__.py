@@ -1,0 +1,30 @@
+"""The picture a person sees: a camera render of the textured cluster layers, the strand-level
+reference, and the two compared.
+
+``render_layers(prepared, result, camera)``: each cluster's layer meshes (``hairlut.geometry.layer_meshes``)
+textured with the online module's shaded RGBA maps (``hairlut.synth.render``), rasterised in JAX with
+perspective-correct interpolation and composited front to back (``_raster``).  ``render_reference(scene)``:
+the strands as the Gaussian tubes of the sector densities, ray-marched through the camera and refined until
+converged (``_reference``, ``_strands``).  ``compare(a, b)``: RMSE, α bias, 8 × 8-block figures and FLIP
+(``_compare``).  ``write_frame``/``read_frame``: the EXR with R, G, B, A, Z and the camera (``_frame``).
+JAX loads on first use of a name.
+"""
+
+from .._lazy import lazy_exports
+
+_LAZY = {
+    "Frame": "_frame", "KIND": "_frame", "read_frame": "_frame", "write_frame": "_frame",
+    "BOUND": "_render", "extinction": "_render", "render_reference": "_render", "scene_camera": "_render",
+    "segment_lighting": "_render", "scene_strands": "_render",
+    "reference_kernel": "_reference", "render_level": "_reference", "shadow_grid": "_reference",
+    "shadow_kernel": "_reference",
+    "Segments": "_strands", "Z_CUT": "_strands", "crossings": "_strands", "segments_of": "_strands",
+    "bin_boxes": "_tiles",
+    "compare": "_compare", "block_average": "_compare", "side_by_side": "_compare",
+    "layer_scene": "_raster", "raster_kernel": "_raster", "rasterize": "_raster", "render_layers": "_raster",
+}
+
+__all__ = sorted(_LAZY)
+
+
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

@@ -1,0 +1,76 @@
+"""A rendered frame and its EXR: ``R, G, B, A`` (premultiplied, linear) and ``Z`` (eye depth), the camera
+as metadata.
+
+The camera travels in the EXR's ``hairlut:recipe`` JSON under ``camera`` (``Camera.to_json``: the 4 × 4
+``world_to_clip`` matrix, ``resolution`` and ``projection``, plus the eye and axes), beside the frame's
+``method``, ``seconds`` and, for the reference, its convergence record; the asset kind is
+``render_frame``.  ``Z`` is 1e10 where nothing was drawn (A = 0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .. import errors
+from ..assets import atomic_write_bytes, encode_png, read_exr, tonemap, write_exr
+
+KIND = "render_frame"
+
+
+@dataclass(frozen=True, eq=False)
+class Frame:
+    """``rgba`` (h, w, 4) premultiplied linear RGB and α, ``depth`` (h, w), the ``camera``
+    (:class:`~hairlut.scene.Camera`) and ``info`` (method, seconds, convergence…)."""
+
+    rgba: np.ndarray
+    depth: np.ndarray
+    camera: object
+    info: dict = field(default_factory=dict)
+
+
+def _plain(x):
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, float) and not np.isfinite(x):
+        return str(x)
+    return x
+
+
+def write_frame(frame: Frame, path, png: bool = False) -> dict:
+    """Write ``path`` (EXR, channels R, G, B, A, Z) and, with ``png``, a PNG beside it (over black)."""
+    if not (np.isfinite(frame.rgba).all() and np.isfinite(frame.depth).all()):
+        raise errors.ValidationError("frame", "non-finite", "a frame's pixels must be finite")
+    ch = {c: frame.rgba[..., i].astype(np.float32) for i, c in enumerate("RGBA")}
+    ch["Z"] = frame.depth.astype(np.float32)
+    recipe = _plain({"camera": frame.camera.to_json(), **frame.info})
+    out = {"exr": str(write_exr(path, ch, recipe=recipe, kind=KIND))}
+    if png:
+        p = Path(path).with_suffix(".png")
+        atomic_write_bytes(p, encode_png(tonemap(frame.rgba[..., :3])))
+        out["png"] = str(p)
+    return out
+
+
+def read_frame(path) -> Frame:
+    """A frame back from its EXR (any EXR with R, G, B and A reads; the camera only from a hairlut frame)."""
+    from ..scene import Camera
+
+    img = read_exr(path)
+    part = img.part()
+    for c in "RGBA":
+        if c not in part.channels:
+            raise errors.MissingDatasetError(path, f"no channel {c!r} (channels: {sorted(part.channels)})")
+    rgba = np.stack([np.asarray(part.channels[c], np.float32) for c in "RGBA"], -1)
+    depth = np.asarray(part.channels["Z"], np.float32) if "Z" in part.channels else np.zeros(rgba.shape[:2], np.float32)
+    rec = img.recipe or {}
+    cam = Camera.from_json(rec["camera"]) if "camera" in rec else None
+    return Frame(rgba, depth, cam, {k: v for k, v in rec.items() if k != "camera"})

@@ -1,0 +1,112 @@
+"""Scene-level entry points: :func:`render_reference` (the strands, ``_reference``) and
+:func:`render_layers` (the textured cluster layers, ``_raster``), each returning a :class:`Frame`."""
+
+from __future__ import annotations
+
+import time
+
+import jax.numpy as jnp
+import numpy as np
+
+from .. import errors
+from ._frame import Frame
+from ._reference import render_level
+from ._strands import segments_of
+
+#: Default convergence bound: RMSE of the premultiplied RGB and of α between successive levels.
+BOUND = 0.01
+
+
+def _material(scene) -> tuple[np.ndarray, np.ndarray]:
+    """(mat (9,), colours (3, 3)) as ``hairlut.synth.lighting_kernel`` takes them."""
+    m = scene.material
+    mat = np.array([m["kd"], m["ks_I"], m["ks_II"], m["p_I"], m["p_II"], m["shift"], m["diffuse_scale"],
+                    m["diffuse_bias"], m["noise_amount"]], np.float32)
+    hair = np.asarray(m["hair_color"], np.float32)
+    sec = np.asarray(m["spec_color_II"], np.float32) * (hair if m["secondary_hair_tint"] else 1.0)
+    return mat, np.stack([hair, np.asarray(m["spec_color_I"], np.float32), sec])
+
+
+def extinction(scene) -> float:
+    """κ of σ_t = κ / r: the scene's HRIR recipe ``trace.extinction``."""
+    from ..hrir import resolve_recipe
+
+    return float(resolve_recipe(scene.config["tables"]["hrir"])["trace"]["extinction"])
+
+
+def segment_lighting(scene, tangent, view, lights, colors) -> np.ndarray:
+    """(S, L, 3) eqs 8–11 (Scheuermann's terms) per segment and light, normal facing the viewer."""
+    from ..synth import lighting_kernel
+
+    t = np.asarray(tangent, np.float64)
+    v = np.asarray(view, np.float64)
+    n = v[None] - (t @ v)[:, None] * t
+    nn = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.where(nn > 1e-9, n / np.where(nn > 0, nn, 1.0), 0.0)  # a strand along the view: no shift direction
+    fx = scene.effects
+    mat, colours = _material(scene)
+    f32 = np.float32
+    lit = lighting_kernel(jnp.asarray(t, f32), jnp.asarray(n, f32), jnp.asarray(v, f32), jnp.asarray(lights, f32),
+                          jnp.asarray(colors, f32), jnp.full(len(t), 0.5, f32), mat, colours,
+                          use_diffuse=fx["diffuse"], primary=fx["primary"], secondary=fx["secondary"], noise=fx["noise"])
+    return np.asarray(lit)
+
+
+def scene_strands(scene) -> list:
+    from ..scene import scene_clusters
+
+    return [s for _, s in scene_clusters(scene)]
+
+
+def scene_camera(scene, strands=None):
+    """The scene's :class:`~hairlut.scene.Camera`, fitted to its strands where ``[camera]`` says 'auto'."""
+    from ..scene import make_camera
+
+    strands = scene_strands(scene) if strands is None else strands
+    return make_camera(scene.config["camera"], np.concatenate([s.points for s in strands]))
+
+
+def _change(a: np.ndarray, b: np.ndarray) -> dict:
+    return {"rgb_rmse": float(np.sqrt(np.mean((a[..., :3] - b[..., :3]) ** 2))),
+            "alpha_rmse": float(np.sqrt(np.mean((a[..., 3] - b[..., 3]) ** 2)))}
+
+
+def render_reference(scene, camera=None, *, bound: float = BOUND, max_level: int = 3, min_level: int = 1,
+                     levels: list | None = None, strands=None) -> Frame:
+    """The converged strand-level reference of ``scene`` (``_reference``): levels ``min_level − 1``, … until the
+    change from the level before is below ``bound`` in both RGB and α RMSE (or ``max_level``).  With ``levels``
+    (e.g. [2]) exactly those levels are rendered and the last returned (no convergence claim)."""
+    from ..scene import as_scene
+
+    sc = as_scene(scene)
+    if not (np.isfinite(bound) and bound > 0):
+        raise errors.ValidationError("bound", bound, "must be finite and > 0")
+    if isinstance(max_level, bool) or not isinstance(max_level, int) or not 0 <= max_level <= 4:
+        raise errors.ValidationError("max_level", max_level, "an integer in [0, 4]")
+    t0 = time.perf_counter()
+    strands = scene_strands(sc) if strands is None else strands
+    cam = scene_camera(sc, strands) if camera is None else camera
+    segs = segments_of(strands, extinction(sc))
+    lit = jnp.asarray(segment_lighting(sc, segs.tangent, cam.back, sc.lights, sc.light_colors), jnp.float32)
+    shadows = sc.shadow_method != "none"
+    t1 = time.perf_counter()
+    history, prev, img, stats = [], None, None, {}
+    run = list(levels) if levels is not None else range(max(min_level - 1, 0), max_level + 1)
+    converged = False
+    for lv in run:
+        st = {}
+        tl = time.perf_counter()
+        img = render_level(segs, cam, lit, sc.lights, level=lv, shadows=shadows, stats=st)
+        st["seconds"] = time.perf_counter() - tl
+        if prev is not None:
+            st["change_from_previous"] = _change(img, prev)
+        history.append({"level": lv, **st})
+        if levels is None and prev is not None and lv >= min_level and max(st["change_from_previous"].values()) < bound:
+            converged = True
+            break
+        prev = img
+    info = {"method": "reference", "scene": sc.source, "bound": bound if levels is None else None,
+            "converged": converged, "levels": history, "segments": segs.n, "extinction_kappa": extinction(sc),
+            "shadows": shadows, "environment": "not included",
+            "seconds": {"setup": t1 - t0, "frame": time.perf_counter() - t1}}
+    return Frame(img[..., :4], img[..., 4], cam, info)

@@ -1,0 +1,262 @@
+"""The scene's camera: the ``[camera]`` table and its projection (world → clip → pixels).
+
+``[camera]`` keys (every one but ``view`` optional):
+
+``view``        the direction *toward* the viewer (DESIGN.md); the online maps' view angle;
+``projection``  ``"orthographic"`` (default) or ``"perspective"``;
+``look_at``     the point the camera looks at (default: the centre of the groom's bounds);
+``position``    the eye (default: on the line look_at + d·view, d fitted so the groom is in front
+                and in frame); given, it must lie on that line (it fixes d);
+``up``          the world direction shown upward (default +y; must not be parallel to ``view``);
+``fov``         perspective: the vertical field of view in degrees, in (0, 180);
+``extent``      orthographic: the height of the frame in world units (default: the groom's projected
+                bounds with a 5 % margin, widened to the frame's aspect);
+``resolution``  ``[w, h]`` pixels (default 768 × 768), refused when a frame's buffers would not fit
+                in half the machine's memory (the estimate is in the message).
+
+:class:`Camera` holds the resolved camera.  Its ``matrix`` is the 4 × 4 world-to-clip matrix in the
+OpenGL convention (right-handed eye space looking down −z; clip w = eye distance for a perspective
+camera, 1 for an orthographic one; NDC in [−1, 1]); pixel (x, y) of NDC (X, Y) is
+((X + 1)/2 · w, (1 − Y)/2 · h): x to the right, y downward from the top row, pixel centres at
+integers + ½.  ``depth`` is the eye-space distance along the viewing axis (the EXR ``Z``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import errors
+from ..recipes import Field
+
+PROJECTIONS = ("orthographic", "perspective")
+#: Frame bytes per pixel and sample a render holds at once (RGBA, depth, the per-sample and tile buffers).
+BYTES_PER_SAMPLE = 256
+#: Most pixels on a side.
+MAX_SIDE = 16384
+MARGIN = 0.05
+
+
+def _finite3(x, allow_zero=True):
+    if not isinstance(x, list) or len(x) != 3 or not all(
+            isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in x):
+        return "need 3 finite numbers"
+    if not allow_zero and not any(c != 0 for c in x):
+        return "a direction cannot be zero"
+    return None
+
+
+def _auto_or_point(x):
+    return None if x == "auto" else _finite3(x)
+
+
+def _fov(x):
+    return None if math.isfinite(x) and 0 < x < 180 else "the vertical field of view lies in (0, 180) degrees"
+
+
+def _extent(x):
+    if x == "auto":
+        return None
+    if isinstance(x, str) or not (math.isfinite(x) and x > 0):
+        return "'auto' (fitted to the groom) or a frame height > 0"
+    return None
+
+
+def _resolution(x):
+    if len(x) != 2 or not all(isinstance(c, int) and not isinstance(c, bool) for c in x):
+        return "need [w, h]: 2 integers"
+    if min(x) < 1:
+        return "pixels on a side must be ≥ 1"
+    if max(x) > MAX_SIDE:
+        return f"at most {MAX_SIDE} pixels on a side"
+    return None
+
+
+CAMERA = {
+    "view": Field(None, (list,), lambda x: _finite3(x, allow_zero=False), "direction toward the viewer"),
+    "projection": Field("orthographic", (str,), lambda x: None if x in PROJECTIONS else "'orthographic' or 'perspective'",
+                        "orthographic or perspective"),
+    "position": Field("auto", (list, str), _auto_or_point, "the eye ('auto': on look_at + d·view, fitted)"),
+    "look_at": Field("auto", (list, str), _auto_or_point, "the point looked at ('auto': the groom's centre)"),
+    "up": Field([0.0, 1.0, 0.0], (list,), lambda x: _finite3(x, allow_zero=False), "world direction shown upward"),
+    "fov": Field(40.0, (float, int), _fov, "perspective: vertical field of view, degrees"),
+    "extent": Field("auto", (float, int, str), _extent, "orthographic: frame height in world units ('auto': fitted)"),
+    "resolution": Field([768, 768], (list,), _resolution, "[w, h] pixels"),
+}
+
+
+def available_memory() -> int:
+    """Bytes of physical memory (0 if unknown)."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return 0
+
+
+def frame_bytes(width: int, height: int, samples: int = 1) -> int:
+    """Estimated bytes a render of w × h pixels with ``samples`` per pixel holds at once."""
+    return int(width) * int(height) * max(int(samples), 1) * BYTES_PER_SAMPLE
+
+
+def check_memory(resolution, samples: int = 1, key: str = "camera.resolution") -> None:
+    """Refuse a frame whose buffers (:func:`frame_bytes`) exceed half the physical memory, with the figure."""
+    need, have = frame_bytes(*resolution, samples), available_memory()
+    if have and need > have // 2:
+        raise errors.ValidationError(key, list(resolution), f"a frame needs ~{need / 2**30:.1f} GiB "
+                                     f"({samples} sample(s) per pixel), more than half of the {have / 2**30:.1f} GiB here")
+
+
+def _unit(x) -> np.ndarray:
+    v = np.asarray(x, np.float64)
+    return v / np.linalg.norm(v)
+
+
+def check_camera(cam: dict) -> None:
+    """Checks across ``[camera]`` keys (each key alone is checked by :data:`CAMERA`): ``up`` not parallel
+    to ``view``; a frame that fits in memory; a given ``position`` on the line look_at + d·view, d > 0."""
+    view, up = _unit(cam["view"]), _unit(cam["up"])
+    if abs(float(view @ up)) > 1.0 - 1e-6:
+        raise errors.ValidationError("camera.up", cam["up"], f"parallel to camera.view {cam['view']}: no way to tell up")
+    check_memory(cam["resolution"])
+    if cam["position"] != "auto" and cam["look_at"] != "auto":
+        d = np.asarray(cam["position"], np.float64) - np.asarray(cam["look_at"], np.float64)
+        n = np.linalg.norm(d)
+        if n == 0 or float(d @ view) < n * (1.0 - 1e-6):
+            raise errors.ValidationError("camera.position", cam["position"], "must lie on look_at + d·view with d > 0 "
+                                         f"(look_at {cam['look_at']}, view {cam['view']})")
+
+
+@dataclass(frozen=True, eq=False)
+class Camera:
+    """A resolved camera (module docstring): eye, unit ``right``/``up``/``back`` (= view) axes, and the
+    frame: ``extent`` (orthographic frame height) or ``fov`` (degrees), ``near``/``far`` and pixels."""
+
+    projection: str
+    eye: np.ndarray
+    right: np.ndarray
+    up: np.ndarray
+    back: np.ndarray
+    width: int
+    height: int
+    extent: float
+    fov: float
+    near: float
+    far: float
+
+    @property
+    def aspect(self) -> float:
+        return self.width / self.height
+
+    @property
+    def view_matrix(self) -> np.ndarray:
+        m = np.eye(4)
+        m[:3, :3] = np.stack([self.right, self.up, self.back])
+        m[:3, 3] = -m[:3, :3] @ self.eye
+        return m
+
+    @property
+    def projection_matrix(self) -> np.ndarray:
+        n, f = self.near, self.far
+        p = np.zeros((4, 4))
+        if self.projection == "perspective":
+            c = 1.0 / math.tan(math.radians(self.fov) / 2)
+            p[0, 0], p[1, 1] = c / self.aspect, c
+            p[2, 2], p[2, 3], p[3, 2] = (f + n) / (n - f), 2 * f * n / (n - f), -1.0
+        else:
+            h = self.extent / 2
+            p[0, 0], p[1, 1] = 1 / (h * self.aspect), 1 / h
+            p[2, 2], p[2, 3], p[3, 3] = -2 / (f - n), -(f + n) / (f - n), 1.0
+        return p
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """The 4 × 4 world-to-clip matrix."""
+        return self.projection_matrix @ self.view_matrix
+
+    def project(self, points) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Pixel x, y (float, module docstring) and eye depth of world points (…, 3)."""
+        p = np.asarray(points, np.float64)
+        clip = np.einsum("ij,...j->...i", self.matrix[:, :3], p) + self.matrix[:, 3]
+        ndc = clip[..., :2] / clip[..., 3:4]
+        return (ndc[..., 0] + 1) / 2 * self.width, (1 - ndc[..., 1]) / 2 * self.height, self.depth(p)
+
+    def depth(self, points) -> np.ndarray:
+        return (self.eye - np.asarray(points, np.float64)) @ self.back
+
+    def rays(self, x, y) -> tuple[np.ndarray, np.ndarray]:
+        """Origins and unit directions (…, 3) of the rays through pixel coordinates (x, y) (float, pixel centres
+        at integers + ½); an orthographic ray starts on the eye plane, a perspective one at the eye."""
+        x, y = np.broadcast_arrays(np.asarray(x, np.float64), np.asarray(y, np.float64))
+        sx, sy = (2 * x / self.width - 1), (1 - 2 * y / self.height)
+        if self.projection == "perspective":
+            c = math.tan(math.radians(self.fov) / 2)
+            d = (sx * c * self.aspect)[..., None] * self.right + (sy * c)[..., None] * self.up - self.back
+            return np.broadcast_to(self.eye, d.shape).copy(), d / np.linalg.norm(d, axis=-1, keepdims=True)
+        h = self.extent / 2
+        o = self.eye + (sx * h * self.aspect)[..., None] * self.right + (sy * h)[..., None] * self.up
+        return o, np.broadcast_to(-self.back, o.shape).copy()
+
+    def to_json(self) -> dict:
+        return {"projection": self.projection, "resolution": [self.width, self.height],
+                "world_to_clip": self.matrix.tolist(), "eye": self.eye.tolist(), "right": self.right.tolist(),
+                "up": self.up.tolist(), "view": self.back.tolist(), "extent": self.extent, "fov": self.fov,
+                "near": self.near, "far": self.far}
+
+    @classmethod
+    def from_json(cls, d: dict) -> Camera:
+        try:
+            w, h = d["resolution"]
+            return cls(d["projection"], *(np.asarray(d[k], np.float64) for k in ("eye", "right", "up", "view")),
+                       int(w), int(h), float(d["extent"]), float(d["fov"]), float(d["near"]), float(d["far"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise errors.ValidationError("hairlut:camera", str(d)[:60], f"not a camera record ({exc})") from None
+
+
+def make_camera(cam: dict, points) -> Camera:
+    """The :class:`Camera` of a resolved ``[camera]`` table, fitted to the hair's ``points`` (n, 3) where
+    keys are 'auto'.  Raises when the eye lies inside the hair's bounds (or, perspective, any hair lies
+    behind the near plane)."""
+    pts = np.asarray(points, np.float64).reshape(-1, 3)
+    lo, hi = pts.min(0), pts.max(0)
+    back = _unit(cam["view"])
+    right = np.cross(_unit(cam["up"]), back)
+    right /= np.linalg.norm(right)
+    up = np.cross(back, right)
+    w, h = cam["resolution"]
+    aspect = w / h
+    given_eye = cam["position"] != "auto"
+    centre = 0.5 * (lo + hi) if cam["look_at"] == "auto" else np.asarray(cam["look_at"], np.float64)
+    if cam["look_at"] == "auto" and given_eye:  # the look_at point on the line through the eye along view
+        eye = np.asarray(cam["position"], np.float64)
+        centre = eye - back * float((eye - 0.5 * (lo + hi)) @ back)
+    rel = pts - centre
+    along = rel @ back  # toward the viewer
+    radius = float(np.linalg.norm(rel, axis=1).max()) or 1.0
+    if cam["projection"] == "orthographic":
+        xs, ys = rel @ right, rel @ up
+        ext = cam["extent"]
+        if ext == "auto":
+            ext = (1 + 2 * MARGIN) * max(2 * np.abs(ys).max(), 2 * np.abs(xs).max() / aspect, 1e-12)
+        dist = float(along.max()) + MARGIN * radius + 1e-9 if not given_eye else \
+            float((np.asarray(cam["position"], np.float64) - centre) @ back)
+        fov = float(cam["fov"])
+    else:
+        fov = float(cam["fov"])
+        half = math.radians(fov) / 2
+        half = min(half, math.atan(math.tan(half) * aspect))
+        dist = radius * (1 + MARGIN) / math.sin(half) if not given_eye else \
+            float((np.asarray(cam["position"], np.float64) - centre) @ back)
+        ext = float(cam["extent"]) if cam["extent"] != "auto" else 2 * dist * math.tan(math.radians(fov) / 2)
+    eye = centre + back * dist
+    if np.all((eye >= lo) & (eye <= hi)):
+        raise errors.ValidationError("camera.position", eye.tolist(), f"inside the hair's bounds {lo.tolist()}–{hi.tolist()}")
+    depth = (eye - pts) @ back
+    near_need = float(depth.min())
+    if near_need <= 0:
+        raise errors.ValidationError("camera.position", eye.tolist(), "hair lies behind the camera")
+    near = near_need * 0.5 if cam["projection"] == "perspective" else 0.0
+    far = float(depth.max()) * 1.5 + 1e-9
+    return Camera(cam["projection"], eye, right, up, back, int(w), int(h), float(ext), fov, near, far)

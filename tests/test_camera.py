@@ -1,0 +1,87 @@
+"""[camera]: bad input names its key; the 4 × 4 world-to-clip matrix against the camera's own projection."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, strategies as st
+
+from hairlut import errors
+from hairlut.recipes import resolve
+from hairlut.scene import CAMERA, check_camera, frame_bytes, make_camera, resolve_scene
+
+BASE = {"camera": {"view": [0.0, 0.0, 1.0]}, "lights": {"directions": [[0.0, 1.0, 0.0]]},
+        "clusters": [{"trajectory": [[0, 0, 0], [0, 1, 0], [0, 2, 0]], "half_axis_a": 0.2, "half_axis_b": 0.2}]}
+BOX = np.array([[x, y, z] for x in (-1, 1) for y in (-2, 2) for z in (-0.5, 0.5)], float)
+
+
+def _scene(**cam):
+    return resolve_scene({**BASE, "camera": {"view": [0.0, 0.0, 1.0], **cam}})
+
+
+def _cam(**keys):
+    c = resolve(CAMERA, {"view": [0.0, 0.0, 1.0], **keys}, "camera.")
+    check_camera(c)
+    return c
+
+
+@pytest.mark.parametrize("cam, key", [
+    ({"view": [0.0, 0.0, 0.0]}, "camera.view"),
+    ({"view": [float("nan"), 0.0, 1.0]}, "camera.view"),
+    ({"up": [0.0, 0.0, 2.0]}, "camera.up"),
+    ({"fov": 0.0}, "camera.fov"),
+    ({"fov": 180.0}, "camera.fov"),
+    ({"resolution": [0, 768]}, "camera.resolution"),
+    ({"resolution": [768]}, "camera.resolution"),
+    ({"resolution": [16384, 16384]}, "camera.resolution"),
+    ({"projection": "fisheye"}, "camera.projection"),
+    ({"extent": -1.0}, "camera.extent"),
+    ({"position": [0.0, 1.0], "look_at": [0.0, 0.0, 0.0]}, "camera.position"),
+    ({"position": [1.0, 0.0, 5.0], "look_at": [0.0, 0.0, 0.0]}, "camera.position"),
+    ({"lens": 35}, "camera.lens"),
+])
+def test_bad_camera_names_the_key(cam, key):
+    with pytest.raises(errors.ValidationError) as exc:
+        _scene(**cam)
+    assert exc.value.field == key
+
+
+def test_too_large_a_frame_is_refused_with_the_figure(monkeypatch):
+    from hairlut.scene import _camera
+
+    monkeypatch.setattr(_camera, "available_memory", lambda: 4 * 2**30)
+    with pytest.raises(errors.ValidationError, match=r"GiB") as exc:
+        _scene(resolution=[8192, 8192])
+    assert exc.value.field == "camera.resolution"
+    assert frame_bytes(8192, 8192) > 2 * 2**30
+
+
+def test_defaults():
+    cfg = _scene().config["camera"]
+    assert cfg["projection"] == "orthographic" and cfg["resolution"][0] >= 768 and cfg["resolution"][1] >= 768
+
+
+@pytest.mark.parametrize("projection", ["orthographic", "perspective"])
+def test_camera_inside_the_hair_is_refused(projection):
+    with pytest.raises(errors.ValidationError) as exc:
+        make_camera(_cam(projection=projection, position=[0.0, 0.0, 0.2], look_at=[0.0, 0.0, 0.0]), BOX)
+    assert exc.value.field == "camera.position"
+
+
+@given(view=st.tuples(*[st.floats(-1, 1)] * 3).filter(lambda v: 0.1 < np.linalg.norm(v) and abs(v[1]) < 0.95 * np.linalg.norm(v)),
+       pts=st.lists(st.tuples(*[st.floats(-1, 1)] * 3), min_size=1, max_size=5),
+       projection=st.sampled_from(["orthographic", "perspective"]), fov=st.floats(10, 120))
+def test_matrix_agrees_with_rays(view, pts, projection, fov):
+    """A point on the ray through pixel (x, y) projects, through the 4 × 4 matrix, back to (x, y); every
+    fitted point lies in the frame (NDC within [-1, 1])."""
+    cam = make_camera(_cam(view=list(view), projection=projection, fov=fov), BOX)
+    x, y, _ = cam.project(BOX)
+    assert (x >= 0).all() and (x <= cam.width).all() and (y >= 0).all() and (y <= cam.height).all()
+    p = np.array(pts) * [cam.width, cam.height, 1] * 0.5 + [cam.width / 2, cam.height / 2, 0]
+    o, d = cam.rays(p[:, 0], p[:, 1])
+    world = o + d * (1.0 + np.abs(p[:, 2:]))
+    clip = np.c_[world, np.ones(len(world))] @ cam.matrix.T
+    ndc = clip[:, :2] / clip[:, 3:]
+    assert np.allclose((ndc[:, 0] + 1) / 2 * cam.width, p[:, 0], atol=1e-6 * cam.width)
+    assert np.allclose((1 - ndc[:, 1]) / 2 * cam.height, p[:, 1], atol=1e-6 * cam.height)
+    assert math.isclose(np.linalg.norm(d[0]), 1.0, rel_tol=1e-9)

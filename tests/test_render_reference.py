@@ -1,0 +1,91 @@
+"""The strand-level reference against closed forms: one straight strand side-on (the Gaussian's chord
+integral), a uniform slab of strands (Beer–Lambert), and the camera matrix against where a strand is drawn."""
+
+import math
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from hairlut import errors
+from hairlut.geometry import Strands
+from hairlut.render import crossings, render_level, segments_of
+from hairlut.scene import CAMERA, make_camera
+from hairlut.recipes import resolve
+
+
+def _camera(points, **keys):
+    cam = resolve(CAMERA, {"view": [0.0, 0.0, 1.0], **keys}, "camera.")
+    return make_camera(cam, points)
+
+
+def _render(strands, camera, kappa, level=0):
+    segs = segments_of(strands, kappa)
+    lit = jnp.ones((segs.n, 1, 3), jnp.float32)
+    return render_level(segs, camera, lit, np.array([[0.0, 0.0, 1.0]]), level=level, shadows=False), segs
+
+
+def test_straight_strand_alpha_is_the_chord_integral():
+    r, kappa = 0.25, 2 / math.pi
+    x = np.linspace(-6.0, 6.0, 25)
+    pts = np.stack([x, np.zeros_like(x), np.zeros_like(x)], 1)
+    strands = Strands(pts, np.array([len(x)]), thickness=np.full(len(x), 2 * r))
+    cam = _camera(pts, look_at=[0.0, 0.0, 0.0], extent=2.0, resolution=[64, 48])
+    img, _ = _render(strands, cam, kappa)
+    rows = (np.arange(48) + 0.5)
+    d = np.abs((1 - 2 * rows / 48) * 1.0)  # world y of each pixel row's centre
+    expected = 1 - np.exp(-(kappa / r) * r * math.sqrt(math.pi) * np.exp(-d**2 / r**2))
+    alpha = img[:, 8:56, 3]  # columns well inside the strand (x in [-1, 1])
+    assert np.abs(alpha - expected[:, None]).max() < 1e-4
+    assert expected.max() > 0.6 and expected.min() < 1e-6  # the test spans the whole profile
+
+
+def test_uniform_slab_is_beer_lambert():
+    r, h, n_z, kappa = 0.25, 0.2, 6, 0.02
+    ys = np.arange(-4.0, 4.0 + 1e-9, h)
+    lines = []
+    for k in range(n_z):
+        for y in ys:
+            x = np.linspace(-6.0, 6.0, 7)
+            lines.append(np.stack([x, np.full_like(x, y), np.full_like(x, k * h)], 1))
+    strands = Strands.from_list(lines, thickness=[np.full(7, 2 * r)] * len(lines))
+    cam = _camera(np.concatenate(lines), look_at=[0.0, 0.0, 0.0], extent=2.0, resolution=[32, 32])
+    img, _ = _render(strands, cam, kappa)
+    rho, length = math.pi * r * r / (h * h), n_z * h
+    expected = math.exp(-(kappa / r) * rho * length)
+    assert 0.2 < expected < 0.9
+    assert np.abs((1 - img[..., 3]) - expected).max() < 1e-4
+
+
+def test_alpha_is_exact_at_any_step_count():
+    """Cutting the support into more steps moves no optical depth: α is the same at every level."""
+    o = jnp.array([[0.0, 0.3, 5.0]], jnp.float32)
+    d = jnp.array([[0.0, 0.0, -1.0]], jnp.float32)
+    seg = (jnp.array([[-1.0, 0.0, 0.0]]), jnp.array([[1.0, 0.0, 0.0]]), jnp.array([2.0]), jnp.array([0.2]), jnp.array([3.0]))
+    totals = [float(crossings(o, d, *seg, 0.0, n)[0].sum()) for n in (1, 2, 8, 32)]
+    exact = 3.0 * 0.2 * math.sqrt(math.pi) * math.exp(-0.09 / 0.04)
+    assert np.allclose(totals, exact, rtol=1e-5)
+
+
+@pytest.mark.parametrize("projection", ["orthographic", "perspective"])
+def test_matrix_projects_a_strand_where_it_is_drawn(projection):
+    """A short strand's centre, projected with the camera's 4 × 4 world-to-clip matrix, lands on the pixel
+    of the reference's α peak."""
+    c = np.array([0.7, -0.4, 0.2])
+    pts = np.stack([c - [0.05, 0, 0], c + [0.05, 0, 0]])
+    box = np.array([[-2.0, -2.0, -1.0], [2.0, 2.0, 1.0]])
+    strands = Strands(pts, np.array([2]), thickness=np.full(2, 0.1))
+    cam = _camera(np.concatenate([pts, box]), projection=projection, view=[0.3, 0.2, 1.0], resolution=[96, 80])
+    img, _ = _render(strands, cam, 2 / math.pi)
+    clip = cam.matrix @ np.append(c, 1.0)
+    ndc = clip[:3] / clip[3]
+    px, py = (ndc[0] + 1) / 2 * cam.width, (1 - ndc[1]) / 2 * cam.height
+    iy, ix = np.unravel_index(np.argmax(img[..., 3]), img.shape[:2])
+    assert abs(ix + 0.5 - px) <= 1.0 and abs(iy + 0.5 - py) <= 1.0
+    assert -1 < ndc[2] < 1
+
+
+def test_segments_need_positive_extinction():
+    pts = np.array([[0.0, 0, 0], [1.0, 0, 0]])
+    with pytest.raises(errors.ValidationError, match="trace.extinction"):
+        segments_of(Strands(pts, np.array([2]), thickness=np.full(2, 0.1)), 0.0)
