@@ -59,6 +59,7 @@ def cli(verbose: int, quiet: bool) -> None:
 
 def _register() -> None:
     from . import bake, cache, demo, hrir, inspect, plan, sh, strands, synth
+    from . import render
 
     cli.add_command(bake.bake_group)  # its KIND sub-commands come from hairlut.registry
     cli.add_command(bake.merge_cmd)
@@ -70,6 +71,8 @@ def _register() -> None:
     cli.add_command(strands.strands_group)
     cli.add_command(synth.synth_cmd)
     cli.add_command(plan.plan_cmd)
+    cli.add_command(render.render_cmd)
+    cli.add_command(render.compare_cmd)
 
 
 _register()

@@ -1,9 +1,7 @@
 """The picture a person sees: a camera render of the textured cluster layers, the strand-level
 reference, and the two compared.
 
-``render_layers(prepared, result, camera)``: each cluster's layer meshes (``hairlut.geometry.layer_meshes``)
-textured with the online module's shaded RGBA maps (``hairlut.synth.render``), rasterised in JAX with
-perspective-correct interpolation and composited front to back (``_raster``).  ``render_reference(scene)``:
+``render_reference(scene)``:
 the strands as the Gaussian tubes of the sector densities, ray-marched through the camera and refined until
 converged (``_reference``, ``_strands``).  ``compare(a, b)``: RMSE, α bias, 8 × 8-block figures and FLIP
 (``_compare``).  ``write_frame``/``read_frame``: the EXR with R, G, B, A, Z and the camera (``_frame``).
@@ -21,7 +19,6 @@ _LAZY = {
     "Segments": "_strands", "Z_CUT": "_strands", "crossings": "_strands", "segments_of": "_strands",
     "bin_boxes": "_tiles",
     "compare": "_compare", "block_average": "_compare", "side_by_side": "_compare",
-    "layer_scene": "_raster", "raster_kernel": "_raster", "rasterize": "_raster", "render_layers": "_raster",
 }
 
 __all__ = sorted(_LAZY)

@@ -1,5 +1,4 @@
-"""Scene-level entry points: :func:`render_reference` (the strands, ``_reference``) and
-:func:`render_layers` (the textured cluster layers, ``_raster``), each returning a :class:`Frame`."""
+"""Scene-level entry point :func:`render_reference` (the strands, ``_reference``), returning a :class:`Frame`."""
 
 from __future__ import annotations
 
