@@ -56,10 +56,11 @@ def run_scene(scene_path, out_dir, cache_root=None, progress=None) -> dict:
     t1 = time.perf_counter()
     assets = bake(p, progress)
     t2 = time.perf_counter()
-    result = synthesize(p.scene, assets["hrir_db"]["path"], sh=assets.get("sh_tables", {}).get("path"))
+    result = synthesize(p.scene, assets.get("hrir_db", {}).get("path"), sh=assets.get("sh_tables", {}).get("path"),
+                        maps=assets.get("scene_maps", {}).get("path"))  # the map method auto picked (plan's map_method)
     t3 = time.perf_counter()
     files = write_outputs(result, out_dir)
-    accuracy = {"hrir_query_self_check": _hrir_self_check(assets["hrir_db"]["path"])}
+    accuracy = {"hrir_query_self_check": _hrir_self_check(assets["hrir_db"]["path"])} if "hrir_db" in assets else {}
     if "sh_tables" in assets:
         accuracy.update(_sh_figures(assets["sh_tables"]["path"]))
     if "environment_clamped" in result.stats:

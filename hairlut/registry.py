@@ -24,6 +24,7 @@ from .baker import Baker, prepare
 BAKERS: dict[str, str] = {
     "hrir_db": "hairlut.hrir",
     "sh_tables": "hairlut.shtables",
+    "scene_maps": "hairlut.scenemaps",
 }
 
 

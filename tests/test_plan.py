@@ -19,7 +19,10 @@ TINY_HRIR = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 4, "l
 
 
 def scene(env=None, tables=None, **material):
+    """A tiny scene whose maps come from the SATF (``render.method = "satf"``: these tests are about the
+    hrir_db rules; the map methods' own rules are in test_map_methods.py)."""
     s = base_scene(**material)
+    s["render"] = {**s.get("render", {}), "method": "satf"}
     s["tables"] = {"hrir": TINY_HRIR, **(tables or {})}
     if env is not None:
         s["environment"] = env

@@ -2,7 +2,11 @@
 
 :func:`plan` reads a scene (:mod:`hairlut.scene` format) and decides, rule by rule, each in words:
 
-* **HRIR database** (always: the SATF online module reads it).  Its recipe is the
+* **Map method** (``[render] method``, :func:`map_method`): ``direct``, ``scene`` or ``satf``; ``auto``
+  picks by device (a GPU: direct), motion (moving hair on a CPU: satf) and memory (static hair on a
+  CPU: the per-groom ``scene_maps`` table when it fits in a quarter of the memory), and says why.
+  The scene table is baked only for ``scene``, content-addressed by the groom's geometry and recipe.
+* **HRIR database** (only for the ``satf`` map method, which reads it).  Its recipe is the
   defaults with ``[tables.hrir]`` over them; with ``tables.restrict`` (the default) the
   sampled sector space is fitted to the scene's own sectors (phase steps s_u exactly;
   aspect, inner radius, thickness, strand count and strand radius over their ranges in
@@ -221,6 +225,122 @@ def _transmittance_step(scene) -> Step:
                 details={"voxels": n, "kappa": env["kappa"]})
 
 
+#: Largest share of the machine's memory a scene table may take for ``auto`` to pick the ``scene`` method.
+SCENE_MEMORY_SHARE = 0.25
+#: ``[render]`` knob of each scene_maps recipe key (for error messages).
+_MAP_FIELDS = {"table.views": "render.views", "table.terms": "render.terms", "table.lights": "render.terms",
+               "table.shading_pixels": "render.shading_pixels", "table.dtype": "render.precision"}
+
+
+def direct_recipe(scene) -> dict:
+    """The HRIR recipe (trace, Phong, density grid) the ``direct`` and ``scene`` map methods trace
+    with: the scene's ``[tables.hrir]`` over the defaults, ``render.rays`` rays per pixel."""
+    from ..hrir import resolve_recipe
+
+    sc = as_scene(scene)
+    given = dict(sc.config["tables"]["hrir"])
+    trace = {**given.get("trace", {}), "rays_per_pixel": sc.config["render"]["rays"]}
+    try:
+        return resolve_recipe({**given, "trace": trace})
+    except errors.ValidationError as exc:
+        raise errors.ValidationError(f"tables.hrir.{exc.field}", exc.value, exc.reason) from None
+
+
+def scene_maps_recipe(scene) -> dict:
+    """The ``scene_maps`` recipe of a scene (its groom's geometry key folded in): the trace settings of
+    :func:`direct_recipe` and the table layout from ``render.views``, ``terms``, ``shading_pixels`` and
+    ``precision`` (light angles: max(16, 2·terms + 2))."""
+    from ..scenemaps import resolve_recipe
+
+    sc = as_scene(scene)
+    r, rec = sc.config["render"], direct_recipe(sc)
+    given = {"hrir": {"sectors": {k: rec["sectors"][k] for k in ("grid", "density_scale")},
+                      "trace": rec["trace"], "phong": rec["phong"]},
+             "table": {"views": r["views"], "lights": max(16, 2 * r["terms"] + 2), "terms": r["terms"],
+                       "shading_pixels": r["shading_pixels"], "dtype": r["precision"]}}
+    try:
+        return resolve_recipe(given, scene=sc)
+    except errors.ValidationError as exc:
+        name = _MAP_FIELDS.get(exc.field, exc.field.replace("hrir.", "tables.hrir.", 1))
+        raise errors.ValidationError(name, exc.value, exc.reason) from None
+
+
+def _sector_bound(sc) -> int:
+    """An upper bound of a scene's sector count from its settings alone (no strands built)."""
+    if sc.groom_path is not None:
+        g = sc.config["groom"]
+        return g["clusters"] * (g["s_t"] + 1) * len(g["layer_radii"]) * g["s_u"]
+    return sum((s.s_t + 1) * s.n_layers * s.s_u for s in sc.specs)
+
+
+def _memory_bytes() -> int:
+    import os
+
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return 8 << 30
+
+
+def map_method(scene, sectors: int | None = None, live: int | None = None) -> tuple[str, str]:
+    """The map method a scene runs (``direct``, ``scene`` or ``satf``) and why, in words.
+
+    ``render.method`` unless it is ``auto``; then: on a GPU (or another accelerator), ``direct``;
+    on the CPU with moving hair (``render.animated``), ``satf`` (a per-groom table would be stale each
+    frame and the exact projection costs seconds a frame on a CPU); on the CPU with static hair,
+    ``scene`` when its table fits in a quarter of the machine's memory, else ``satf``.  ``sectors``
+    and ``live``: the scene's sector counts when known (an upper bound from its settings otherwise)."""
+    sc = as_scene(scene)
+    r = sc.config["render"]
+    method = r["method"]
+    words = {"direct": "every sector projected from its own density at the exact view and lights each frame",
+             "scene": "the groom's own sector projections, baked once, read at the exact angles each frame",
+             "satf": "the paper's SATF database lookup (no per-scene bake)"}
+    if method != "auto":
+        return method, f"render.method = {method!r}: {words[method]}"
+    import jax
+
+    backend = jax.default_backend()
+    if backend != "cpu":
+        return "direct", f"auto: the device is a {backend}, so {words['direct']} (no per-scene bake; hair may move)"
+    if r["animated"]:
+        return "satf", ("auto: the hair moves (render.animated) on the CPU: a per-groom table would be stale each "
+                        f"frame and the exact projection costs seconds a frame here, so {words['satf']}")
+    n = _sector_bound(sc) if sectors is None else int(sectors)
+    nbytes, _ = registry.get("scene_maps").estimate(scene_maps_recipe(sc), n, live)
+    mem = _memory_bytes()
+    if nbytes > SCENE_MEMORY_SHARE * mem:
+        return "satf", (f"auto: static hair on the CPU, but its scene table (~{nbytes / 2**20:.0f} MiB) would exceed "
+                        f"{100 * SCENE_MEMORY_SHARE:.0f} % of the memory ({mem / 2**30:.0f} GiB), so {words['satf']}")
+    return "scene", (f"auto: static hair on the CPU, so {words['scene']} (~{nbytes / 2**20:.1f} MiB, "
+                     f"{100 * nbytes / mem:.2f} % of the memory)")
+
+
+def _map_steps(sc, ss: SceneSectors, root) -> tuple[str, list[Step]]:
+    """The map method (and why), and its per-groom table when it needs one."""
+    n, live = int(len(ss.strands)), int((ss.strands > 0).sum())
+    method, why = map_method(sc, n, live)
+    steps = [Step("map_method", "run", why, details={"method": method, "sectors": n, "live": live})]
+    if method != "scene":
+        steps.append(Step("scene_maps", "skip", f"the maps come from {method!r}: no per-groom table"))
+        return method, steps
+    recipe = scene_maps_recipe(sc)
+    t = recipe["table"]
+    words = (f"{live} of {n} sectors on {t['views']} views × {t['lights']} light angles, α ({t['dtype']}, mirror-"
+             f"symmetric half) and {2 * t['terms'] + 1} re/α Fourier terms × {t['shading_pixels']} pixel bins; keyed by "
+             f"the groom's geometry {recipe['geometry']['sha256'][:12]}…")
+    path, hit = _cached("scene_maps", recipe, root)
+    details = {"sectors": n, "live": live, **t}
+    if hit:
+        steps.append(Step("scene_maps", "reuse", "recipe hash matches the cache; " + words, "scene_maps", recipe,
+                          str(path), path.stat().st_size, 0.0, details, {"scene": sc}))
+    else:
+        nbytes, seconds = registry.get("scene_maps").estimate(recipe, n, live)
+        steps.append(Step("scene_maps", "bake", "the scene map method reads it: " + words, "scene_maps", recipe,
+                          str(path), nbytes, seconds, details, {"scene": sc}))
+    return method, steps
+
+
 SHADOW_WORDS = {"light_oriented": "light-oriented density map (bertails §2–3)",
                 "opacity_maps": "opacity shadow maps (kim ch. 6)"}
 
@@ -283,7 +403,14 @@ def plan(scene, cache_root=None) -> Plan:
     sc = as_scene(scene)
     root = cache.cache_dir(cache_root)
     ss = scene_sectors(sc)
-    steps = [_hrir_step(sc, ss, root), _sh_step(sc, root), _transmittance_step(sc), *_online_steps(sc)]
+    method, map_steps = _map_steps(sc, ss, root)
+    hrir = _hrir_step(sc, ss, root) if method == "satf" else Step(
+        "hrir_db", "skip", f"the maps come from {method!r}: no SATF database is read")
+    online = _online_steps(sc)
+    if method != "satf":
+        online = [s if s.name != "uniformity" else Step("uniformity", "skip", f"{method!r} maps: every HSV sweeps its "
+                                                        "two sectors' own rows (eq 7), no eq 6 test") for s in online]
+    steps = [*map_steps, hrir, _sh_step(sc, root), _transmittance_step(sc), *online]
     return Plan(sc, tuple(steps), str(root))
 
 
@@ -311,7 +438,8 @@ def bake(p: Plan, progress=None) -> dict[str, dict]:
 
 
 def find_assets(scene, cache_root=None) -> dict[str, Path]:
-    """The cached assets a scene needs, without baking: {"hrir_db": path[, "sh_tables": path]}.
+    """The cached assets a scene needs, without baking: {"hrir_db" or "scene_maps": path[, "sh_tables": path]}
+    (none of the two for the ``direct`` map method).
 
     Raises :class:`~hairlut.errors.AssetNotFoundError` naming the missing asset and the command that bakes it."""
     p = plan(scene, cache_root)

@@ -187,3 +187,33 @@ def frame_maps(ix: MapIndex, db, view, lights, k_threshold: float):
     """Eqs 6–7 of one frame from the index: re, α as :func:`build_maps` (device arrays) and the uniform mask."""
     args, uniform = frame_rows(ix, db, view, lights, k_threshold)
     return (*sweep_rows(ix, *args), uniform)
+
+
+def geometry_index(table, fr: SectorFrames, n_layers: int, resolution) -> MapIndex:
+    """A :class:`MapIndex` of the geometry alone (no SATF neighbours): what :func:`params_kernel`
+    (angles; eq 6's distance is then meaningless and unused) and :func:`sweep_sectors` read, for the map
+    methods that make every sector's own row (``direct``, ``scene``)."""
+    n_c, n_i, n_g, s_u = table.shape
+    top = ((np.arange(n_c)[:, None] * n_i + np.arange(n_i - 1)) * n_g * s_u)[..., None] + np.arange(n_g * s_u)
+    if not np.array_equal(table.hsv_sectors, np.stack([top.ravel(), top.ravel() + n_g * s_u], 1)):
+        raise errors.ValidationError("table.hsv_sectors", table.shape, "need the sector table's HSV order")
+    axes = np.stack([fr.ex[:, :1] * fr.reference + fr.ex[:, 1:] * fr.binormal,
+                     fr.ey[:, :1] * fr.reference + fr.ey[:, 1:] * fr.binormal])
+    rows, gamma, cols = _texel_cells(table.shape, resolution)
+    f32 = partial(jnp.asarray, dtype=jnp.float32)
+    none = jnp.zeros((0, 1), jnp.int32)
+    return MapIndex(f32(axes), none, f32(none), f32(np.zeros(len(table.hsv_sectors))), none, f32(none), f32(gamma),
+                    f32(texel_offsets(table, fr, n_layers, resolution)[2]), (n_c, n_i - 1, n_g, s_u), int(n_layers),
+                    tuple(rows.tolist()), tuple(cols.tolist()))
+
+
+@jax.jit
+def sweep_sectors(ix: MapIndex, alpha, re, cs):
+    """Eq 7 per texel from every sector's own rows, α (S, P) and re (S, Lt, P), two per HSV (its top and
+    bottom sector; no eq 6 shortcut): re (C, K, Lt, n_t, n_u), α (C, K, n_t, n_u).  ``cs`` (S, 2): each
+    sector's (cos θv, sin θv) from :func:`params_kernel`."""
+    a1, a2 = _split(ix, alpha)
+    r1, r2 = _split(ix, re)
+    H = a1.shape[0]
+    return sweep_rows(ix, jnp.concatenate([r1, r2]), jnp.concatenate([a1, a2]), cs, jnp.zeros(H, bool),
+                      jnp.arange(H, dtype=jnp.int32))

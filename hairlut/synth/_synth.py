@@ -31,11 +31,12 @@ import numpy as np
 from .. import errors
 from ..assets import atomic_write_bytes, encode_png, tonemap, write_exr
 from ..scene import Scene, as_scene, scene_clusters
-from ._frame import frame_maps, map_index
+from ._frame import frame_maps, geometry_index, map_index
 from ._maps import SectorFrames, sector_frames, texel_grid
 from ._environment import prepare_environment
 from ._shading import compose_clusters_kernel, lighting_kernel, value_noise
 from ._shadowing import prepare_shadows
+from ._methods import prepare_map_source
 
 KIND = "synth_maps"
 
@@ -119,10 +120,31 @@ class Prepared:
     index: object = None
     environment: object = None
     shadows: object = None
+    #: the map method (``satf``, ``direct`` or ``scene``) and, for the latter two, its ``_methods.MapSource``
+    method: str = "satf"
+    maps: object = None
 
 
 def _unit3(x):
     return x / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-300)
+
+
+def _geometry_db(scene: Scene):
+    """What ``sector_frames`` reads of a database, for the map methods that read none (one cheap feature)."""
+    from ..scene import direct_recipe
+
+    return SimpleNamespace(stats=SimpleNamespace(names=("rho_st",)), recipe=direct_recipe(scene))
+
+
+def resolve_method(scene: Scene, db=None, maps=None) -> tuple[str, str]:
+    """The map method ``prepare`` runs and why: the planner's (``hairlut.scene.map_method``), except
+    that ``auto`` given only an SATF database (no scene table) runs ``satf`` on it."""
+    from ..scene import map_method
+
+    method, why = map_method(scene)
+    if scene.config["render"]["method"] == "auto" and db is not None and maps is None and method != "satf":
+        return "satf", f"auto chose {method!r}, but only an SATF database was given: satf"
+    return method, why
 
 
 def prepare_cluster(scene: Scene, db, spec, strands) -> PreparedCluster:
@@ -144,13 +166,19 @@ def prepare_cluster(scene: Scene, db, spec, strands) -> PreparedCluster:
     return PreparedCluster(spec, table, frames, _unit3(pt[0]), _unit3(np.cross(pu[0], pt[0])), p[0], noise)
 
 
-def prepare(scene, db, sh=None) -> Prepared:
+def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
     """Everything of a scene that does not depend on the view or the lights (see :func:`render`);
-    ``sh``: the ``sh_tables`` file of the scene's environment light, when it has one."""
+    ``db``: the ``hrir_db`` the ``satf`` map method reads; ``sh``: the ``sh_tables`` file of the scene's
+    environment light, when it has one; ``maps``: the ``scene_maps`` table the ``scene`` method reads.
+    The method is :func:`resolve_method`'s; ``direct`` reads no table."""
     sc = as_scene(scene)
-    database = _load_db(db)
+    method, why = resolve_method(sc, db, maps)
+    if method == "satf" and db is None:
+        raise errors.AssetNotFoundError(sc.source, "the satf map method reads an hrir_db: give db= (bake it with "
+                                        f"`hairlut bake --scene {sc.source}`)")
+    database = _load_db(db) if method == "satf" else _geometry_db(sc)
     k = sc.config["render"]["neighbours"]
-    if k > len(database.features):
+    if method == "satf" and k > len(database.features):
         raise errors.ValidationError("render.neighbours", k, f"the database holds only {len(database.features)} sectors")
     t0 = time.perf_counter()
     pairs = scene_clusters(sc)
@@ -166,13 +194,19 @@ def prepare(scene, db, sh=None) -> Prepared:
                             for f in fields(SectorFrames)))
     stacked = {name: jnp.asarray(np.stack([getattr(pc, name) for pc in clusters]), jnp.float32)
                for name in ("tangent", "normal", "noise")}
-    index = map_index(database, table, frames, clusters[0].spec.n_layers, sc.config["render"]["resolution"], k)
+    res = sc.config["render"]["resolution"]
+    if method == "satf":
+        index, source = map_index(database, table, frames, clusters[0].spec.n_layers, res, k), None
+    else:
+        index = geometry_index(table, frames, clusters[0].spec.n_layers, res)
+        source = prepare_map_source(sc, method, why, [pc.table for pc in clusters], [pc.frames for pc in clusters], maps)
     t2 = time.perf_counter()
     env = prepare_environment(sc, sh, [s for _, s in pairs], np.stack([pc.tangent for pc in clusters]),
                               np.stack([pc.position for pc in clusters]))
     seconds = {"strands": t1 - t0, "index": t2 - t1} | ({"environment": time.perf_counter() - t2} if env else {})
     shadows = prepare_shadows(sc, [s for _, s in pairs], np.stack([pc.position for pc in clusters]), seconds)
-    return Prepared(sc, database, clusters, seconds, table, frames, stacked, index, env, shadows)
+    return Prepared(sc, database if method == "satf" else None, clusters, seconds, table, frames, stacked, index, env,
+                    shadows, method, source)
 
 
 @partial(jax.jit, static_argnames=("effects", "linear"))
@@ -201,7 +235,10 @@ def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict
     method = scene.shadow_method
     transmittance = prepared.shadows.for_lights(lights, timing) if prepared.shadows is not None else None
     t0 = time.perf_counter()
-    re, alpha, uniform = frame_maps(prepared.index, db, view, lights, scene.material["k_threshold"])
+    if prepared.maps is None:
+        re, alpha, uniform = frame_maps(prepared.index, db, view, lights, scene.material["k_threshold"])
+    else:
+        re, alpha, uniform = prepared.maps.frame(prepared.index, view, lights)
     jax.block_until_ready(alpha)
     t1 = time.perf_counter()
     mat, colours = _material(scene)
@@ -252,16 +289,18 @@ def render(prepared: Prepared, *, view=None, lights=None, light_colors=None) -> 
     stats = {"clusters": len(results), "layers": int(sum(r.alpha.shape[0] for r in results)),
              "hsvs": int(sum(pc.table.n_hsvs for pc in prepared.clusters)),
              "texels_per_layer": list(results[0].alpha.shape[1:]) if results else [],
-             "uniform_fraction": [r.uniform_fraction for r in results], "seconds": timing, **env_stats}
+             "uniform_fraction": [r.uniform_fraction for r in results], "seconds": timing, "map_method": prepared.method,
+             **env_stats}
     return SynthResult(sc, results, stats)
 
 
-def synthesize(scene, db, sh=None) -> SynthResult:
+def synthesize(scene, db=None, sh=None, maps=None) -> SynthResult:
     """Synthesise re-, α-, s-maps, lighting, shaded layers and composites for every cluster:
     :func:`render` of :func:`prepare`.  ``scene``: a :class:`Scene`, a scene mapping or a TOML
     path; ``db``: an ``HRIRDB`` or the path of an ``hrir_db`` file; ``sh``: the ``sh_tables``
-    file of the scene's environment light (``hairlut.scene.find_assets`` finds both in the cache)."""
-    return render(prepare(scene, db, sh))
+    file of the scene's environment light; ``maps``: the ``scene_maps`` table of the ``scene`` map method
+    (``hairlut.scene.find_assets`` finds them in the cache)."""
+    return render(prepare(scene, db, sh, maps))
 
 
 def _plain(x):

@@ -1,0 +1,25 @@
+"""The ``scene_maps`` table kind: one static groom's own sector projections, baked once (issue 12).
+
+Each non-empty sector of a scene (its own clusters and strands, in ``hairlut.synth.prepare``'s order)
+is traced on a grid of V view angles × L light angles with the HRIR tracer (satf §5.1, eqs 4–5) and
+stored compactly: α on the V views (fp16 by default; only half of them, the other half by the mirror
+symmetry α(θ + π, p) = α(θ, P − 1 − p)) and, per view and per bin of pixels, the re/α ratio as a
+few Fourier terms in θl − θv.  Online, :func:`fetch_rows` reads a row per sector at its exact θv and
+θl (periodic linear interpolation in θv), like an SATF row.  The recipe is content-addressed by the
+groom's geometry (:func:`geometry_key`: the groom file's SHA-256 and the cluster-fit settings, or the
+procedural clusters and strands) and the trace and table settings.  JAX loads on first use of a name.
+"""
+
+from .._lazy import lazy_exports
+from ._kind import BAKER, KIND
+
+_LAZY = {
+    "SCHEMA": "_recipe", "geometry_key": "_recipe", "resolve_recipe": "_recipe", "hrir_recipe": "_recipe",
+    "SceneMaps": "_bake", "bake": "_bake", "load_scene_maps": "_bake", "scene_inputs": "_bake", "compress": "_bake",
+    "fetch_kernel": "_fetch", "fetch_rows": "_fetch",
+}
+
+__all__ = sorted(_LAZY) + ["BAKER", "KIND"]
+
+
+__getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

@@ -1,0 +1,162 @@
+"""Baking and reading a ``scene_maps`` table (module docstring of the package).
+
+**Bake.**  The scene's sectors (its clusters in order, each cluster's sectors in the sector table's
+order: the order ``hairlut.synth.prepare`` concatenates them in) become tracer inputs by
+``hairlut.synth.scene_sector_inputs`` (the metric extent the texels read).  Every non-empty sector
+is traced by ``hairlut.hrir.trace_sectors`` on V views θv,i = 2πi/V and L lights θl,j = 2πj/L
+(satf eqs 4–5; float32), then, in float64:
+
+* **α** (N, V/2, P): views 0 … V/2 − 1; the others by the mirror symmetry
+  α(θ + π, p) = α(θ, P − 1 − p) (the same line integrals, the pixel line reversed; the largest
+  violation is measured and stored as the ``mirror_error`` attribute);
+* **ratio** (N, V, Q, 2K + 1): per view and per bin of P/Q pixels, ρ(θl) = Σ_bin re / Σ_bin α
+  (bounded by k_a + k_d + k_s: re is α-weighted shading), as Fourier terms in Δ = θl − θv:
+  ρ(Δ) = c₀ + Σ_k a_k cos kΔ + b_k sin kΔ (from the DFT over the L light angles, each term's phase
+  turned by kθv, so the coefficients are exact for any L ≥ 2K + 1 up to the aliasing of terms > K);
+* **row** (N_scene,): the table row of each of the scene's sectors, −1 for an empty one.
+
+**Read.**  :func:`load_scene_maps` validates the file and returns a :class:`SceneMaps`.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .. import errors
+from ..assets import Axis, Variable, read_table, recipe_hash, write_table
+from ..baker import no_shard
+from ._kind import KIND
+from ._recipe import geometry_key, hrir_recipe, resolve_recipe
+
+#: Sectors traced per call of the tracer (memory: V · L · P floats each).
+CHUNK = 16
+
+
+@dataclass(frozen=True, eq=False)
+class SceneMaps:
+    """A loaded ``scene_maps`` table: ``alpha`` (N, V/2, P), ``ratio`` (N, V, Q, 2K + 1), ``row``
+    (N_scene,) (−1: empty sector), its ``recipe``, ``path`` and ``attrs``."""
+
+    alpha: np.ndarray
+    ratio: np.ndarray
+    row: np.ndarray
+    recipe: dict
+    path: Path | None = None
+    attrs: dict | None = None
+
+    @property
+    def views(self) -> int:
+        return self.ratio.shape[1]
+
+    @property
+    def pixels(self) -> int:
+        return self.alpha.shape[-1]
+
+    @property
+    def terms(self) -> int:
+        return (self.ratio.shape[-1] - 1) // 2
+
+
+def scene_inputs(scene, recipe: dict) -> tuple[np.ndarray, np.ndarray]:
+    """density (N, n_s, n_r) and geometry (N, 11) of every sector of every cluster of ``scene``
+    (prepare's order), for the recipe's density grid and trace settings."""
+    from ..geometry import ClusterGeometry, build_sectors
+    from ..scene import as_scene, scene_clusters
+    from ..synth import scene_sector_inputs
+
+    full = hrir_recipe(recipe)
+    dens, geom = [], []
+    for spec, strands in scene_clusters(as_scene(scene)):
+        table = build_sectors(ClusterGeometry(spec), strands, np.zeros(strands.n_strands, np.int64))
+        d, g = scene_sector_inputs(table, full)
+        dens.append(d)
+        geom.append(g)
+    return np.concatenate(dens), np.concatenate(geom)
+
+
+def compress(alpha, re, views: int, terms: int, bins: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """(α half (n, V/2, P), ratio (n, V, Q, 2K + 1), mirror error) from traced α (n, V, P) and re
+    (n, V, L, P) on the grids θv,i = 2πi/V, θl,j = 2πj/L (module docstring), in float64."""
+    a, r = np.asarray(alpha, np.float64), np.asarray(re, np.float64)
+    n, V, L, P = r.shape
+    half = V // 2
+    mirror = float(np.abs(a[:, half:] - a[:, :half, ::-1]).max(initial=0.0))
+    ab = a.reshape(n, V, bins, P // bins).sum(-1)
+    rb = r.reshape(n, V, L, bins, P // bins).sum(-1)
+    ratio = np.where(ab[:, :, None] > 1e-12, rb / np.where(ab > 1e-12, ab, 1.0)[:, :, None], 0.0)  # (n, V, L, Q)
+    c = np.fft.fft(ratio, axis=2) / L  # ρ(θl) = Σ_k c_k e^{ikθl}
+    k = np.arange(terms + 1)
+    tv = 2 * np.pi * np.arange(V) / V
+    d = c[:, :, :terms + 1] * np.exp(1j * k[None, None, :, None] * tv[None, :, None, None])  # in Δ = θl − θv
+    coef = np.empty((n, V, bins, 2 * terms + 1))
+    coef[..., 0] = d[:, :, 0].real
+    coef[..., 1::2] = np.moveaxis(2 * d[:, :, 1:].real, 2, -1)
+    coef[..., 2::2] = np.moveaxis(-2 * d[:, :, 1:].imag, 2, -1)
+    return a[:, :half], coef, mirror
+
+
+def bake(recipe, out, *, progress=None, shard=None, scene=None) -> dict:
+    """Trace and write the scene table of ``scene`` (its geometry key must be the recipe's)."""
+    from ..hrir import trace_sectors
+
+    no_shard(KIND, shard)
+    if scene is None:
+        raise errors.ValidationError("scene", None, "a scene_maps table is one scene's: give the scene "
+                                     "(hairlut bake scene --scene SCENE.toml, or hairlut bake --scene SCENE.toml)")
+    r = resolve_recipe(recipe, scene=scene) if not recipe.get("geometry", {}).get("sha256") else resolve_recipe(recipe)
+    key = geometry_key(scene)
+    if r["geometry"]["sha256"] != key:
+        raise errors.ValidationError("geometry.sha256", r["geometry"]["sha256"], f"the recipe is for another groom "
+                                     f"(this scene's geometry key is {key[:12]}…)")
+    t0 = time.perf_counter()
+    full, t = hrir_recipe(r), r["table"]
+    V, L, K, Q = t["views"], t["lights"], t["terms"], t["shading_pixels"]
+    P = full["trace"]["pixels"]
+    density, geometry = scene_inputs(scene, r)
+    N = len(density)
+    live = np.flatnonzero(density.reshape(N, -1).max(axis=1, initial=0.0) > 0) if N else np.zeros(0, np.int64)
+    views, lights = 2 * np.pi * np.arange(V) / V, 2 * np.pi * np.arange(L) / L
+    dtype = np.dtype(t["dtype"])
+    alpha = np.zeros((live.size, V // 2, P), dtype)
+    ratio = np.zeros((live.size, V, Q, 2 * K + 1), dtype)
+    mirror = 0.0
+    for start in range(0, live.size, CHUNK):
+        idx = live[start:start + CHUNK]
+        a, re = trace_sectors(density[idx], geometry[idx], full, views=views, lights=lights)
+        ah, coef, m = compress(a, re, V, K, Q)
+        alpha[start:start + idx.size], ratio[start:start + idx.size] = ah, coef
+        mirror = max(mirror, m)
+        if progress:
+            progress(start + idx.size, live.size)
+    row = np.full(N, -1, np.int32)
+    row[live] = np.arange(live.size, dtype=np.int32)
+    axes = [Axis("sector", np.arange(live.size), "1", "non-empty sector (table row)"),
+            Axis("view_half", views[:V // 2], "rad", "view azimuth θv (half circle; α(θ+π, p) = α(θ, P−1−p))", 2 * np.pi),
+            Axis("view", views, "rad", "view azimuth θv", 2 * np.pi),
+            Axis("pixel", np.arange(P), "1", "pixel along the image line"),
+            Axis("bin", np.arange(Q), "1", f"bin of {P // Q} pixels"),
+            Axis("term", np.arange(2 * K + 1), "1", "c0, a1, b1, …: ρ(Δ) = c0 + Σ a_k cos kΔ + b_k sin kΔ, Δ = θl − θv"),
+            Axis("scene_sector", np.arange(N), "1", "sector of the scene (prepare's order)")]
+    variables = [Variable("alpha", alpha, ("sector", "view_half", "pixel"), "1", "opacity (satf eq 4)"),
+                 Variable("ratio", ratio, ("sector", "view", "bin", "term"), "1", "re/α Fourier terms in θl − θv"),
+                 Variable("row", row, ("scene_sector",), "1", "table row of each scene sector (−1: empty)")]
+    path = write_table(out, KIND, r, axes, variables,
+                       attrs={"mirror_error": mirror, "sectors": N, "live": int(live.size)})
+    return {"out": str(path), "kind": KIND, "recipe": r, "recipe_hash": recipe_hash(r),
+            "bytes": Path(path).stat().st_size, "seconds": time.perf_counter() - t0, "sectors": N,
+            "live": int(live.size), "mirror_error": mirror}
+
+
+def load_scene_maps(path) -> SceneMaps:
+    """The validated ``scene_maps`` table at ``path``."""
+    t = read_table(path, kind=KIND, required=("alpha", "ratio", "row"))
+    alpha, ratio, row = t["alpha"], t["ratio"], np.asarray(t["row"], np.int64)
+    n = len(alpha)
+    if ratio.shape[0] != n or alpha.shape[1] * 2 != ratio.shape[1] or (row >= n).any() or (row < -1).any():
+        raise errors.CorruptAssetError(str(path), f"inconsistent scene_maps tables: alpha {alpha.shape}, ratio "
+                                       f"{ratio.shape}, rows up to {row.max(initial=-1)}")
+    return SceneMaps(alpha, ratio, row, t.recipe, Path(path), dict(t.attrs))

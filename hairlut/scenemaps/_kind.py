@@ -1,0 +1,84 @@
+"""The ``scene_maps`` table kind: its declaration for :mod:`hairlut.registry` (light: no JAX).
+
+The scene is a keyed input: ``resolve_recipe(given, scene=...)`` folds its groom's geometry key
+into the recipe (the cache key), and ``bake(recipe, out, scene=...)`` traces its sectors.  On the
+command line ``--scene`` is the scene's TOML file.
+"""
+
+from __future__ import annotations
+
+from ..baker import Baker, Option
+from ._recipe import SCHEMA, hrir_recipe, resolve_recipe
+
+KIND = "scene_maps"
+#: Tracer throughput (sector · view · light · pixel · step · ray per second; hrir's TRACE_RATE, self-shadowed).
+TRACE_RATE = 1.47e8
+BAKE_OVERHEAD = 8.0
+#: Non-empty sectors assumed per sector when the count is unknown (Sintel: 793 of 1,296; ratboy 2,217 of 2,592).
+LIVE_FRACTION = 0.75
+
+
+def estimate(recipe: dict, sectors: int = 1296, live: int | None = None) -> tuple[int, float]:
+    """(bytes, seconds) of a bake of ``sectors`` sectors, ``live`` of them non-empty (by default
+    :data:`LIVE_FRACTION` of them); the bytes are uncompressed (an upper bound)."""
+    r = resolve_recipe(recipe)
+    t, tr = r["table"], hrir_recipe(r)["trace"]
+    n = int(sectors * LIVE_FRACTION) if live is None else int(live)
+    item = 2 if t["dtype"] == "float16" else 4
+    nbytes = item * n * (t["views"] // 2 * tr["pixels"] + t["views"] * t["shading_pixels"] * (2 * t["terms"] + 1))
+    work = n * t["views"] * t["lights"] * tr["pixels"] * tr["steps"] * tr["rays_per_pixel"]
+    return int(nbytes + 4 * sectors), BAKE_OVERHEAD + work / TRACE_RATE
+
+
+def _load_scene(value, recipe, options):
+    from ..scene import as_scene
+
+    return as_scene(value)
+
+
+def _bake(recipe, out, *, progress=None, shard=None, scene=None):
+    from ._bake import bake
+
+    return bake(recipe, out, progress=progress, shard=shard, scene=scene)
+
+
+def _load(path):
+    from ._bake import load_scene_maps
+
+    return load_scene_maps(path)
+
+
+def describe(report: dict) -> list[str]:
+    t = report["recipe"]["table"]
+    return [f"wrote {report['out']} ({report['bytes'] / 2**20:.1f} MiB) in {report['seconds']:.1f} s",
+            f"  {report['live']} of {report['sectors']} sectors traced on {t['views']} views × {t['lights']} lights; "
+            f"{2 * t['terms'] + 1} ratio terms × {t['shading_pixels']} bins ({t['dtype']}); "
+            f"mirror symmetry holds to {report['mirror_error']:.1e}"]
+
+
+BAKER = Baker(
+    kind=KIND,
+    command="scene",
+    description="per-groom sector projections: alpha on a view grid, re/alpha Fourier terms (issue 12)",
+    required=("alpha", "ratio", "row"),
+    schema=SCHEMA,
+    resolve_recipe=resolve_recipe,
+    bake=_bake,
+    load=_load,
+    estimate=estimate,
+    describe=describe,
+    options=(Option("scene", "path", None, "The scene (TOML) whose groom the table is baked for.", load=_load_scene),),
+    keyed=("scene",),
+    unit="sectors",
+    help="""Per-groom scene table: each sector's own projections (issue 12's scene map method).
+
+    Traces every non-empty sector of the scene's groom on a grid of views and lights once;
+    online, each sector's alpha and re rows are read at its exact angles.  Usually baked by
+    the planner (hairlut bake --scene SCENE.toml) when the scene's render.method resolves to scene.
+
+    \b
+    Examples:
+      hairlut bake scene --scene tables/scenes/sintel-groom.toml
+      hairlut bake scene --scene tables/scenes/sintel-groom.toml --set table.views=128
+    """,
+)

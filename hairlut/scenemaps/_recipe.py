@@ -1,0 +1,93 @@
+"""The ``scene_maps`` recipe: the HRIR trace settings, the table layout and the groom's geometry key.
+
+A recipe is ``{"hrir": {...}, "table": {...}, "geometry": {...}}``:
+
+* ``hrir``: the trace, Phong and density-grid settings (an ``hrir_db`` recipe's ``sectors.grid``,
+  ``sectors.density_scale``, ``trace`` and ``phong``; ``hairlut.hrir.resolve_recipe`` checks them);
+* ``table``: ``views`` V (even: α is stored on V/2 of them, the mirror symmetry gives the rest),
+  ``lights`` L (the light-angle grid of the bake; L ≥ 2·terms + 1 so the kept terms do not alias),
+  ``terms`` K (Fourier terms of the re/α ratio in θl − θv: 2K + 1 coefficients), ``shading_pixels``
+  Q (pixel bins of the ratio, a divisor of trace.pixels), ``dtype`` (float16 or float32);
+* ``geometry``: ``sha256``, the groom's identity (:func:`geometry_key`), folded in from the keyed
+  input ``scene`` (so a different groom, fit or strand set is a different asset).
+
+Light: no JAX.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+from .. import errors
+from ..recipes import Field, resolve
+
+SCHEMA = {
+    "hrir": Field({}, (dict,), None, "hrir_db recipe keys (sectors.grid, sectors.density_scale, trace, phong)"),
+    "table": {
+        "views": Field(64, (int,), lambda v: None if 8 <= v <= 1024 and v % 2 == 0 else "an even number in [8, 1024]",
+                       "view angles θv = 2πi/V"),
+        "lights": Field(16, (int,), lambda v: None if 1 <= v <= 1024 else "must lie in [1, 1024]",
+                        "light angles of the bake θl = 2πj/L"),
+        "terms": Field(4, (int,), lambda v: None if 0 <= v <= 16 else "must lie in [0, 16]",
+                       "Fourier terms K of the re/α ratio in θl − θv"),
+        "shading_pixels": Field(8, (int,), lambda v: None if v >= 1 else "must be ≥ 1", "pixel bins Q of the ratio"),
+        "dtype": Field("float16", (str,), lambda v: None if v in ("float16", "float32") else "use float16 or float32",
+                       "storage precision"),
+    },
+    "geometry": {"sha256": Field("", (str,), None, "the groom's geometry key (hairlut.scenemaps.geometry_key)")},
+}
+
+#: The parts of an hrir_db recipe a scene table uses.
+HRIR_PARTS = ("trace", "phong")
+
+
+def hrir_recipe(recipe: dict) -> dict:
+    """The full ``hrir_db`` recipe (defaults made explicit) of a scene-maps recipe's ``hrir`` part."""
+    from ..hrir import resolve_recipe as resolve_hrir
+
+    try:
+        return resolve_hrir(dict(recipe.get("hrir", {})))
+    except errors.ValidationError as exc:
+        raise errors.ValidationError(f"hrir.{exc.field}", exc.value, exc.reason) from None
+
+
+def _file_sha256(path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def geometry_key(scene) -> str:
+    """SHA-256 of what fixes a scene's sectors and strands: the groom file's bytes and the ``[groom]``
+    fit settings, or the ``[[clusters]]`` tables and ``[strands]`` settings.  Camera, lights, material
+    and render settings do not enter it (they do not move a strand)."""
+    from ..scene import as_scene
+
+    sc = as_scene(scene)
+    if sc.groom_path is not None:
+        doc = {"groom": {k: v for k, v in sc.config["groom"].items() if k != "path"},
+               "file_sha256": _file_sha256(Path(sc.groom_path))}
+    else:
+        doc = {"clusters": sc.raw.get("clusters"), "strands": sc.config["strands"]}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def resolve_recipe(given: dict | None = None, *, scene=None) -> dict:
+    """Every default made explicit (idempotent); ``scene`` (a Scene, mapping or path) folds its
+    :func:`geometry_key` into ``geometry.sha256``.  Raises ValidationError naming the key."""
+    r = resolve(SCHEMA, dict(given or {}))
+    full = hrir_recipe(r)
+    r["hrir"] = {"sectors": {"grid": list(full["sectors"]["grid"]), "density_scale": float(full["sectors"]["density_scale"])},
+                 **{k: dict(full[k]) for k in HRIR_PARTS}}
+    t, P = r["table"], full["trace"]["pixels"]
+    if t["lights"] < 2 * t["terms"] + 1:
+        raise errors.ValidationError("table.lights", t["lights"], f"need ≥ 2·terms + 1 = {2 * t['terms'] + 1} light angles")
+    if P % t["shading_pixels"]:
+        raise errors.ValidationError("table.shading_pixels", t["shading_pixels"], f"must divide trace.pixels ({P})")
+    if scene is not None:
+        r["geometry"] = {"sha256": geometry_key(scene)}
+    return r

@@ -1,0 +1,105 @@
+"""Where a frame's per-sector rows come from: the map methods ``direct`` and ``scene`` (issue 12).
+
+``satf`` (the paper's lookup, ``_frame.frame_maps``) fetches database rows at Params(b).  The
+other two give every sector its own row, then run the same eq 7 sweep (``_frame.sweep_sectors``,
+two sectors per HSV), so the shading kernel receives the same (re, α) map arrays:
+
+* ``direct``: each frame, every non-empty sector traced at its exact θv and θl from its own density
+  grid (``_direct.direct_sector_maps``; the inputs, ``scene_sector_inputs``, built once here);
+* ``scene``: each sector's row read from the groom's baked ``scene_maps`` table at its exact angles
+  (``hairlut.scenemaps.fetch_kernel``).
+
+:func:`prepare_map_source` builds the method's inputs once; :meth:`MapSource.frame` makes a frame's maps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import errors
+from ._direct import direct_sector_maps, scene_sector_inputs
+from ._frame import params_kernel, sweep_sectors
+
+
+@dataclass(frozen=True, eq=False)
+class MapSource:
+    """A prepared map method: ``method`` and the planner's ``reason``; for ``direct`` the HRIR
+    ``recipe`` (trace and Phong settings) and the sectors' ``density`` (S, n_s, n_r) and ``geometry``
+    (S, 11); for ``scene`` the loaded table ``maps`` and its device arrays ``device``."""
+
+    method: str
+    reason: str
+    pixels: int
+    recipe: dict | None = None
+    density: np.ndarray | None = None
+    geometry: np.ndarray | None = None
+    maps: object = None
+    device: tuple = ()
+
+    def frame(self, ix, view, lights):
+        """re (C, K, Lt, n_t, n_u) and α (C, K, n_t, n_u) (device arrays) of one frame, and the uniform
+        mask (H,) (all False: every HSV sweeps its two sectors' own rows)."""
+        f32 = partial(np.asarray, dtype=np.float32)
+        tv, tl, cs, _, _ = params_kernel(ix, f32(view), f32(lights), f32(0.0), n_v=1, n_l=1)
+        if self.method == "direct":
+            alpha, re = direct_sector_maps(self.density, self.geometry, np.asarray(tv, np.float64),
+                                           np.asarray(tl, np.float64), self.recipe)
+            alpha, re = jnp.asarray(alpha), jnp.asarray(re)
+        else:
+            from ..scenemaps import fetch_kernel
+
+            alpha, re = fetch_kernel(*self.device, tv, tl)
+        re_map, a_map = sweep_sectors(ix, alpha, re, cs)
+        return re_map, a_map, np.zeros(int(np.prod(ix.grid)), bool)
+
+
+def _scene_maps(maps):
+    if maps is None:
+        return None
+    if hasattr(maps, "ratio") and hasattr(maps, "row"):
+        return maps
+    from ..scenemaps import load_scene_maps
+
+    return load_scene_maps(maps)
+
+
+def prepare_map_source(scene, method: str, reason: str, tables, frames, maps=None) -> MapSource:
+    """The inputs of ``method`` (``direct`` or ``scene``) for a scene's clusters: ``tables`` their
+    :class:`~hairlut.geometry.SectorTable` s and ``frames`` their ``SectorFrames`` (in prepare's order);
+    ``maps`` the scene's ``scene_maps`` table (a path or a loaded one) for ``scene``."""
+    from ..scene import direct_recipe, scene_maps_recipe
+
+    n = sum(len(fr.extent) for fr in frames)
+    if method == "direct":
+        recipe = direct_recipe(scene)
+        parts = [scene_sector_inputs(tb, recipe, extent=fr.extent) for tb, fr in zip(tables, frames)]
+        return MapSource("direct", reason, recipe["trace"]["pixels"], recipe,
+                         np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))
+    if method != "scene":
+        raise errors.ValidationError("render.method", method, "prepare_map_source makes direct or scene maps")
+    table = _scene_maps(maps)
+    if table is None:
+        raise errors.AssetNotFoundError(scene.source, "render.method resolves to 'scene' and its scene_maps table was not "
+                                        f"given: bake it with `hairlut bake --scene {scene.source}` (or `hairlut bake "
+                                        f"scene --scene {scene.source}`) and pass it as maps=")
+    from ..scenemaps import geometry_key
+
+    want = scene_maps_recipe(scene)
+    key = geometry_key(scene)
+    got = table.recipe.get("geometry", {}).get("sha256")
+    if got != key:
+        raise errors.ValidationError("maps", str(table.path), "this scene_maps table was baked for another groom "
+                                     f"(geometry {str(got)[:12]}…, the scene's is {key[:12]}…); rebake with "
+                                     f"`hairlut bake --scene {scene.source}`")
+    if len(table.row) != n:
+        raise errors.ValidationError("maps", str(table.path), f"the table holds {len(table.row)} sectors, the scene {n}")
+    if table.recipe.get("hrir") != want["hrir"] or table.recipe.get("table") != want["table"]:
+        raise errors.ValidationError("maps", str(table.path), "the table's trace or layout settings differ from the "
+                                     f"scene's render settings; rebake with `hairlut bake --scene {scene.source}`")
+    device = (jnp.asarray(table.alpha), jnp.asarray(table.ratio), jnp.asarray(table.row, jnp.int32))
+    return MapSource("scene", reason, table.pixels, None, None, None, table, device)
