@@ -1,0 +1,150 @@
+"""Map methods (issue 12): [render] method = auto | direct | scene | satf, the scene_maps table kind.
+
+Scene-table fetches against the tracer at grid angles (storage precision), the mirror symmetry, empty
+sectors, the scene and direct methods against each other on a small scene, the planner's auto choice
+and its steps, and bad methods, knobs and missing tables rejected by name.
+"""
+
+import numpy as np
+import pytest
+
+from hairlut import errors, registry
+from hairlut.hrir import trace_sectors
+from hairlut.scene import map_method, plan, resolve_scene, scene_maps_recipe
+from hairlut.scenemaps import compress, fetch_rows, hrir_recipe, load_scene_maps, scene_inputs
+from hairlut.synth import prepare, render
+
+from ._synth_fixtures import scene as base_scene
+
+TINY = {"sectors": {"grid": [8, 8]}, "trace": {"pixels": 8, "steps": 12}}
+
+
+def scene(method="auto", **render):
+    s = base_scene()
+    s["strands"] = {**s["strands"], "count": 30}
+    s["render"] = {**s["render"], "method": method, **render}
+    s["tables"] = {"hrir": TINY}
+    return s
+
+
+@pytest.fixture(scope="module")
+def baked(tmp_path_factory):
+    """A float32 scene table with every pixel its own bin and L = 2K + 1 light angles (no truncation)."""
+    sc = resolve_scene(scene("scene", views=8, terms=2, shading_pixels=8, precision="float32"))
+    recipe = scene_maps_recipe(sc)
+    recipe["table"]["lights"] = 5
+    out = tmp_path_factory.mktemp("maps") / "t.h5"
+    report = registry.bake("scene_maps", recipe, out, scene=sc)
+    return sc, recipe, load_scene_maps(out), report
+
+
+def test_scene_table_fetch_equals_the_tracer_at_grid_angles(baked):
+    sc, recipe, maps, report = baked
+    full = hrir_recipe(recipe)
+    dens, geom = scene_inputs(sc, recipe)
+    live = np.flatnonzero(maps.row >= 0)
+    assert live.size > 10 and report["live"] == live.size
+    V, L = 8, 5
+    a_ref, r_ref = trace_sectors(dens[live], geom[live], full, views=2 * np.pi * np.arange(V) / V,
+                                 lights=2 * np.pi * np.arange(L) / L)
+    for v in range(V):
+        tv = np.full(live.size, 2 * np.pi * v / V)
+        tl = np.tile(2 * np.pi * np.arange(L) / L, (live.size, 1))
+        a, r = fetch_rows(maps, maps.row[live], tv, tl)
+        tol = 1e-5 if v < V // 2 else 1e-5 + report["mirror_error"]  # the other half comes from the mirror
+        np.testing.assert_allclose(a, a_ref[:, v], atol=tol, rtol=0)
+        np.testing.assert_allclose(r, r_ref[:, v], atol=2 * tol, rtol=0)
+    assert report["mirror_error"] < 5e-3  # α(θ + π, p) = α(θ, P − 1 − p) holds for the tracer's conventions
+    assert a_ref.max() > 0.2 and r_ref.max() > 0.02
+
+
+def test_compress_reconstructs_a_band_limited_ratio():
+    rng = np.random.default_rng(0)
+    n, V, L, P, K = 3, 4, 7, 4, 3
+    alpha = rng.uniform(0.1, 1.0, (n, V, P))
+    tl = 2 * np.pi * np.arange(L) / L
+    tv = 2 * np.pi * np.arange(V) / V
+    coef = rng.normal(size=(n, P, 2 * K + 1))
+    d = tl[None, :] - tv[:, None]  # (V, L)
+    basis = np.concatenate([np.ones((V, L, 1)), np.stack([f(k * d) for k in range(1, K + 1) for f in (np.cos, np.sin)],
+                                                         -1)], -1)
+    ratio = np.einsum("npt,vlt->nvlp", coef, basis)
+    half, got, _ = compress(alpha, alpha[:, :, None] * ratio, V, K, P)
+    np.testing.assert_allclose(got, np.broadcast_to(coef[:, None], got.shape), atol=1e-10)
+    np.testing.assert_array_equal(half, alpha[:, :V // 2])
+
+
+def test_empty_sectors_are_zero_without_work(baked):
+    _, _, maps, _ = baked
+    a, r = fetch_rows(maps, np.array([-1, -1]), np.array([0.3, 2.0]), np.array([[1.0], [4.0]]))
+    assert not a.any() and not r.any() and r.shape == (2, 1, maps.pixels)
+
+
+def test_scene_and_direct_maps_agree_on_a_small_scene(baked, tmp_path):
+    sc, _, _, _ = baked
+    f16 = resolve_scene(scene("scene", views=32))
+    report = registry.bake("scene_maps", scene_maps_recipe(f16), tmp_path / "s.h5", scene=f16)
+    by_scene = render(prepare(f16, maps=report["out"]))
+    by_direct = render(prepare(resolve_scene(scene("direct"))))
+    assert by_scene.stats["map_method"] == "scene" and by_direct.stats["map_method"] == "direct"
+    a_s = np.concatenate([c.alpha.ravel() for c in by_scene.clusters])
+    a_d = np.concatenate([c.alpha.ravel() for c in by_direct.clusters])
+    r_s = np.concatenate([c.re.ravel() for c in by_scene.clusters])
+    r_d = np.concatenate([c.re.ravel() for c in by_direct.clusters])
+    assert a_d.max() > 0.2 and r_d.max() > 0.02
+    assert np.linalg.norm(a_s - a_d) < 0.1 * np.linalg.norm(a_d)
+    assert np.linalg.norm(r_s - r_d) < 0.2 * np.linalg.norm(r_d)
+
+
+def test_auto_and_the_plan(tmp_path):
+    import jax
+
+    sc = resolve_scene(scene())
+    method, why = map_method(sc)
+    assert why.startswith("auto:")
+    if jax.default_backend() == "cpu":
+        assert method == "scene"
+        assert map_method(resolve_scene(scene(animated=True)))[0] == "satf"
+    p = plan(sc, tmp_path)
+    steps = {s.name: s for s in p.steps}
+    assert steps["map_method"].details["method"] == method
+    if method == "scene":
+        assert steps["scene_maps"].action == "bake" and steps["scene_maps"].kind == "scene_maps"
+        assert steps["hrir_db"].action == "skip" and steps["uniformity"].action == "skip"
+    sat = {s.name: s for s in plan(resolve_scene(scene("satf")), tmp_path).steps}
+    assert sat["scene_maps"].action == "skip" and sat["hrir_db"].action == "bake"
+    assert map_method(resolve_scene(scene("direct")))[0] == "direct"
+
+
+def test_geometry_keys_the_table():
+    a = scene_maps_recipe(resolve_scene(scene("scene")))
+    lit = scene("scene")
+    lit["lights"] = {"directions": [[1.0, 0.0, 0.0]]}
+    assert scene_maps_recipe(resolve_scene(lit)) == a  # lights do not move a strand
+    moved = scene("scene")
+    moved["strands"] = {**moved["strands"], "seed": 4}
+    assert scene_maps_recipe(resolve_scene(moved))["geometry"] != a["geometry"]
+
+
+@pytest.mark.parametrize("render,field", [({"method": "fast"}, "render.method"),
+                                          ({"method": "direct", "views": 64}, "render.views"),
+                                          ({"method": "scene", "views": 63}, "render.views"),
+                                          ({"method": "scene", "precision": "int8"}, "render.precision"),
+                                          ({"rays": 0}, "render.rays")])
+def test_bad_method_or_knob_is_rejected_by_name(render, field):
+    s = scene()
+    s["render"] = {**s["render"], **render}
+    with pytest.raises(errors.ValidationError) as exc:
+        resolve_scene(s)
+    assert exc.value.field == field
+
+
+def test_shading_pixels_must_divide_the_pixels():
+    with pytest.raises(errors.ValidationError) as exc:
+        scene_maps_recipe(resolve_scene(scene("scene", shading_pixels=3)))
+    assert exc.value.field == "render.shading_pixels"
+
+
+def test_scene_without_its_table_names_the_command():
+    with pytest.raises(errors.AssetNotFoundError, match="hairlut bake --scene"):
+        prepare(resolve_scene(scene("scene")))
