@@ -51,7 +51,7 @@ def plan_cmd(scene: str, cache_root: str | None, as_json: bool) -> None:
     \b
     Examples:
       hairlut plan tables/scenes/two-clusters.toml
-      hairlut plan tables/scenes/sky-tuft.toml --json
+      hairlut plan tables/scenes/sky-clusters.toml --json
     """
     from hairlut.scene import plan
 

@@ -1,39 +1,93 @@
-"""Kajiya–Kay scattering kernels (xing §4; DESIGN.md conventions).
+"""The Kajiya–Kay lobes, the one definition every caller evaluates (xing §4; satf eqs 9–11).
 
-θ = angle(ω, t) and θ′ = angle(t, v), both in [0, π], with ω toward the light
-and v toward the viewer.  Diffuse: sin θ.  Specular: max(0, cos(π − θ − θ′))^p,
-which peaks on the mirror cone θ + θ′ = π.
+DESIGN.md's convention: θ = angle(ω, t) and θ′ = angle(t, v), both in [0, π], with ω
+toward the light and v toward the viewer.
+
+- Diffuse: sin θ.
+- Specular: max(0, cos(π − θ − θ′))^p, which peaks on the mirror cone θ + θ′ = π.
+
+Three spellings of the same two lobes, for the three ways callers hold the angles:
+
+- :func:`diffuse`, :func:`specular` take the angles θ, θ′ (the SH tables' quadratures);
+- :func:`specular_offset` takes ψ = θ + θ′ − π/2, where the specular lobe is sin(ψ)^p on
+  ψ ∈ [0, π] (the zonal Legendre coefficients integrate over ψ, exact near the clamps);
+- :func:`diffuse_cos`, :func:`specular_cos` take the cosines c = t·ω, c′ = t·v of unit
+  vectors, with sin = √(1 − c²): sin θ sin θ′ − cos θ cos θ′ = cos(π − θ − θ′) (the online
+  shading of eqs 9–11, whose shifted tangent t̃ is the caller's business).
+
+Every function works on NumPy arrays (computing in NumPy) and on JAX arrays or tracers
+(computing in ``jax.numpy``): the module picks the array library from the arguments.
+The clamp comes before the power, so a fractional p never meets a negative base.
 """
 
 from __future__ import annotations
 
-import jax.numpy as jnp
+import math
+
 import numpy as np
 
 from . import errors
 
 
+def _xp(*args):
+    """jax.numpy when any argument is a JAX array or tracer, else NumPy."""
+    for a in args:
+        if type(a).__module__.split(".")[0] in ("jax", "jaxlib"):
+            import jax.numpy as jnp
+
+            return jnp
+    return np
+
+
 def diffuse(theta):
-    """Kajiya–Kay diffuse kernel sin θ (clamped at 0 outside [0, π])."""
-    return jnp.maximum(jnp.sin(theta), 0.0)
+    """Kajiya–Kay diffuse lobe sin θ (clamped at 0 outside [0, π])."""
+    xp = _xp(theta)
+    return xp.maximum(xp.sin(theta), 0.0)
 
 
 def specular(theta, theta_v, p):
-    """Kajiya–Kay specular kernel max(0, cos(π − θ − θ′))^p.
+    """Kajiya–Kay specular lobe max(0, cos(π − θ − θ′))^p, written max(0, −cos(θ + θ′))^p."""
+    xp = _xp(theta, theta_v, p)
+    return xp.maximum(-xp.cos(theta + theta_v), 0.0) ** p
 
-    Written as max(0, −cos(θ + θ′))^p so that the clamp comes before the power:
-    a negative base never reaches ``pow`` (no NaN for fractional p).
-    """
-    base = jnp.maximum(-jnp.cos(theta + theta_v), 0.0)
-    return base**p
+
+def specular_offset(psi, p):
+    """The specular lobe in ψ = θ + θ′ − π/2: sin(ψ)^p where sin ψ > 0, else 0.
+
+    Equal to :func:`specular` (cos(π − θ − θ′) = sin ψ), but accurate to the last bit near
+    the clamps ψ = 0, π, where −cos(θ + θ′) loses digits."""
+    xp = _xp(psi, p)
+    s = xp.sin(psi)
+    return xp.where(s > 0, xp.abs(s) ** p, 0.0)
+
+
+def _sin(cos, xp):
+    return xp.sqrt(xp.clip(1.0 - cos * cos, 0.0, 1.0))
+
+
+def diffuse_cos(cos_l):
+    """The diffuse lobe from c = t·ω (unit vectors): sin θ = √(1 − c²)."""
+    return _sin(cos_l, _xp(cos_l))
+
+
+def specular_cos(cos_l, cos_v, p):
+    """The specular lobe from c = t·ω and c′ = t·v (unit vectors):
+    max(0, sin θ sin θ′ − cos θ cos θ′)^p = max(0, cos(π − θ − θ′))^p."""
+    xp = _xp(cos_l, cos_v, p)
+    return xp.maximum(0.0, _sin(cos_l, xp) * _sin(cos_v, xp) - cos_l * cos_v) ** p
+
+
+def exponent_reason(p) -> str | None:
+    """Why ``p`` is not a specular exponent (finite and > 0), or None: a recipe Field check."""
+    if isinstance(p, bool) or not isinstance(p, (int, float, np.integer, np.floating)):
+        return "the specular exponent is a number"
+    if not math.isfinite(p) or p <= 0:
+        return "the specular exponent p must be finite and > 0"
+    return None
 
 
 def check_exponent(p, field: str = "p") -> float:
-    """Validate a specular exponent: finite and > 0."""
-    try:
-        value = float(p)
-    except (TypeError, ValueError):
-        raise errors.ValidationError(field, p, "the specular exponent is a number") from None
-    if not np.isfinite(value) or value <= 0:
-        raise errors.ValidationError(field, p, "the specular exponent must be finite and > 0")
-    return value
+    """Validate a specular exponent: finite and > 0 (ValidationError naming ``field``)."""
+    if reason := exponent_reason(p):
+        raise errors.ValidationError(field, p, reason)
+    return float(p)

@@ -8,9 +8,8 @@ from hypothesis import strategies as st
 
 from hairlut import errors
 from hairlut.geometry import Strands
-from hairlut.shadows import voxelize
-from hairlut.shadows._light_oriented import light_oriented_map
-from hairlut.shadows._reference import ray_march as reference_ray_march
+from hairlut.shadows import light_oriented_map, voxelize
+from hairlut.shadows import ray_march as reference_ray_march
 
 
 def tuft(seed=1, n=2000, v=8):

@@ -8,8 +8,7 @@ from hypothesis import strategies as st
 
 from hairlut import errors
 from hairlut.geometry import Strands
-from hairlut.shadows._light import light_frame
-from hairlut.shadows._opacity import OpacityMaps, opacity_shadow_maps
+from hairlut.shadows import OpacityMaps, light_frame, opacity_shadow_maps
 
 
 def _hair(seed=7, n=60, v=12):

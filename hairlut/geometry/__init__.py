@@ -13,18 +13,18 @@ from .strands import Strands
 
 _LAZY = {
     "BSpline": "_bspline", "fit_bspline": "_bspline",
-    "ClusterBatch": "cluster", "ClusterSpec": "cluster", "MacroCluster": "cluster",
+    "ClusterBatch": "cluster", "ClusterSpec": "cluster", "MacroCluster": "cluster", "STRUCTURE_DEFAULTS": "cluster_defaults",
     "ClusterGeometry": "sweep", "Section": "sweep",
     "LayerMeshes": "mesh", "layer_meshes": "mesh",
     "SectorTable": "sectors", "build_sectors": "sectors",
-    "azimuths": "inplane", "sector_axes": "inplane",
+    "angle_grid": "inplane", "azimuths": "inplane", "grid_cell": "inplane", "sector_axes": "inplane",
     "SIGMA_PER_RADIUS": "splats", "SplatBatch": "splats",
     "PROFILES": "strandgen", "assign_strands": "strandgen", "generate_strands": "strandgen",
     "sector_density": "density", "sector_density_numpy": "density",
     "FEATURE_SETS": "features", "FeatureStats": "features", "PCABasis": "features",
     "feature_names": "features", "sector_features": "features",
     "fit_clusters": "fit", "resample_strands": "fit",
-    "SampledSectors": "sampler", "SectorSpace": "sampler", "groom_sectors": "sampler", "sample_sectors": "sampler",
+    "SampledSectors": "sampler", "SectorSpace": "sector_space", "groom_sectors": "sampler", "sample_sectors": "sampler",
 }
 
 __all__ = ["SUFFIXES", "Strands", "format_of", "read_strands", "write_strands", *sorted(_LAZY)]

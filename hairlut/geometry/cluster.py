@@ -24,6 +24,7 @@ import numpy as np
 
 from ..errors import ValidationError
 from ._bspline import BSpline, piecewise
+from .cluster_defaults import STRUCTURE_DEFAULTS as _D
 
 
 def _spline(field: str, value, dim: int | None) -> BSpline:
@@ -72,11 +73,11 @@ class ClusterSpec:
     half_axis_a: object
     half_axis_b: object
     twist: object = 0.0
-    layer_radii: Sequence[float] = (0.5, 0.75, 1.0)
-    core_radius: float = 0.25
-    s_t: int = 16
-    s_v: int = 1
-    s_u: int = 16
+    layer_radii: Sequence[float] = _D["layer_radii"]  # defaults: .cluster_defaults, the one place they are set
+    core_radius: float = _D["core_radius"]
+    s_t: int = _D["s_t"]
+    s_v: int = _D["s_v"]
+    s_u: int = _D["s_u"]
     normal0: object = None
 
     def __post_init__(self) -> None:

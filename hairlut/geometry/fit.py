@@ -23,6 +23,7 @@ import numpy as np
 
 from ..errors import ValidationError
 from ._bspline import fit_bspline
+from .cluster_defaults import STRUCTURE_DEFAULTS as _D
 from .cluster import ClusterBatch, ClusterSpec
 from .sectors import _crossings
 from .strands import Strands
@@ -74,8 +75,8 @@ def kmeans(x: np.ndarray, k: int, seed: int, iters: int = 50) -> np.ndarray:
     return labels
 
 
-def fit_clusters(strands: Strands, n_clusters: int, *, layer_radii=(0.5, 0.75, 1.0), core_radius: float = 0.25,
-                 s_t: int = 16, s_v: int = 1, s_u: int = 16, n_control: int = 6, n_axis: int = 4, n_fit: int = 12,
+def fit_clusters(strands: Strands, n_clusters: int, *, layer_radii=_D["layer_radii"], core_radius: float = _D["core_radius"],
+                 s_t: int = _D["s_t"], s_v: int = _D["s_v"], s_u: int = _D["s_u"], n_control: int = 6, n_axis: int = 4, n_fit: int = 12,
                  n_resample: int = 16, coverage: float = 0.95, min_half_axis: float | None = None,
                  seed: int = 0) -> tuple[ClusterBatch, np.ndarray]:
     """Clusters following groups of nearby strands (module docstring); returns (batch, label per strand).

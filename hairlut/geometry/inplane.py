@@ -5,6 +5,9 @@ Shared by the planner (which measures the angles a scene's sectors produce befor
 is baked) and the online module (Params(b) of every sector, each frame).  Angles in a
 sector's plane are azimuths in [0, 2π) from the sector's local +x axis (the outward ellipse
 normal at its parametric centre; +y the tangent of increasing phase: the HRIR tracer's frame).
+
+The HRIR database samples these angles on one periodic grid, :func:`angle_grid` (θ_i = 2πi/n),
+and :func:`grid_cell` says between which two of its nodes an angle falls (interpolation wraps).
 """
 
 from __future__ import annotations
@@ -40,3 +43,16 @@ def azimuths(reference, binormal, ex, ey, view, lights):
 
     tl = np.stack([azimuth(l) for l in np.atleast_2d(np.asarray(lights, np.float64))], axis=1)
     return azimuth(np.asarray(view, np.float64)), tl
+
+
+def angle_grid(n: int) -> np.ndarray:
+    """The periodic in-plane angle grid θ_i = 2πi/n, i = 0 … n−1 (the HRIR database's view and light axes)."""
+    return TWO_PI * np.arange(n) / n
+
+
+def grid_cell(theta, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Periodic linear interpolation on :func:`angle_grid` (n): the node i0 at or below each angle (any real
+    value) and the fraction toward node (i0 + 1) mod n."""
+    f = np.mod(np.asarray(theta, np.float64), TWO_PI) / TWO_PI * n
+    i0 = np.floor(f)
+    return i0.astype(np.int64) % n, f - i0

@@ -1,7 +1,8 @@
 """Random generalized sectors for building the HRIR database (satf §5), and real ones from grooms.
 
 §5 "initialize[s] control parameters of a generalized sector using random values"; the
-:class:`SectorSpace` makes those parameters explicit.  A sampled sector is a (v, u)
+:class:`~hairlut.geometry.SectorSpace` (:mod:`.sector_space`: fields, defaults, rules) makes
+those parameters explicit.  A sampled sector is a (v, u)
 patch of an ellipse with major half-axis A = 1 (features are scale-free: ρ is an area
 fraction, centroids are parametric), minor half-axis B = ``aspect``, radial range
 [v0, v0 + thickness] ∩ [0, 1], phase extent Δu = 2π/s_u, whose s = 0 edge sits at
@@ -25,52 +26,22 @@ so the space's coverage of real features can be checked.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.special import ndtr, ndtri
 
 from ..errors import ValidationError
+from ..validate import check_int
+from .cluster_defaults import STRUCTURE_DEFAULTS as _D
 from .fit import fit_clusters
+from .sector_space import SectorSpace
 from .sectors import SectorTable, build_sectors
 from .splats import SIGMA_PER_RADIUS, SplatBatch, pack, param_sigma
 from .strands import Strands
 from .sweep import ClusterGeometry
 
 SECTOR_PROFILES = ("uniform", "gaussian", "clumped")
-
-
-@dataclass(frozen=True)
-class SectorSpace:
-    """The parameter space of random sectors: each entry a (low, high) range."""
-
-    strands: tuple[int, int] = (0, 48)            # strands crossing the sector
-    radius: tuple[float, float] = (0.002, 0.1)    # strand radius / √(sector area)
-    spread: tuple[float, float] = (0.05, 1.0)     # blob standard deviation, sector units
-    clumps: tuple[int, int] = (2, 5)              # blobs of a clumped sector
-    aspect: tuple[float, float] = (0.3, 1.0)      # B / A
-    v_inner: tuple[float, float] = (0.0, 0.9)     # inner radius v0 (ellipse fraction)
-    thickness: tuple[float, float] = (0.05, 0.5)  # radial extent (ellipse fraction)
-    s_u: tuple[int, int] = (4, 32)                # phase steps: Δu = 2π / s_u
-    profile_weights: tuple[float, float, float] = (1.0, 1.0, 1.0)  # uniform, gaussian, clumped
-
-    def __post_init__(self) -> None:
-        for name, pair in asdict(self).items():
-            if name == "profile_weights":
-                continue
-            if len(pair) != 2:
-                raise ValidationError(f"space.{name}", pair, "need a (low, high) pair")
-            lo, hi = pair
-            if not (np.isfinite(lo) and np.isfinite(hi) and 0 <= lo <= hi):
-                raise ValidationError(f"space.{name}", (lo, hi), "need a range 0 ≤ low ≤ high")
-        for name in ("radius", "spread", "aspect", "thickness"):
-            if getattr(self, name)[0] <= 0:
-                raise ValidationError(f"space.{name}", getattr(self, name), "the low end must be > 0")
-        if self.v_inner[1] >= 1 or self.aspect[1] > 1 or self.clumps[0] < 1 or self.s_u[0] < 1:
-            raise ValidationError("space", asdict(self), "need v_inner < 1, aspect ≤ 1, clumps ≥ 1, s_u ≥ 1")
-        w = np.asarray(self.profile_weights, dtype=np.float64)
-        if w.shape != (3,) or (w < 0).any() or w.sum() <= 0:
-            raise ValidationError("space.profile_weights", self.profile_weights, "three weights ≥ 0, not all 0")
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,13 +71,10 @@ def _truncnorm(rng, mu, sd, lo, hi):
 
 def sample_sectors(n: int, space: SectorSpace = SectorSpace(), *, seed: int = 0) -> SampledSectors:
     """``n`` random sectors from ``space`` (module docstring), deterministic by ``seed``."""
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValidationError("n", n, "need an integer ≥ 1")
+    n = check_int(n, "n", 1)
     if not isinstance(space, SectorSpace):
         raise ValidationError("space", type(space).__name__, "must be a SectorSpace")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValidationError("seed", seed, "must be an integer ≥ 0")
-    rng = np.random.default_rng(int(seed))
+    rng = np.random.default_rng(check_int(seed, "seed", 0))
     p = {
         "strands": np.floor(_log_uniform(rng, space.strands[0] + 1, space.strands[1] + 1 + 1e-9, n)).astype(np.int64) - 1,
         "radius": _log_uniform(rng, *space.radius, n),
@@ -156,9 +124,9 @@ def sample_sectors(n: int, space: SectorSpace = SectorSpace(), *, seed: int = 0)
     return SampledSectors(splats, p)
 
 
-def groom_sectors(strands: Strands, n_clusters: int, *, radius: float, layer_radii=(0.5, 0.75, 1.0),
-                  core_radius: float = 0.25, s_t: int = 16, s_v: int = 1, s_u: int = 16,
-                  seed: int = 0) -> tuple[SectorTable, ClusterGeometry, np.ndarray]:
+def groom_sectors(strands: Strands, n_clusters: int, *, radius: float, layer_radii=_D["layer_radii"],
+                  core_radius: float = _D["core_radius"], s_t: int = _D["s_t"], s_v: int = _D["s_v"],
+                  s_u: int = _D["s_u"], seed: int = 0) -> tuple[SectorTable, ClusterGeometry, np.ndarray]:
     """Sectors cut from a real groom: fit ``n_clusters`` clusters, assign each strand to its
     group's cluster, build the sectors.  Returns (sectors, geometry, cluster per strand)."""
     batch, labels = fit_clusters(strands, n_clusters, layer_radii=layer_radii, core_radius=core_radius,

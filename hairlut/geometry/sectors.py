@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ValidationError
+from ..validate import check_real
 from .splats import SIGMA_PER_RADIUS, SplatBatch, pack, param_sigma
 from .strandgen import assign_strands
 from .strands import Strands
@@ -103,10 +104,7 @@ class SectorTable:
 
 def _strand_radii(strands: Strands, radius) -> np.ndarray:
     if radius is not None:
-        r = float(radius)
-        if not np.isfinite(r) or r <= 0:
-            raise ValidationError("radius", radius, "the strand radius must be finite and > 0")
-        return np.full(strands.n_points, r)
+        return np.full(strands.n_points, check_real(radius, "radius", 0, lo_open=True))
     if strands.thickness is None:
         raise ValidationError("radius", None, "the strands carry no thickness: give a strand radius")
     return strands.thickness.astype(np.float64) / 2.0  # thickness is a diameter (.hair convention)

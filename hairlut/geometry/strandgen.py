@@ -28,6 +28,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import ValidationError
+from ..validate import check_real
 from .strands import Strands
 from .sweep import ClusterGeometry
 
@@ -35,13 +36,7 @@ PROFILES = ("uniform", "gaussian", "clumped")
 
 
 def _positive(name: str, value, allow_zero: bool = False) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValidationError(name, value, "must be a number") from None
-    if not np.isfinite(x) or x < 0 or (x == 0 and not allow_zero):
-        raise ValidationError(name, value, "must be finite and " + ("≥ 0" if allow_zero else "> 0"))
-    return x
+    return check_real(value, name, 0, lo_open=not allow_zero)
 
 
 def _annulus_uniform(rng, n, v_min, v_max):

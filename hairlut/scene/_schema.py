@@ -31,30 +31,15 @@ from typing import Mapping
 import numpy as np
 
 from .. import errors
+from ..geometry.cluster_defaults import STRUCTURE_DEFAULTS as _D
 from ..recipes import Field, load_toml, resolve
+from ..validate import at_least as _int_at_least
+from ..validate import auto_or, direction, in_range, one_of
+from ..validate import nonneg as _nonneg
+from ..validate import positive as _pos
+from ..validate import unit_interval as _unit_interval
+from ..validate import vec3 as _vec3
 from ._camera import CAMERA, check_camera
-
-
-def _pos(x):
-    return None if x > 0 and math.isfinite(x) else "must be finite and > 0"
-
-
-def _nonneg(x):
-    return None if x >= 0 and math.isfinite(x) else "must be finite and ≥ 0"
-
-
-def _unit_interval(x):
-    return None if 0 <= x <= 1 else "must lie in [0, 1]"
-
-
-def _int_at_least(n):
-    return lambda x: None if x >= n else f"must be ≥ {n}"
-
-
-def _vec3(x):
-    if len(x) != 3 or not all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in x):
-        return "need 3 finite numbers"
-    return None if any(c != 0 for c in x) else "a direction cannot be zero"
 
 
 def _colour(x):
@@ -101,18 +86,18 @@ SCHEMA = {
         "background": Field([0.0, 0.0, 0.0], _L, _colour, "RGB behind the innermost layer (eq 14)"),
         "neighbours": Field(4, _I, _int_at_least(1), "k of the SATF k-NN lookup"),
         "preview_size": Field(256, _I, _int_at_least(16), "pixels of the orthographic preview"),
-        "method": Field("auto", _S, lambda x: None if x in MAP_METHODS else "one of " + ", ".join(map(repr, MAP_METHODS)),
+        "method": Field("auto", _S, one_of(*MAP_METHODS),
                         "how the re-/α-maps are made: auto (the planner chooses), direct, scene or satf"),
         "animated": Field(False, _B, None, "the hair moves between frames (auto then never picks a per-groom table)"),
-        "rays": Field(2, _I, lambda x: None if 1 <= x <= 64 else "must lie in [1, 64]",
+        "rays": Field(2, _I, in_range(1, 64),
                       "direct and scene: rays per pixel of each sector's projection"),
         "views": Field(64, _I, lambda x: None if 8 <= x <= 1024 and x % 2 == 0 else "an even number in [8, 1024]",
                        "scene: view angles of the per-groom table"),
-        "terms": Field(4, _I, lambda x: None if 0 <= x <= 16 else "must lie in [0, 16]",
+        "terms": Field(4, _I, in_range(0, 16),
                        "scene: Fourier terms of each sector's re/α ratio in θl − θv"),
-        "shading_pixels": Field(8, _I, lambda x: None if 1 <= x <= 8192 else "must lie in [1, 8192]",
+        "shading_pixels": Field(8, _I, in_range(1, 8192),
                                 "scene: pixel bins of the re/α ratio (a divisor of tables.hrir trace.pixels)"),
-        "precision": Field("float16", _S, lambda x: None if x in ("float16", "float32") else "'float16' or 'float32'",
+        "precision": Field("float16", _S, one_of("float16", "float32"),
                            "scene: storage precision of the per-groom table"),
     },
     "camera": CAMERA,
@@ -132,36 +117,35 @@ SCHEMA = {
         "spec_color_II": Field([1.0, 1.0, 1.0], _L, _colour, "f_speII when not tinted by the hair"),
         "secondary_hair_tint": Field(True, _B, None, "f_speII = hair_color × spec_color_II (eq 11, Scheuermann)"),
         "diffuse_scale": Field(1.0, _F, _nonneg, "Scheuermann: diffuse = max(0, scale·sin + bias); 1, 0 is eq 9"),
-        "diffuse_bias": Field(0.0, _F, lambda x: None if -1 <= x <= 1 else "must lie in [-1, 1]", "see diffuse_scale"),
+        "diffuse_bias": Field(0.0, _F, in_range(-1, 1), "see diffuse_scale"),
         "noise_amount": Field(0.5, _F, _unit_interval, "secondary modulated by 1 − amount·noise"),
         "noise_frequency": Field(8.0, _F, _pos, "noise lattice cells per unit of texture space"),
         "k_shadow": Field(0.5, _F, _nonneg, "eq 12 self-shadow intensity"),
-        "shadow_form": Field("exp", _S, lambda x: None if x in ("exp", "linear") else "'exp' or 'linear'", "eq 12"),
+        "shadow_form": Field("exp", _S, one_of("exp", "linear"), "eq 12"),
         "k_threshold": Field(1.0, _F, lambda x: None if x >= 0 else "must be ≥ 0 (inf: always uniform)", "eq 6"),
     },
     "effects": {name: Field(True, _B, None, "") for name in ("diffuse", "primary", "secondary", "shadow")}
     | {"noise": Field(False, _B, None, "")},
     "environment": {
         "map": Field("", _S, None, "environment light: an EXR map (lat-long or cube), 'sky' (built in) or '' (none)"),
-        "layout": Field("auto", _S, lambda x: None if x in ("auto", "latlong", "cube") else "'auto', 'latlong' or 'cube'",
+        "layout": Field("auto", _S, one_of("auto", "latlong", "cube"),
                         "layout of an EXR map"),
-        "up": Field("z", _S, lambda x: None if x in ("z", "y") else "'z' or 'y'", "up axis of the map"),
+        "up": Field("z", _S, one_of("z", "y"), "up axis of the map"),
         "intensity": Field(1.0, _F, _nonneg, "scale of the environment radiance"),
-        "bands": Field("auto", (int, str), lambda x: None if x == "auto" or (isinstance(x, int) and 1 <= x <= 65)
-                       else "'auto' or an integer in [1, 65]", "light bands for Rs; auto: ceil(√p_I) + 1 (xing §4)"),
+        "bands": Field("auto", (int, str), auto_or(in_range(1, 65)), "light bands for Rs; auto: ceil(√p_I) + 1 (xing §4)"),
         "self_shadow": Field(False, _B, None, "shadow the environment with the strands' voxel SH transmittance (xing §5)"),
         "kappa": Field(0.5, _F, _pos, "extinction per unit of voxel strand density"),
-        "voxels": Field(32, _I, lambda x: None if 8 <= x <= 256 else "must lie in [8, 256]", "voxel grid side"),
+        "voxels": Field(32, _I, in_range(8, 256), "voxel grid side"),
     },
     "shadows": {
-        "method": Field("smap", _S, lambda x: None if x in SHADOW_METHODS else "one of " + ", ".join(map(repr, SHADOW_METHODS)),
+        "method": Field("smap", _S, one_of(*SHADOW_METHODS),
                         "smap (eq 12 from the α-maps), light_oriented (bertails), opacity_maps (kim ch. 6) or none"),
-        "resolution": Field(32, _I, lambda x: None if 2 <= x <= 512 else "must lie in [2, 512]",
+        "resolution": Field(32, _I, in_range(2, 512),
                             "cells (light_oriented) or texels (opacity_maps) along the hair's longest extent"),
-        "slices": Field(16, _I, lambda x: None if 1 <= x <= 256 else "must lie in [1, 256]", "opacity_maps: depth slices"),
+        "slices": Field(16, _I, in_range(1, 256), "opacity_maps: depth slices"),
         "kappa": Field("auto", (float, int, str), _kappa, "light-blocking width of a fibre, scene units ('auto': the "
                        "mean strand diameter); τ = exp(−κ · hair length per unit area toward the light)"),
-        "padding": Field(2, _I, lambda x: None if 0 <= x <= 16 else "must lie in [0, 16]",
+        "padding": Field(2, _I, in_range(0, 16),
                          "light_oriented: empty cells around the hair"),
     },
     "tables": {
@@ -171,8 +155,7 @@ SCHEMA = {
     "strands": {
         "count": Field(200, _I, _int_at_least(0), "strands per procedural cluster"),
         "radius": Field(0.004, _F, _pos, "metric strand radius"),
-        "profile": Field("uniform", _S, lambda x: None if x in ("uniform", "gaussian", "clumped") else
-                         "'uniform', 'gaussian' or 'clumped'", ""),
+        "profile": Field("uniform", _S, one_of("uniform", "gaussian", "clumped"), ""),
         "spread": Field(0.35, _F, _pos, ""),
         "jitter": Field(0.0, _F, _nonneg, ""),
         "seed": Field(0, _I, _int_at_least(0), ""),
@@ -184,11 +167,11 @@ CLUSTER = {
     "half_axis_a": Field(None, (float, int, list), None, "A(t): a number or control values"),
     "half_axis_b": Field(None, (float, int, list), None, "B(t)"),
     "twist": Field(0.0, (float, int, list), None, "q(t)"),
-    "layer_radii": Field([0.5, 0.75, 1.0], _L, None, "shell radii (fractions)"),
-    "core_radius": Field(0.25, _F, _nonneg, ""),
-    "s_t": Field(8, _I, _int_at_least(1), ""),
-    "s_v": Field(1, _I, lambda x: None if x == 1 else "the online module maps one track per layer: use 1", ""),
-    "s_u": Field(8, _I, _int_at_least(1), ""),
+    "layer_radii": Field(list(_D["layer_radii"]), _L, None, "shell radii (fractions)"),
+    "core_radius": Field(_D["core_radius"], _F, _nonneg, ""),
+    "s_t": Field(_D["s_t"], _I, _int_at_least(1), ""),
+    "s_v": Field(_D["s_v"], _I, lambda x: None if x == 1 else "the online module maps one track per layer: use 1", ""),
+    "s_u": Field(_D["s_u"], _I, _int_at_least(1), ""),
     "seed": Field(-1, _I, _int_at_least(-1), "strand seed (−1: derived from strands.seed and this table)"),
 }
 
@@ -196,10 +179,10 @@ GROOM = {
     "path": Field(None, _S, None, "strand file (.tfx, .hair, .usda)"),
     "clusters": Field(4, _I, _int_at_least(1), "number of fitted clusters"),
     "radius": Field(0.1, _F, _pos, "metric strand radius when the file has no thickness"),
-    "layer_radii": Field([0.5, 0.75, 1.0], _L, None, ""),
-    "core_radius": Field(0.25, _F, _nonneg, ""),
-    "s_t": Field(8, _I, _int_at_least(1), ""),
-    "s_u": Field(8, _I, _int_at_least(1), ""),
+    "layer_radii": Field(list(_D["layer_radii"]), _L, None, ""),
+    "core_radius": Field(_D["core_radius"], _F, _nonneg, ""),
+    "s_t": Field(_D["s_t"], _I, _int_at_least(1), ""),
+    "s_u": Field(_D["s_u"], _I, _int_at_least(1), ""),
     "seed": Field(0, _I, _int_at_least(0), ""),
 }
 
@@ -258,11 +241,7 @@ def _get(mapping, dotted):
 
 
 def _unit(name, value) -> np.ndarray:
-    if not isinstance(value, list) or (reason := _vec3(value)):
-        raise errors.ValidationError(name, value, "need 3 finite numbers, not all zero" if isinstance(value, list) else
-                                     "expected a list of 3 numbers")
-    v = np.asarray(value, np.float64)
-    return v / np.linalg.norm(v)
+    return direction(value, name)  # finite, non-zero 3 numbers, normalised (hairlut.validate)
 
 
 def resolve_path(path: str, base: Path) -> Path:

@@ -62,8 +62,11 @@ def scene_sectors(scene) -> SceneSectors:
 
 
 def grid_coverage(theta: np.ndarray, n: int) -> float:
-    """Fraction of a periodic grid 2πi/n whose nodes bilinear interpolation reads at ``theta``."""
-    cell = np.floor(np.mod(np.ravel(theta), 2 * np.pi) / (2 * np.pi) * n).astype(np.int64) % n
+    """Fraction of the periodic grid 2πi/n (:func:`~hairlut.geometry.angle_grid`) whose nodes
+    bilinear interpolation reads at ``theta``."""
+    from ..geometry import grid_cell
+
+    cell, _ = grid_cell(np.ravel(theta), n)
     return float(np.unique(np.concatenate([cell, (cell + 1) % n])).size / n)
 
 

@@ -38,6 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ValidationError
+from ..validate import directions
 
 # Largest band limit accepted (tested up to here in float32 and float64).
 MAX_LMAX = 64
@@ -210,45 +211,23 @@ def compute_dtype(dtype) -> np.dtype:
 def check_dirs(dirs, *, normalize: bool = False, field: str = "dirs"):
     """Validate directions (..., 3); return them as a NumPy/JAX array of the compute dtype.
 
-    Concrete inputs must be real and finite; unless ``normalize`` they must be within
-    1e-6 (float64) / 1e-3 (float32) of unit length, and with it they must be nonzero.
-    Traced inputs (inside a caller's jit) are checked for shape and dtype only.
+    Concrete inputs follow :func:`hairlut.validate.directions` (real, finite; unless
+    ``normalize`` within 1e-6 (float64) / 1e-3 (float32) of unit length, with it nonzero
+    and returned normalised).  Traced inputs (inside a caller's jit) are checked for shape
+    and dtype only.
     """
-    traced = isinstance(dirs, jax.core.Tracer)
-    if not traced:
+    if not isinstance(dirs, jax.core.Tracer):
         try:
-            dirs = np.asarray(dirs)
-        except (TypeError, ValueError) as exc:
-            raise ValidationError(field, dirs, f"not an array of directions ({exc})") from None
+            cdt = compute_dtype(np.asarray(dirs).dtype)
+        except (TypeError, ValueError):
+            cdt = np.dtype(np.float64)  # directions() names the fault
+        return directions(dirs, field, normalize=normalize, tol=_UNIT_TOL.get(cdt, 1e-6), dtype=cdt)
     dtype = np.dtype(dirs.dtype)
     if not (np.issubdtype(dtype, np.floating) or np.issubdtype(dtype, np.integer)) or dtype == np.bool_:
         raise ValidationError(field, dirs, f"directions must be real numbers, got dtype {dtype}")
     if dirs.ndim < 1 or dirs.shape[-1] != 3:
         raise ValidationError(field, dirs, f"the last axis must have length 3 (x, y, z); got shape {tuple(dirs.shape)}")
-    if traced:  # inside a caller's jit: keep the traced float dtype
-        return dirs if np.issubdtype(dtype, np.floating) else dirs.astype(jnp.result_type(float))
-    cdt = compute_dtype(dtype)
-    dirs = dirs.astype(cdt, copy=False)
-    if not np.all(np.isfinite(dirs)):
-        bad = np.argwhere(~np.all(np.isfinite(dirs), axis=-1))[0]
-        raise ValidationError(field, dirs, f"non-finite direction at index {tuple(int(k) for k in bad)}")
-    d64 = dirs.astype(np.float64, copy=False)
-    norm = np.hypot(np.hypot(d64[..., 0], d64[..., 1]), d64[..., 2])  # no overflow/underflow
-    if normalize:
-        if np.any(norm == 0):
-            bad = np.argwhere(norm == 0)[0]
-            raise ValidationError(field, dirs, f"zero vector (no direction) at index {tuple(int(k) for k in bad)}")
-        dirs = (d64 / norm[..., None]).astype(cdt)
-    else:
-        dev = np.abs(norm - 1.0)
-        if dev.size and float(dev.max()) > _UNIT_TOL[cdt]:
-            k = np.unravel_index(int(np.argmax(dev)), dev.shape)
-            raise ValidationError(
-                field, dirs,
-                f"not a unit vector at index {tuple(int(v) for v in k)} (|d| = {float(norm[k]):.8g}, "
-                f"tolerance {_UNIT_TOL[cdt]:g}); normalise first or pass normalize=True",
-            )
-    return dirs
+    return dirs if np.issubdtype(dtype, np.floating) else dirs.astype(jnp.result_type(float))
 
 
 def real_sh(lmax: int, dirs, *, normalize: bool = False):

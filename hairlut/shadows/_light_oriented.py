@@ -34,7 +34,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ._light import check_kappa, check_points, direction, light_frame
+from ..validate import check_int, direction, points as check_points
+from ._light import check_kappa, light_frame
+from ._volume import trilinear
 from ..geometry.strands import Strands
 
 SUBSTEPS = 4  # density samples per cell edge along a segment
@@ -62,21 +64,10 @@ def _map_kernel(a, b, frame, origin, ds, kappa, shape, n_sub):
 
 @jax.jit
 def _query_kernel(occlusion, coords):
-    """Trilinear (§3.3) of 1 − Trans at continuous cell coordinates; zero beside the grid."""
-    shape = jnp.array(occlusion.shape)
-    coords = coords.at[:, 0].set(jnp.clip(coords[:, 0], 0.0, shape[0] - 1.0))
-    base = jnp.floor(coords)
-    frac = coords - base
-    base = base.astype(jnp.int32)
-    out = jnp.zeros(coords.shape[0], occlusion.dtype)
-    for corner in range(8):
-        offs = jnp.array([(corner >> 2) & 1, (corner >> 1) & 1, corner & 1])
-        idx = base + offs
-        inside = jnp.all((idx >= 0) & (idx < shape), axis=-1)
-        w = jnp.prod(jnp.where(offs == 1, frac, 1 - frac), axis=-1) * inside
-        idx = jnp.clip(idx, 0, shape - 1)
-        out = out + w * occlusion[idx[:, 0], idx[:, 1], idx[:, 2]]
-    return 1.0 - out
+    """Trilinear (§3.3, :func:`~hairlut.shadows.trilinear`) of 1 − Trans at continuous cell coordinates:
+    zero beside the grid, clamped along the light axis (in front of the map: Trans = 1; behind it: the last cell)."""
+    coords = coords.at[:, 0].set(jnp.clip(coords[:, 0], 0.0, occlusion.shape[0] - 1.0))
+    return 1.0 - trilinear(occlusion, coords)
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,10 +117,9 @@ def _check_resolution(resolution) -> tuple[int, int, int]:
         items = tuple(items)
     except TypeError:
         raise errors.ValidationError("resolution", resolution, "need an int or (nx, ny, nz)") from None
-    if len(items) != 3 or any(isinstance(n, bool) or not isinstance(n, (int, np.integer)) or not 1 <= n <= 1024
-                              for n in items):
+    if len(items) != 3:
         raise errors.ValidationError("resolution", resolution, "need an int or 3 ints, each in [1, 1024]")
-    return tuple(int(n) for n in items)
+    return tuple(check_int(n, "resolution", 1, 1024) for n in items)
 
 
 def light_oriented_map(strands: Strands, light, *, resolution=64, kappa: float, padding: int = 2) -> LightOrientedMap:
@@ -145,10 +135,9 @@ def light_oriented_map(strands: Strands, light, *, resolution=64, kappa: float, 
         raise errors.ValidationError("strands", type(strands).__name__, "need a hairlut.geometry.Strands")
     if strands.n_strands == 0:
         raise errors.ValidationError("strands", 0, "need at least one strand")
-    L = direction("light", light)
+    L = direction(light, "light")
     res = _check_resolution(resolution)
-    if isinstance(padding, bool) or not isinstance(padding, (int, np.integer)) or not 0 <= padding <= 64:
-        raise errors.ValidationError("padding", padding, "need an integer in [0, 64]")
+    padding = check_int(padding, "padding", 0, 64)
     kappa = check_kappa(kappa)
     shape = tuple(n + 1 + 2 * int(padding) for n in res)
     if np.prod(shape, dtype=np.int64) > MAX_CELLS:

@@ -35,7 +35,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ._light import check_kappa, check_points, direction, light_frame
+from ..validate import check_int, check_real, points as check_points
+from ._light import check_kappa, light_frame
+from ._volume import trilinear
 
 PADDING = 1  # empty texels around the hair's footprint, so bilinear lookups fall to Ω = 0 outside it
 
@@ -104,26 +106,10 @@ def _lookup(points, maps, frame, origin, h, near, dz):
     n_slices, H, W = maps.shape
     q = points @ frame.T
     stack = jnp.concatenate([jnp.zeros((1, H, W), maps.dtype), maps])  # Ω(D_0) = 0
-    s = (q[:, 2] - near) / dz
-    k = jnp.clip(jnp.floor(s), 0, n_slices - 1).astype(jnp.int32)
-    t = jnp.clip(s - k, 0.0, 1.0)
+    s = jnp.clip((q[:, 2] - near) / dz, 0.0, n_slices)  # depth in slices, held at D_0 and D_N beyond them
     gx, gy = (q[:, 0] - origin[0]) / h - 0.5, (q[:, 1] - origin[1]) / h - 0.5  # texel centres at integers
-    x0, y0 = jnp.floor(gx), jnp.floor(gy)
-    fx, fy = gx - x0, gy - y0
-    x0, y0 = x0.astype(jnp.int32), y0.astype(jnp.int32)
-    out = 0.0
-    for dx, dy in ((0, 0), (1, 0), (0, 1), (1, 1)):
-        xi, yi = x0 + dx, y0 + dy
-        w = (fx if dx else 1 - fx) * (fy if dy else 1 - fy) * ((xi >= 0) & (xi < W) & (yi >= 0) & (yi < H))
-        xi, yi = jnp.clip(xi, 0, W - 1), jnp.clip(yi, 0, H - 1)
-        out = out + w * ((1 - t) * stack[k, yi, xi] + t * stack[k + 1, yi, xi])
-    return out
-
-
-def _positive_int(field, value, lo, hi):
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
-        raise errors.ValidationError(field, value, f"need an integer in [{lo}, {hi}]")
-    return int(value)
+    # (6-2): bilinear in (x, y), zero outside the maps, and linear in depth between the slices
+    return trilinear(stack, jnp.stack([s, gy, gx], axis=-1))
 
 
 def _bucket(n: int) -> int:
@@ -161,13 +147,11 @@ def opacity_shadow_maps(strands, light, *, n_slices: int = 16, resolution: int =
     if strands.n_strands == 0:
         raise errors.ValidationError("strands", repr(strands), "need at least one strand")
     frame = light_frame(light, up)
-    n_slices = _positive_int("n_slices", n_slices, 1, 4096)
-    resolution = _positive_int("resolution", resolution, 1, 8192)
+    n_slices = check_int(n_slices, "n_slices", 1, 4096)
+    resolution = check_int(resolution, "resolution", 1, 8192)
     kappa = check_kappa(kappa)
-    if width is not None and not (isinstance(width, (int, float, np.number)) and np.isfinite(width) and width >= 0):
-        raise errors.ValidationError("width", width, "the fibre width must be finite and ≥ 0")
-    if spacing is not None and not (isinstance(spacing, (int, float, np.number)) and np.isfinite(spacing) and spacing > 0):
-        raise errors.ValidationError("spacing", spacing, "the sample spacing must be finite and > 0")
+    width = None if width is None else check_real(width, "width", 0)
+    spacing = None if spacing is None else check_real(spacing, "spacing", 0, lo_open=True)
 
     pts = np.asarray(strands.points, np.float64)
     origin, h, near, dz, (H, W) = map_grid(pts @ frame.T, n_slices, resolution)

@@ -16,6 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
+from ..validate import check_int
 
 SUBSTEPS = 4
 
@@ -46,10 +47,8 @@ def voxelize(strands, resolution: int = 64, padding: int = 2) -> Volume:
     ``resolution`` voxels span the longest side of the bounding box; ``padding``
     empty voxels surround it so that rays leave the hair before the grid ends.
     """
-    if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) or not 2 <= resolution <= 1024:
-        raise errors.ValidationError("resolution", resolution, "need an integer in [2, 1024]")
-    if isinstance(padding, bool) or not isinstance(padding, (int, np.integer)) or padding < 0:
-        raise errors.ValidationError("padding", padding, "need an integer ≥ 0")
+    resolution = check_int(resolution, "resolution", 2, 1024)
+    padding = check_int(padding, "padding", 0)
     pts = np.asarray(strands.points, np.float64)
     if len(pts) < 2:
         raise errors.ValidationError("strands", strands.n_points, "need at least one segment")

@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .. import kernels as kk
 from ..envlight import cube_dirs
 from ..sh import real_sh_kernel
 
@@ -25,9 +26,9 @@ def _quadrature(t, theta_v, omega, weight, p, lmax_i, lmax_j, specular):
     cos_theta = jnp.clip(t @ omega.T, -1.0, 1.0)  # (T, W)
     theta = jnp.arccos(cos_theta)
     if specular:
-        base = jnp.maximum(-jnp.cos(theta[:, None, :] + theta_v[None, :, None]), 0.0)  # (T, Θ, W)
-        return jnp.einsum("tvw,wij->tvij", base**p, prod)
-    return jnp.einsum("tw,wij->tij", jnp.sin(theta), prod)
+        lobe = kk.specular(theta[:, None, :], theta_v[None, :, None], p)  # (T, Θ, W)
+        return jnp.einsum("tvw,wij->tvij", lobe, prod)
+    return jnp.einsum("tw,wij->tij", kk.diffuse(theta), prod)
 
 
 def paper_tables(n_omega: int, t_dirs, theta_v, p: float, lmax_light_d: int, lmax_light_s: int, lmax_trans: int):

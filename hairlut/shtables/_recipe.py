@@ -14,57 +14,33 @@ import math
 import numpy as np
 
 from .. import errors
+from ..kernels import exponent_reason
 from ..recipes import Field, resolve
+from ..validate import at_least, auto_or, in_range, one_of
 
 METHOD = "legendre-gaunt/1"
 LIGHT_KEYS = ("channels", "coeffs_sha256", "layout", "lmax", "source_sha256")
 
 
-def _positive_int(v):
-    return None if v >= 1 else "must be ≥ 1"
-
-
-def _bands(v):
-    if v == "auto":
-        return None
-    if isinstance(v, str) or v < 1:
-        return "use an integer ≥ 1 (number of bands, lmax + 1) or 'auto'"
-    return None
-
-
-def _exponent(v):
-    return None if math.isfinite(v) and v > 0 else "the specular exponent p must be finite and > 0"
-
-
-def _cheb(v):
-    if v == "auto":
-        return None
-    return None if not isinstance(v, str) and 2 <= v <= 4096 else "use 'auto' or an integer in [2, 4096]"
-
-
-def _storage(v):
-    return None if v in ("float16", "float32", "float64") else "use float16, float32 or float64"
-
-
 SCHEMA = {
     "kernel": {
-        "p": Field(49.0, (float, int), _exponent, "specular exponent p"),
+        "p": Field(49.0, (float, int), exponent_reason, "specular exponent p"),
         "diffuse": Field(True, (bool,), None, "bake Rd"),
         "specular": Field(True, (bool,), None, "bake Rs"),
     },
     "bands": {
-        "light_diffuse": Field(3, (int,), _positive_int, "light bands for Rd (9 coefficients)"),
-        "light_specular": Field("auto", (int, str), _bands, "light bands for Rs; auto = ceil(√p) + 1"),
-        "transmittance": Field(3, (int,), _positive_int, "transmittance bands"),
+        "light_diffuse": Field(3, (int,), at_least(1), "light bands for Rd (9 coefficients)"),
+        "light_specular": Field("auto", (int, str), auto_or(at_least(1)),
+                                "light bands (lmax + 1) for Rs; auto = ceil(√p) + 1"),
+        "transmittance": Field(3, (int,), at_least(1), "transmittance bands"),
     },
     "quadrature": {
-        "chebyshev": Field("auto", (int, str), _cheb, "Chebyshev nodes per θ′ half (auto: until converged)"),
+        "chebyshev": Field("auto", (int, str), auto_or(in_range(2, 4096)), "Chebyshev nodes per θ′ half (auto: until converged)"),
     },
     "dense": {
-        "t_resolution": Field(0, (int,), lambda v: None if v >= 0 else "must be ≥ 0 (0: no dense tables)",
-                              "cube-map face size of the tangent grid"),
-        "theta_v_steps": Field(9, (int,), lambda v: None if v >= 2 else "must be ≥ 2", "θ′ samples over [0, π]"),
-        "storage": Field("float32", (str,), _storage, "dtype of the dense tables"),
+        "t_resolution": Field(0, (int,), at_least(0), "cube-map face size of the tangent grid (0: no dense tables)"),
+        "theta_v_steps": Field(9, (int,), at_least(2), "θ′ samples over [0, π]"),
+        "storage": Field("float32", (str,), one_of("float16", "float32", "float64"), "dtype of the dense tables"),
     },
 }
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import kernels as kk
 from ..sh import real_sh
 
 
@@ -50,10 +51,7 @@ def reference_r(t, theta_v, p, lmax_i, lmax_j, specular=True, n_theta=200):
     phi = 2 * np.pi * np.arange(n_phi) / n_phi
     st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
     omega = ct[..., None] * t + st[..., None] * (np.cos(phi)[None, :, None] * e1 + np.sin(phi)[None, :, None] * e2)
-    if specular:
-        kernel = np.maximum(-np.cos(theta + theta_v), 0.0) ** p
-    else:
-        kernel = np.sin(theta)
+    kernel = kk.specular(theta, theta_v, p) if specular else kk.diffuse(theta)
     w = (wt * kernel * np.sin(theta))[:, None] * (2 * np.pi / n_phi)
     y = np.asarray(real_sh(max(lmax_i, lmax_j), omega.reshape(-1, 3), normalize=True))
     yi, yj = y[:, : (lmax_i + 1) ** 2], y[:, : (lmax_j + 1) ** 2]

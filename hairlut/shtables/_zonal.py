@@ -27,6 +27,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..kernels import specular_offset
+
 GRADING = 3  # s ↦ s**GRADING near the outer ends of the specular integral
 
 
@@ -56,10 +58,11 @@ def specular_nodes(lmax: int, p: float) -> int:
 
 
 def diffuse_coeffs(lmax: int, n: int):
-    """k_l of sin θ for l = 0..lmax (odd l vanish), as a jnp array.
+    """k_l of sin θ (:func:`hairlut.kernels.diffuse`) for l = 0..lmax (odd l vanish), as a jnp array.
 
     k_l = 2π ∫₋₁¹ √(1−c²) P_l(c) dc, and Gauss–Chebyshev quadrature of the
-    second kind (weight √(1−c²)) with n points is exact for degree ≤ 2n − 1.
+    second kind (weight √(1−c²)) with n points is exact for degree ≤ 2n − 1: the lobe is
+    the quadrature's weight function, so it is never evaluated at the nodes.
     """
     k = np.arange(1, n + 1)
     c = jnp.asarray(np.cos(k * np.pi / (n + 1)))
@@ -68,7 +71,8 @@ def diffuse_coeffs(lmax: int, n: int):
 
 
 def specular_coeffs(lmax: int, n: int, p, theta_v):
-    """k_l(θ′) of max(0, cos(π − θ − θ′))^p for θ′ of shape (...,) → (..., lmax+1)."""
+    """k_l(θ′) of max(0, cos(π − θ − θ′))^p (:func:`hairlut.kernels.specular_offset` in ψ = θ + θ′ − π/2)
+    for θ′ of shape (...,) → (..., lmax+1)."""
     s, w = gauss_legendre_01(n)
     s, w = jnp.asarray(s), jnp.asarray(w)
     a = jnp.pi / 2 - jnp.asarray(theta_v)[..., None]
@@ -80,9 +84,7 @@ def specular_coeffs(lmax: int, n: int, p, theta_v):
     psi = jnp.concatenate([lo + (half - lo) * g, hi - (hi - half) * g], axis=-1)
     jac = jnp.concatenate([(half - lo) * dg, (hi - half) * dg], axis=-1)
     theta = jnp.clip(psi + a, 0.0, jnp.pi)
-    sin_psi = jnp.sin(psi)
-    lobe = jnp.where(sin_psi > 0, jnp.abs(sin_psi) ** p, 0.0)
-    f = jac * lobe * jnp.sin(theta)
+    f = jac * specular_offset(psi, p) * jnp.sin(theta)
     return 2 * jnp.pi * jnp.einsum("...q,...ql->...l", f, legendre_p(lmax, jnp.cos(theta)))
 
 

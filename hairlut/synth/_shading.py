@@ -7,7 +7,8 @@ viewer, l toward the light; sin(X, Y) = √(1 − (X·Y)²) for unit vectors.
   (a, b) Scheuermann's scale and bias.
 - Specular (eqs 10, 11): t̃ = (t ± s n)/‖t ± s n‖ and the Kajiya–Kay kernel
   max(0, sin(t̃, l) sin(t̃, v) − (t̃·l)(t̃·v))^p, which peaks on the mirror cone (the
-  paper's "+" form is the same kernel with v pointing from the eye).  Primary: +s,
+  paper's "+" form is the same kernel with v pointing from the eye; the lobes are
+  :mod:`hairlut.kernels`'s, the shift only moves the tangent they are evaluated at).  Primary: +s,
   exponent p_I, colour f_speI; secondary: −s, its own exponent p_II, colour f_speII
   (the hair colour when tinted), optionally modulated by a noise texture (Scheuermann).
 - Lighting (eq 8) is the sum, per light, times the light's RGB.
@@ -31,6 +32,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..kernels import diffuse_cos, specular_cos
+
 
 def _dot(a, b):
     """a (..., 3) · b (3,) → (...), or · b (L, 3) → (..., L); spelled out, so XLA fuses it elementwise."""
@@ -43,21 +46,19 @@ def _unit(x):
     return x / jnp.maximum(jnp.sqrt(x[..., 0] ** 2 + x[..., 1] ** 2 + x[..., 2] ** 2), 1e-12)[..., None]
 
 
-def _sin(cos):
-    return jnp.sqrt(jnp.clip(1.0 - cos * cos, 0.0, 1.0))
-
-
 def diffuse(t, l, scale, bias):
-    """Eq 9's kernel, scaled and biased: max(0, scale·sin(t, l) + bias); t (..., 3), l (L, 3) → (..., L)."""
-    return jnp.maximum(0.0, scale * _sin(_dot(t, l)) + bias)
+    """Eq 9's kernel, scaled and biased: max(0, scale·sin(t, l) + bias); t (..., 3), l (L, 3) → (..., L).
+    sin(t, l) is the Kajiya–Kay diffuse lobe (:func:`hairlut.kernels.diffuse_cos`)."""
+    return jnp.maximum(0.0, scale * diffuse_cos(_dot(t, l)) + bias)
 
 
 def specular(t, n, v, l, shift, p):
-    """Eqs 10/11's kernel with t̃ = unit(t + shift·n): (..., L) for lights l (L, 3)."""
+    """Eqs 10/11's kernel: the Kajiya–Kay specular lobe (:func:`hairlut.kernels.specular_cos`)
+    at the shifted tangent t̃ = unit(t + shift·n): (..., L) for lights l (L, 3)."""
     tt = _unit(t + shift * n)
     cl = _dot(tt, l)
     cv = _dot(tt, v)[..., None]
-    return jnp.maximum(0.0, _sin(cl) * _sin(cv) - cl * cv) ** p
+    return specular_cos(cl, cv, p)
 
 
 @partial(jax.jit, static_argnames=("use_diffuse", "primary", "secondary", "noise"))
