@@ -261,11 +261,9 @@ def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict
 
 
 def _direction(name, d) -> np.ndarray:
-    v = np.asarray(d, np.float64)
-    n = np.linalg.norm(v, axis=-1, keepdims=True) if v.size else np.zeros(1)
-    if v.shape[-1:] != (3,) or not np.all(np.isfinite(v)) or np.any(n == 0):
-        raise errors.ValidationError(name, d, "need finite, non-zero 3-vectors")
-    return v / n
+    from ..validate import directions
+
+    return directions(d, name)  # finite, non-zero 3-vectors, normalised (the shared rule)
 
 
 def render(prepared: Prepared, *, view=None, lights=None, light_colors=None) -> SynthResult:
