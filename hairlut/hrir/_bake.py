@@ -54,14 +54,16 @@ def trace_sectors(density, geometry, recipe: dict, *, views=None, lights=None, *
 
     ``overrides`` replace ``trace`` settings (n_pix, n_steps, rays, shadow, smooth, eps).
     """
+    from ..geometry import angle_grid
+
     tr, ph = recipe["trace"], recipe["phong"]
     cfg = {"n_pix": tr["pixels"], "n_steps": tr["steps"], "rays": tr["rays_per_pixel"], "shadow": tr["self_shadow"],
            "smooth": tr["smooth"], "eps": float(tr["termination"])}
     cfg.update(overrides)
     V = recipe["angles"]["views"] if views is None else None
-    views = 2 * np.pi * np.arange(V) / V if views is None else np.asarray(views)
+    views = angle_grid(V) if views is None else np.asarray(views)
     L = recipe["angles"]["lights"] if lights is None else None
-    lights = 2 * np.pi * np.arange(L) / L if lights is None else np.asarray(lights)
+    lights = angle_grid(L) if lights is None else np.asarray(lights)
     phong = np.array([ph["ambient"], ph["diffuse"], ph["specular"], ph["shininess"]])
     a, r = trace_kernel(jnp.asarray(density, jnp.float32), jnp.asarray(geometry, jnp.float32),
                         jnp.asarray(views, jnp.float32), jnp.asarray(lights, jnp.float32),
