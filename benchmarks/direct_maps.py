@@ -44,10 +44,8 @@ TRACE = {"trace": {"pixels": 32, "steps": 48}}
 
 
 def _direct_api():
-    try:
-        from hairlut.synth import direct_sector_maps, scene_sector_inputs
-    except ImportError:  # until hairlut.synth re-exports them
-        from hairlut.synth._direct import direct_sector_maps, scene_sector_inputs
+    from hairlut.synth import direct_sector_maps, scene_sector_inputs
+
     return direct_sector_maps, scene_sector_inputs
 
 

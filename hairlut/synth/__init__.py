@@ -26,7 +26,7 @@ _LAZY = {
     "Shadows": "_shadowing", "prepare_shadows": "_shadowing",
     "SHADOW_GRID": "_direct", "direct_kernel": "_direct", "direct_sector_maps": "_direct", "scene_sector_inputs": "_direct",
     "sector_extent": "_direct",
-    "geometry_index": "_frame", "sweep_sectors": "_frame",
+    "geometry_index": "_frame", "params_kernel": "_frame", "sweep_sectors": "_frame",
     "MapSource": "_methods", "prepare_map_source": "_methods",
 }
 

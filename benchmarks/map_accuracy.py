@@ -1,0 +1,180 @@
+"""Map accuracy per method (issue 12): direct, scene and satf maps against a converged truth.
+
+    python benchmarks/map_accuracy.py --scene tables/scenes/sintel-groom.toml [--json OUT] [--quick]
+
+The scene is prepared once per method through the public API (``hairlut.synth.prepare`` with
+``[render] method`` set; the scene table baked through ``hairlut.registry``, the SATF database
+through the planner's recipe).  **Truth**: every sector traced at its exact θv, θl by the direct
+kernel with the tracer's shadow-grid lookup at 4 rays per pixel, 2× the density grid and 2× the
+steps, swept into texels by the same eq 7 (``sweep_sectors``, two sectors per HSV).  Per method and
+knob: texel re and α rel-L2 (‖Δ‖/‖truth‖ over all texels and lights), per-sector coverage rel-L2
+(each sector's pixel-mean α; direct and scene, whose rows are per sector), the signed mean-α bias,
+the frame time of the maps (best of 3 after a warm-up, at the scene's size), the bake seconds and
+bytes.  JSON records: ``method``, ``re_rel_l2``, ``alpha_rel_l2``, ``coverage_rel_l2``, ``frame_ms``,
+``bake_s``, ``bytes`` and the knobs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import save, table  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _scene(path: Path, **render):
+    from hairlut.recipes import load_toml
+    from hairlut.scene import resolve_scene
+
+    given = load_toml(path)
+    return resolve_scene({**given, "render": {**given.get("render", {}), **render}}, path.parent, source=str(path))
+
+
+def _rows(prepared, view, lights):
+    """Per-sector rows (α (S, P), re (S, L, P)) and texel maps of a prepared direct/scene method."""
+    from hairlut.scenemaps import fetch_kernel
+    from hairlut.synth import direct_sector_maps
+
+    tv, tl, cs = _angles(prepared, prepared.scene, view, lights)
+    src = prepared.maps
+    if src.method == "direct":
+        return direct_sector_maps(src.density, src.geometry, np.asarray(tv, np.float64), np.asarray(tl, np.float64),
+                                  src.recipe), (tv, tl, cs)
+    a, r = fetch_kernel(*src.device, tv, tl)
+    return (np.asarray(a), np.asarray(r)), (tv, tl, cs)
+
+
+def truth(scene_path: Path, quick: bool):
+    """Converged rows and texel maps (module docstring) and the direct-prepared scene they index."""
+    import jax.numpy as jnp
+    from hairlut.scene import direct_recipe
+    from hairlut.synth import direct_sector_maps, prepare, scene_sector_inputs, sweep_sectors
+
+    sc = _scene(scene_path, method="direct", rays=1)
+    prep = prepare(sc)
+    rec = direct_recipe(sc)
+    fine = {**rec, "sectors": {**rec["sectors"], "grid": [2 * g for g in rec["sectors"]["grid"]]}}
+    parts = [scene_sector_inputs(pc.table, fine, extent=pc.frames.extent) for pc in prep.clusters]
+    dens, geom = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+    tv, tl, cs = _angles(prep, sc)
+    t0 = time.perf_counter()
+    a, r = direct_sector_maps(dens, geom, np.asarray(tv, np.float64), np.asarray(tl, np.float64), fine,
+                              rays=2 if quick else 4, n_steps=2 * rec["trace"]["steps"], shadow_lookup="grid")
+    secs = time.perf_counter() - t0
+    re_t, a_t = sweep_sectors(prep.index, jnp.asarray(a), jnp.asarray(r), cs)
+    return prep, (a, r), (np.asarray(re_t), np.asarray(a_t)), secs
+
+
+def _angles(prep, sc, view=None, lights=None):
+    """Each sector's θv (S,), θl (S, L) and (cos θv, sin θv) (S, 2), as the frame computes them."""
+    from hairlut.synth import params_kernel
+
+    f32 = lambda x: np.asarray(x, np.float32)  # noqa: E731
+    view, lights = sc.view if view is None else view, sc.lights if lights is None else lights
+    tv, tl, cs, _, _ = params_kernel(prep.index, f32(view), f32(lights), f32(0.0), n_v=1, n_l=1)
+    return tv, tl, cs
+
+
+def rel(x, ref) -> float:
+    return float(np.linalg.norm(np.asarray(x) - ref) / max(np.linalg.norm(ref), 1e-30))
+
+
+def errors_of(maps, t_maps, rows=None, t_rows=None) -> dict:
+    (re, a), (re_t, a_t) = maps, t_maps
+    out = {"re_rel_l2": rel(re, re_t), "alpha_rel_l2": rel(a, a_t),
+           "alpha_bias": float((np.mean(a) - np.mean(a_t)) / np.mean(a_t)), "coverage_rel_l2": None}
+    if rows is not None:
+        out["coverage_rel_l2"] = rel(rows[0].mean(-1), t_rows[0].mean(-1))
+    return out
+
+
+def frame_ms(prepared) -> tuple[float, tuple]:
+    from hairlut.synth import render_clusters
+
+    sc = prepared.scene
+    render_clusters(prepared, sc.view, sc.lights, sc.light_colors)  # compile
+    best = []
+    for _ in range(3):
+        t = {}
+        res = render_clusters(prepared, sc.view, sc.lights, sc.light_colors, t)
+        best.append(t["maps"])
+    maps = (np.stack([c.re for c in res]), np.stack([c.alpha for c in res]))
+    return 1e3 * min(best), maps
+
+
+def main(argv=None):
+    from hairlut import registry
+    from hairlut.scene import plan, scene_maps_recipe
+    from hairlut.synth import prepare
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", type=Path, default=ROOT / "tables" / "scenes" / "sintel-groom.toml")
+    ap.add_argument("--json", type=Path)
+    ap.add_argument("--quick", action="store_true", help="fewer knobs; a 2-ray truth")
+    ap.add_argument("--no-satf", action="store_true", help="skip the SATF rows (their database bake)")
+    args = ap.parse_args(argv)
+    prep_t, t_rows, t_maps, truth_s = truth(args.scene, args.quick)
+    records = []
+    for rays in ((2,) if args.quick else (1, 2)):
+        pr = prepare(_scene(args.scene, method="direct", rays=rays))
+        ms, maps = frame_ms(pr)
+        rows, _ = _rows(pr, pr.scene.view, pr.scene.lights)
+        records.append({"method": "direct", "knobs": f"rays={rays}", "frame_ms": ms, "bake_s": 0.0, "bytes": 0,
+                        **errors_of(maps, t_maps, rows, t_rows)})
+        print(records[-1], flush=True)
+    knobs = [dict(views=64, terms=4, shading_pixels=8, precision="float16")]
+    if not args.quick:
+        knobs += [dict(views=32, terms=4, shading_pixels=8, precision="float16"),
+                  dict(views=128, terms=4, shading_pixels=8, precision="float16"),
+                  dict(views=64, terms=2, shading_pixels=8, precision="float16"),
+                  dict(views=64, terms=4, shading_pixels=1, precision="float16"),
+                  dict(views=64, terms=4, shading_pixels=64, precision="float32")]
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in knobs:
+            sc = _scene(args.scene, method="scene", rays=2, **k)
+            t0 = time.perf_counter()
+            rep = registry.bake("scene_maps", scene_maps_recipe(sc), Path(tmp) / "maps.h5", scene=sc)
+            bake_s = time.perf_counter() - t0
+            pr = prepare(sc, maps=rep["out"])
+            ms, maps = frame_ms(pr)
+            rows, _ = _rows(pr, sc.view, sc.lights)
+            records.append({"method": "scene", "knobs": ", ".join(f"{a}={b}" for a, b in k.items()), "frame_ms": ms,
+                            "bake_s": bake_s, "bytes": rep["bytes"], **errors_of(maps, t_maps, rows, t_rows)})
+            print(records[-1], flush=True)
+        if not args.no_satf:
+            sc = _scene(args.scene, method="satf")
+            p = plan(sc, Path(tmp) / "cache")
+            step = p.step("hrir_db")
+            t0 = time.perf_counter()
+            path, _ = registry.ensure("hrir_db", step.recipe, p.cache_dir)
+            bake_s = time.perf_counter() - t0
+            pr = prepare(sc, str(path))
+            ms, maps = frame_ms(pr)
+            records.append({"method": "satf", "knobs": f"{step.recipe['sectors']['count']} records, k_threshold="
+                            f"{sc.material['k_threshold']:g}", "frame_ms": ms, "bake_s": bake_s,
+                            "bytes": Path(path).stat().st_size, **errors_of(maps, t_maps)})
+            print(records[-1], flush=True)
+    print(f"\n## Map accuracy of {args.scene.name} against a converged truth ({truth_s:.1f} s to trace)\n")
+    print(table(records, [("method", "method", "s"), ("knobs", "knobs", "s"), ("re_rel_l2", "re rel-L2", ".3f"),
+                          ("alpha_rel_l2", "α rel-L2", ".3f"), ("coverage_rel_l2", "coverage rel-L2", ".3f"),
+                          ("alpha_bias", "mean-α bias", "+.3f"), ("frame_ms", "maps ms", ".1f"),
+                          ("bake_s", "bake s", ".1f"), ("bytes", "bytes", "d")]))
+    payload = {"scene": str(args.scene), "truth_seconds": truth_s, "quick": args.quick, "records": records}
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(payload, indent=2, default=float))
+    else:
+        save(f"map_accuracy_{args.scene.stem}", payload)
+
+
+if __name__ == "__main__":
+    main()
