@@ -51,6 +51,16 @@ def _common_options(baker) -> list[click.Option]:
         click.Option(["--shard"], metavar="K/N",
                      help="Bake only the K-th of N slices (K from 0) into a shard file for `hairlut merge` "
                           "(kinds that shard; needs --out)."),
+        click.Option(["--distributed"], is_flag=True,
+                     help="Join JAX's distributed runtime (jax.distributed.initialize): each process bakes its share "
+                          "into OUT.parts/, process 0 writes OUT.  Without the next three options JAX detects the "
+                          "cluster (SLURM, Open MPI, ...). Needs --out."),
+        click.Option(["--coordinator"], metavar="HOST:PORT", help="With --distributed: process 0's address."),
+        click.Option(["--num-processes", "num_processes"], type=click.IntRange(1), help="With --distributed: processes in all."),
+        click.Option(["--process-id", "process_id"], type=click.IntRange(0), help="With --distributed: this process, from 0."),
+        click.Option(["--merge", "merge"], type=click.Choice(["virtual", "copy"]),
+                     help="The final asset of a split bake: HDF5 virtual datasets over OUT.parts/ (default with "
+                          "--distributed; nothing copied) or one self-contained file (copy)."),
         click.Option(["--no-progress", "no_progress"], is_flag=True, help="No progress bar on stderr."),
         click.Option(["--json", "as_json"], is_flag=True, help="Print the bake report as JSON."),
     ]
@@ -60,16 +70,32 @@ def kind_command(kind: str, name: str | None = None) -> click.Command:
     """The ``hairlut bake KIND`` command of a registered kind."""
     baker = registry.get(kind)
 
-    def callback(recipe, out, sets, shard, no_progress, as_json, **values):
+    def callback(recipe, out, sets, shard, distributed, coordinator, num_processes, process_id, merge, no_progress,
+                 as_json, **values):
         given = load_toml(recipe) if recipe else {}
+        split = {}
+        if distributed or coordinator or num_processes is not None or process_id is not None or merge:
+            if out is None:
+                raise errors.ValidationError("out", None, "give --out with --distributed or --merge (not cached)")
+            if baker.units is None:
+                raise errors.ValidationError("distributed" if distributed else "merge", distributed or merge,
+                                             f"{baker.kind} bakes cannot be split across processes")
+            if not distributed and (coordinator or num_processes is not None or process_id is not None):
+                raise errors.ValidationError("distributed", False, "--coordinator, --num-processes and --process-id "
+                                             "go with --distributed")
+            split = {"merge": merge}
+            if distributed:
+                from hairlut.distributed import initialize
+
+                split["distributed"] = initialize(coordinator, num_processes, process_id)
         shortcuts = tuple(f"{o.sets}={values[o.name]!r}" for o in baker.options if o.sets and values[o.name] is not None)
         given = apply_overrides(given, (*sets, *shortcuts))
         options = {o.name: values[o.name] for o in baker.options if not o.sets}
         bar = Progress(not no_progress and baker.unit is not None, label=baker.command, unit=baker.unit or "")
         try:
             if out is not None:
-                report = registry.bake(baker.kind, given, out, progress=bar, shard=shard, options=options)
-                report["status"] = "baked"
+                report = registry.bake(baker.kind, given, out, progress=bar, shard=shard, options=options, **split)
+                report.setdefault("status", "baked")
             else:
                 if shard is not None:
                     raise errors.ValidationError("shard", shard, "give --out: shard files are not cached")

@@ -24,6 +24,13 @@ field and value):
     the planner's size and time estimate of a bake.
 ``merge(shards, out) -> dict`` (only kinds that shard)
     joins ``shard_kind`` files into one asset, byte-identical to a one-shot bake.
+``units`` (a :class:`Units`, kinds that shard)
+    how the bake splits along one axis (sectors, tangents): the kind bakes and writes the
+    units [start, stop) as one part file, and says how parts become the final asset.  The
+    one shard path, :mod:`hairlut.sharding`, does the rest for every such kind: resumable
+    blocks in ``<out>.parts/``, ``--shard K/N``, ``--distributed`` processes (each bakes its
+    share), the final asset as HDF5 virtual datasets over the parts or a copy, and
+    ``merge``; a kind with ``units`` and no ``merge`` gets the generic merge.
 ``describe(report) -> list[str]``
     human-readable lines about a bake report (the CLI prints them).
 
@@ -63,6 +70,29 @@ class Option:
 
 
 @dataclass(frozen=True)
+class Units:
+    """How a kind's bake splits along one axis of units (see :mod:`hairlut.sharding`).
+
+    ``count(recipe)`` units in all; ``bake_part(recipe, start, stop, total, path, **inputs)`` bakes units
+    [start, stop) into a ``shard_kind`` file at ``path`` (atomically) whose per-unit tables have ``axis``
+    as their first dimension, in the final storage dtype, and whose root attributes ``<axis>_start``,
+    ``<axis>_stop`` and ``<axis>_total`` say which units it holds; ``join(recipe, parts, out)`` writes
+    consecutive parts as one ``shard_kind`` file; ``assemble(recipe, parts, out, **inputs)`` writes the
+    self-contained asset from parts covering every unit; ``whole(recipe, parts, **inputs)`` returns
+    (axes, variables, attrs): everything a virtual asset stores besides the per-unit tables (whole axes,
+    tables computed from all units).  A unit's numbers must not depend on how units are grouped.
+    """
+
+    axis: str
+    count: Callable[[dict], int]
+    bake_part: Callable
+    join: Callable
+    assemble: Callable
+    whole: Callable
+    block: int = 32
+
+
+@dataclass(frozen=True)
 class Baker:
     """One table kind: its asset, recipe, bake, reader, estimate (see the module docstring)."""
 
@@ -84,9 +114,14 @@ class Baker:
     merge: Callable | None = None
     assets: tuple[tuple[str, tuple[str, ...], str], ...] = field(default=())
     help: str = ""
+    units: Units | None = None
 
     def __post_init__(self):
         register_kind(self.kind, self.required, self.description)
+        if self.units is not None and self.shard_kind is None:
+            raise ValueError(f"{self.kind}: a kind with units needs a shard kind")
+        if self.units is not None and self.merge is None:
+            object.__setattr__(self, "merge", lambda shards, out, baker=self: _generic_merge(baker, shards, out))
         if self.shard_kind is not None:
             if self.merge is None:
                 raise ValueError(f"{self.kind}: a shard kind needs a merge")
@@ -97,6 +132,12 @@ class Baker:
     @property
     def can_shard(self) -> bool:
         return self.shard_kind is not None
+
+
+def _generic_merge(baker: Baker, shards, out) -> dict:
+    from .sharding import merge
+
+    return merge(baker, shards, out)
 
 
 def no_shard(kind: str, shard) -> None:

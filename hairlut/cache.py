@@ -15,6 +15,7 @@ cached bake of a registered kind.
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import json
 import os
@@ -51,23 +52,35 @@ class Entry:
 
 def is_valid(path: Path, kind: str, digest: str) -> bool:
     """Whether ``path`` is a valid ``kind`` asset with recipe hash ``digest``."""
+    from .parts import check_virtual
+
     try:
         with open_table(path, kind) as f:
             stored = f.attrs["recipe_hash"]
-            return (stored.decode() if isinstance(stored, bytes) else str(stored)) == digest
+            if (stored.decode() if isinstance(stored, bytes) else str(stored)) != digest:
+                return False
+        check_virtual(path)  # a virtual asset is valid only with every part it reads through to
+        return True
     except errors.AssetError:
         return False
 
 
 @contextlib.contextmanager
 def _locked(path: Path):
+    """Hold ``<asset>.lock`` (flock); a symlink there is refused, never followed (issue 14 item 11)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path.with_name(path.name + ".lock"), "a+") as fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
+    lock = path.with_name(path.name + ".lock")
+    try:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise errors.ValidationError("cache", str(lock), "the cache lock is a symlink; hairlut does not follow it") from None
+        raise
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
 
 
 def ensure(kind: str, recipe: dict, bake: Callable[[Path], object], root=None) -> tuple[Path, str]:

@@ -132,8 +132,17 @@ def bake_cached(kind: str, recipe: dict | None = None, *, root=None, progress=No
     return path, status, report
 
 
-def bake(kind: str, recipe: dict | None, out, *, progress=None, shard=None, options=None, **inputs) -> dict:
-    """Bake ``kind`` into ``out`` (no cache): :func:`prepare` then the baker's ``bake``."""
+def bake(kind: str, recipe: dict | None, out, *, progress=None, shard=None, options=None, distributed=False,
+         merge=None, **inputs) -> dict:
+    """Bake ``kind`` into ``out`` (no cache): :func:`prepare` then the baker's ``bake``.
+
+    ``distributed`` (this process is one of JAX's distributed processes) and ``merge`` ('virtual' or
+    'copy') go to kinds that split into units (:mod:`hairlut.sharding`)."""
     baker = get(kind)
+    if (distributed or merge is not None) and baker.units is None:
+        raise errors.ValidationError("distributed" if distributed else "merge", distributed or merge,
+                                     f"{baker.kind} bakes cannot be split across processes")
     r, kwargs = prepare(baker, recipe, {**(options or {}), **inputs})
+    if distributed or merge is not None:
+        kwargs.update(distributed=distributed, merge=merge)
     return baker.bake(r, out, progress=progress, shard=shard, **kwargs)

@@ -15,7 +15,9 @@ Root attributes record the storage dtype and the largest absolute error the stor
 dtype adds to each table (0 for float32: the tracer computes in float32), the frame
 conventions and the feature names.  ``hrir_shard`` files (a bake's parts and the
 output of ``--shard``) hold the same per-sector tables for sectors [start, stop),
-in float32, without features; :func:`assemble` turns the whole range into an ``hrir_db``.
+in the storage dtype (with the storage errors they add), without features; :func:`assemble`
+turns the whole range into an ``hrir_db``, and :func:`index_parts` gives what a virtual
+``hrir_db`` (per-sector tables as HDF5 virtual datasets over the parts) stores itself.
 """
 
 from __future__ import annotations
@@ -31,6 +33,8 @@ import numpy as np
 
 from .. import errors
 from ..assets import Axis, Variable, read_table, write_exr, write_table
+from ..assets.h5 import HDF5_SIGNATURE, check_file
+from ..parts import check_virtual
 from ..geometry.features import FeatureStats, feature_names, sector_features
 from ._kind import KIND, SHARD_KIND
 from ._tracer import GEOM
@@ -91,17 +95,32 @@ def _per_sector(data: dict, dtype) -> list[Variable]:
     return out
 
 
-def write_shard(path, recipe: dict, data: dict, start: int, total: int, epoch: int | None = None) -> Path:
-    """Write sectors [start, start + n) of a bake (float32) as an ``hrir_shard`` file."""
+def storage_errors(recipe: dict, data: dict) -> dict:
+    """The largest absolute error the recipe's storage dtype adds to the float32 α and reflectance."""
+    dtype = np.dtype(recipe["storage"]["dtype"])
+    return {k: float(np.max(np.abs(data[k].astype(dtype).astype(np.float64) - data[k]))) for k in ("alpha", "reflectance")}
+
+
+def write_shard(path, recipe: dict, data: dict, start: int, total: int, epoch: int | None = None,
+                errors_: dict | None = None) -> Path:
+    """Write sectors [start, start + n) of a bake as an ``hrir_shard`` file, α and reflectance in the storage dtype.
+
+    ``errors_``: the storage errors of data already cast (else measured here from float32 data)."""
     n = len(data["alpha"])
+    err = storage_errors(recipe, data) if errors_ is None else errors_
     with _source_date(epoch):
-        return write_table(path, SHARD_KIND, recipe, _axes(recipe, n, sector0=start), _per_sector(data, np.float32),
+        return write_table(path, SHARD_KIND, recipe, _axes(recipe, n, sector0=start),
+                           _per_sector(data, np.dtype(recipe["storage"]["dtype"])),
                            attrs={"sector_start": np.int64(start), "sector_stop": np.int64(start + n),
-                                  "sector_total": np.int64(total)})
+                                  "sector_total": np.int64(total),
+                                  "storage_max_abs_error_alpha": err["alpha"],
+                                  "storage_max_abs_error_reflectance": err["reflectance"]})
 
 
 def read_shard(path, recipe_hash: str | None = None) -> tuple[dict, int, int, dict]:
-    """(data, start, total, recipe) of a shard; checks the recipe hash when given."""
+    """(data, start, total, recipe) of a shard; checks the recipe hash when given.
+
+    ``data["errors"]`` holds the storage errors the shard records."""
     t = read_table(path, kind=SHARD_KIND)
     if recipe_hash is not None and t.recipe_hash != recipe_hash:
         raise errors.CorruptAssetError(path, "baked from a different recipe")
@@ -109,7 +128,8 @@ def read_shard(path, recipe_hash: str | None = None) -> tuple[dict, int, int, di
         start, stop, total = (int(t.attrs[k]) for k in ("sector_start", "sector_stop", "sector_total"))
         data = {"alpha": t["alpha"], "reflectance": t["reflectance"], "density": t["density"],
                 "geometry": np.stack([t[f"geometry/{c}"] for c in GEOM], axis=1),
-                "params": {p: t[f"sector/{p}"] for p in PARAMS}}
+                "params": {p: t[f"sector/{p}"] for p in PARAMS},
+                "errors": {k: float(t.attrs[f"storage_max_abs_error_{k}"]) for k in ("alpha", "reflectance")}}
     except KeyError as exc:
         raise errors.MissingDatasetError(path, f"shard lacks {exc}") from None
     if len(data["alpha"]) != stop - start:
@@ -121,6 +141,8 @@ def concat(parts: list[dict]) -> dict:
     """Join per-sector data of consecutive parts."""
     out = {k: np.concatenate([p[k] for p in parts]) for k in ("alpha", "reflectance", "density", "geometry")}
     out["params"] = {k: np.concatenate([p["params"][k] for p in parts]) for k in PARAMS}
+    if all("errors" in p for p in parts):
+        out["errors"] = {k: max(p["errors"][k] for p in parts) for k in ("alpha", "reflectance")}
     return out
 
 
@@ -131,9 +153,8 @@ def _row_areas(data: dict, n_s: int, n_r: int) -> np.ndarray:
     return (col["aspect"] * col["du"])[:, None] / n_s * 0.5 * np.diff(edges**2, axis=1)
 
 
-def assemble(path, recipe: dict, data: dict, epoch: int | None = None) -> Path:
-    """Index, normalise, cast and write a complete bake as an ``hrir_db`` asset."""
-    n = len(data["alpha"])
+def _index(recipe: dict, data: dict, n: int) -> tuple[list[Axis], list[Variable], dict]:
+    """The whole-database part of an ``hrir_db``: axes, the feature index (satf §5.2) and root attributes."""
     n_s, n_r = recipe["sectors"]["grid"]
     names = feature_names(recipe["sectors"]["features"])
     feats = sector_features(data["density"], _row_areas(data, n_s, n_r), names)
@@ -142,20 +163,40 @@ def assemble(path, recipe: dict, data: dict, epoch: int | None = None) -> Path:
     else:
         stats = FeatureStats(names, feats[0].copy(), np.ones(len(names)))
     dtype = np.dtype(recipe["storage"]["dtype"])
-    err = {k: float(np.max(np.abs(data[k].astype(dtype).astype(np.float64) - data[k]))) for k in ("alpha", "reflectance")}
+    err = data["errors"] if "errors" in data else storage_errors(recipe, data)
     axes = _axes(recipe, n) + [Axis("feature", np.arange(len(names), dtype=np.int32), "1", "feature: " + ",".join(names))]
     variables = [
         Variable("features", feats, ("sector", "feature"), "1", "density features rho_feature (satf 5.2)",
                  attrs={"names": json.dumps(list(names))}),
         Variable("features_mean", stats.mean, ("feature",), "1", "feature mean (normalisation)"),
         Variable("features_std", stats.std, ("feature",), "1", "feature standard deviation (normalisation)"),
-        *_per_sector(data, dtype),
     ]
     attrs = {"n_sectors": np.int64(n), "feature_names": json.dumps(list(names)), "frame": FRAME,
              "storage_dtype": dtype.name, "storage_max_abs_error_alpha": err["alpha"],
              "storage_max_abs_error_reflectance": err["reflectance"]}
+    return axes, variables, attrs
+
+
+def assemble(path, recipe: dict, data: dict, epoch: int | None = None) -> Path:
+    """Index, normalise, cast and write a complete bake as an ``hrir_db`` asset."""
+    n = len(data["alpha"])
+    axes, variables, attrs = _index(recipe, data, n)
+    variables += _per_sector(data, np.dtype(recipe["storage"]["dtype"]))
     with _source_date(epoch):
         return write_table(path, KIND, recipe, axes, variables, attrs=attrs)
+
+
+def index_parts(recipe: dict, parts) -> tuple[list[Axis], list[Variable], dict]:
+    """What a virtual ``hrir_db`` stores besides the per-sector tables, from its parts' density and geometry."""
+    small = []
+    for p in parts:
+        t = read_table(p, kind=SHARD_KIND)
+        small.append({"density": t["density"], "geometry": np.stack([t[f"geometry/{c}"] for c in GEOM], axis=1),
+                      "errors": {k: float(t.attrs[f"storage_max_abs_error_{k}"]) for k in ("alpha", "reflectance")}})
+    data = {"density": np.concatenate([d["density"] for d in small]),
+            "geometry": np.concatenate([d["geometry"] for d in small]),
+            "errors": {k: max(d["errors"][k] for d in small) for k in ("alpha", "reflectance")}}
+    return _index(recipe, data, len(data["density"]))
 
 
 @dataclass(frozen=True, eq=False)
@@ -193,11 +234,61 @@ class HRIRDB:
         return satf_query(self, features, theta_v, theta_l, k)
 
 
+def _check_contents(path, t) -> tuple[str, ...]:
+    """The feature names, after checking that every table has the shape the stored recipe implies.
+
+    A file whose checksums pass but whose contents disagree with its recipe (a raised
+    angle count, another grid, feature names that are not JSON) raises
+    CorruptAssetError naming the table, before any query can index out of range."""
+    from ._recipe import resolve_recipe
+
+    try:
+        r = resolve_recipe(t.recipe)
+    except errors.ValidationError as exc:
+        raise errors.CorruptAssetError(path, f"stored recipe is not valid: {exc}") from None
+    try:
+        names = json.loads(t.attrs["feature_names"])
+    except KeyError:
+        raise errors.MissingDatasetError(path, "root attribute 'feature_names' is missing") from None
+    except (TypeError, ValueError, UnicodeError) as exc:
+        raise errors.CorruptAssetError(path, f"root attribute 'feature_names' is not JSON ({exc})") from None
+    try:
+        want_names = list(feature_names(r["sectors"]["features"]))
+    except errors.ValidationError as exc:
+        raise errors.CorruptAssetError(path, f"stored recipe: {exc}") from None
+    if names != want_names:
+        raise errors.CorruptAssetError(path, f"root attribute 'feature_names' is {str(names)[:80]}, "
+                                       f"the recipe's features give {want_names}")
+    V, L, P = r["angles"]["views"], r["angles"]["lights"], r["trace"]["pixels"]
+    n_s, n_r = r["sectors"]["grid"]
+    if "alpha" not in t.variables or t["alpha"].ndim < 1:
+        raise errors.MissingDatasetError(path, "hrir_db lacks 'alpha'")
+    n, F = t["alpha"].shape[0], len(names)
+    want = {"features": (n, F), "features_mean": (F,), "features_std": (F,), "alpha": (n, V, P),
+            "reflectance": (n, V, L, P), "density": (n, n_s, n_r),
+            **{f"geometry/{c}": (n,) for c in GEOM}, **{f"sector/{p}": (n,) for p in PARAMS}}
+    for name, shape in want.items():
+        if name not in t.variables:
+            raise errors.MissingDatasetError(path, f"hrir_db lacks {name!r}")
+        if t[name].shape != shape:
+            raise errors.CorruptAssetError(path, f"table {name!r} has shape {t[name].shape}, the recipe "
+                                           f"(views {V}, lights {L}, pixels {P}, grid {n_s}×{n_r}, {F} features) "
+                                           f"needs {shape}")
+    for axis, size in (("theta_v", V), ("theta_l", L)):
+        if axis not in t.axes or len(t.axes[axis].values) != size:
+            raise errors.CorruptAssetError(path, f"axis {axis!r} does not have the recipe's {size} values")
+    if not np.all(t["features_std"] > 0):
+        raise errors.CorruptAssetError(path, "table 'features_std' holds values ≤ 0 (normalisation divides by it)")
+    return tuple(names)
+
+
 def load_hrir_db(path) -> HRIRDB:
-    """Read and validate an ``hrir_db`` asset."""
+    """Read and validate an ``hrir_db`` asset (a virtual one with its parts)."""
+    check_file(path, HDF5_SIGNATURE, "an HDF5 file")
+    check_virtual(path)
     t = read_table(path, kind=KIND)
     try:
-        names = tuple(json.loads(t.attrs["feature_names"]))
+        names = _check_contents(path, t)
         stats = FeatureStats(names, t["features_mean"], t["features_std"])
         return HRIRDB(t["features"], stats, t.axes["theta_v"].values, t.axes["theta_l"].values, t["alpha"],
                       t["reflectance"], t["density"], {c: t[f"geometry/{c}"] for c in GEOM},

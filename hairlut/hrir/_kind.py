@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..baker import Baker, Option
+from ..baker import Baker, Option, Units
 from ._recipe import SCHEMA, resolve_recipe
 
 KIND = "hrir_db"
@@ -30,11 +30,39 @@ def estimate(recipe: dict) -> tuple[int, float]:
     return int(item * n * a["views"] * t["pixels"] * (a["lights"] + 1)), float(seconds)
 
 
-def _bake(recipe, out, *, progress=None, shard=None, block=None, keep_parts=False):
+def _bake(recipe, out, *, progress=None, shard=None, block=None, keep_parts=False, distributed=False, merge=None):
     from ._bake import BLOCK, bake
 
     return bake(recipe, out, shard=shard, block=BLOCK if block is None else block, progress=progress,
-                keep_parts=keep_parts)
+                keep_parts=keep_parts, distributed=distributed, merge=merge)
+
+
+def _count(recipe):
+    return resolve_recipe(recipe)["sectors"]["count"]
+
+
+def _bake_part(recipe, start, stop, total, path, **inputs):
+    from ._bake import bake_part
+
+    return bake_part(recipe, start, stop, total, path, **inputs)
+
+
+def _join(recipe, parts, out):
+    from ._bake import join_parts
+
+    return join_parts(recipe, parts, out)
+
+
+def _assemble(recipe, parts, out, **inputs):
+    from ._bake import assemble_parts
+
+    return assemble_parts(recipe, parts, out)
+
+
+def _whole(recipe, parts, **inputs):
+    from ._io import index_parts
+
+    return index_parts(recipe, parts)
 
 
 def _load(path):
@@ -76,12 +104,15 @@ BAKER = Baker(
     shard_kind=SHARD_KIND,
     shard_required=("alpha", "reflectance", "density"),
     merge=_merge,
+    units=Units("sector", _count, _bake_part, _join, _assemble, _whole, block=32),
     help="""HRIR database: planar ray tracing of random generalized sectors (satf §5).
 
     Resumable: finished blocks are kept in OUT.parts/; rerun the same command after an
     interruption and it continues, writing the same bytes as an uninterrupted bake.
     With --shard K/N it bakes the K-th of N slices into an hrir_shard file; `hairlut merge`
-    joins them into the same bytes as a one-shot bake.
+    joins them into the same bytes as a one-shot bake.  Sectors are spread over every
+    local device; with --distributed each of JAX's processes bakes its share and process
+    0 writes OUT as HDF5 virtual datasets over OUT.parts/ (--merge copy: one file).
 
     \b
     Examples:
@@ -90,5 +121,7 @@ BAKER = Baker(
       hairlut bake hrir --recipe tables/hrir-default.toml --out s1.h5 --shard 1/2
       hairlut merge s0.h5 s1.h5 --out tables/hrir-default.h5
       hairlut bake hrir --set sectors.count=64        # into the table cache (tables/)
+      hairlut bake hrir --recipe r.toml --out db.h5 --distributed \\
+          --coordinator 10.0.0.1:12355 --num-processes 2 --process-id 0   # and --process-id 1 elsewhere
     """,
 )

@@ -1,0 +1,185 @@
+"""The one shard path of every table kind that declares :class:`hairlut.baker.Units`.
+
+A bake of ``count`` units is cut into fixed blocks of ``block`` units (the same blocks
+however the work is shared).  Each block is baked once into ``<out>.parts/`` (see
+:mod:`hairlut.parts`) and reused by a rerun when it validates against the recipe hash,
+so an interrupted bake resumes and writes the same data as an uninterrupted one.
+
+Who bakes which blocks:
+- a plain bake: all of them, on every local device (:func:`hairlut.distributed.map_units`);
+- ``shard='K/N'``: the K-th of N contiguous runs of blocks, joined into one shard file for ``merge``;
+- ``distributed``: process K of N bakes the K-th run; after a barrier, process 0 writes the
+  final asset, as HDF5 virtual datasets over the parts (``merge='virtual'``, the default:
+  nothing is copied) or as one self-contained file (``merge='copy'``).
+
+Each process holds its own lock (``<out>.parts.lock[.K]``), so a second bake of the same
+output waits for the first and then reuses its asset.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from . import errors
+from .assets import canonical_json, open_table, read_table, recipe_hash
+from .baker import Baker, parse_shard
+from .distributed import Process, barrier, current
+from .parts import check_virtual, clean_temporaries, locked, open_folder, part_name, remove_folder, write_virtual
+
+MERGES = ("virtual", "copy")
+
+
+def blocks_of(total: int, block: int, share: tuple[int, int] | None = None) -> list[tuple[int, int]]:
+    """The (start, stop) blocks of a bake, or of share (K, N): the K-th of N contiguous runs of blocks."""
+    blocks = [(s, min(s + block, total)) for s in range(0, total, block)]
+    if share is None:
+        return blocks
+    k, n = share
+    return blocks[k * len(blocks) // n:(k + 1) * len(blocks) // n]
+
+
+def header(path, baker: Baker) -> tuple[int, int, int, str, dict]:
+    """(start, stop, total, recipe hash, recipe) of a part or shard file of ``baker``'s kind."""
+    axis = baker.units.axis
+    with open_table(path, baker.shard_kind) as f:
+        try:
+            start, stop, total = (int(f.attrs[f"{axis}_{k}"]) for k in ("start", "stop", "total"))
+        except KeyError as exc:
+            raise errors.MissingDatasetError(path, f"root attribute {exc} is missing") from None
+        digest = f.attrs["recipe_hash"]
+        digest = digest.decode() if isinstance(digest, bytes) else str(digest)
+        recipe = json.loads(f.attrs["recipe"])
+    if not 0 <= start < stop <= total:
+        raise errors.CorruptAssetError(path, f"{axis} range {start}..{stop} of {total} is not a range")
+    return start, stop, total, digest, recipe
+
+
+def _intact(part: Path, baker: Baker, digest: str, start: int, stop: int, total: int) -> bool:
+    """Whether a finished part validates (every checksum) for this recipe and range: resumable."""
+    if part.is_symlink() or not part.is_file():
+        return False
+    try:
+        if header(part, baker)[:4] != (start, stop, total, digest):
+            return False
+        read_table(part, baker.shard_kind)
+    except errors.AssetError:
+        return False
+    return True
+
+
+def valid_asset(path, kind: str, digest: str) -> bool:
+    """Whether ``path`` is a valid ``kind`` asset of this recipe hash, virtual parts included."""
+    try:
+        with open_table(path, kind) as f:
+            stored = f.attrs["recipe_hash"]
+            if (stored.decode() if isinstance(stored, bytes) else str(stored)) != digest:
+                return False
+        check_virtual(path)
+    except (errors.AssetError, OSError):
+        return False
+    return True
+
+
+def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: int | None = None,
+        keep_parts: bool = False, distributed: bool | Process = False, merge: str | None = None, **inputs) -> dict:
+    """Bake (or resume) ``recipe`` of ``baker``'s kind into ``out`` along its units; returns a report.
+
+    ``progress(done, total)`` counts this process's units (resumed blocks first).  ``distributed``:
+    this process is one of JAX's distributed processes (:func:`hairlut.distributed.initialize` first).
+    """
+    units = baker.units
+    if units is None:
+        raise errors.ValidationError("shard", shard, f"{baker.kind} bakes cannot be sharded")
+    block = units.block if block is None else block
+    if isinstance(block, bool) or not isinstance(block, int) or block < 1:
+        raise errors.ValidationError("block", block, "must be an integer ≥ 1")
+    proc = (distributed if isinstance(distributed, Process) else current()) if distributed else Process()
+    if shard is not None and proc.count > 1:
+        raise errors.ValidationError("shard", shard, "--shard and --distributed exclude each other: each "
+                                     "distributed process bakes its own share")
+    merge = merge or ("virtual" if proc.count > 1 else "copy")
+    if merge not in MERGES:
+        raise errors.ValidationError("merge", merge, f"one of {', '.join(MERGES)}")
+    if shard is not None and merge == "virtual":
+        raise errors.ValidationError("merge", merge, "a --shard file is a copy; `hairlut merge` joins shards")
+    total = units.count(recipe)
+    if total < 1:
+        raise errors.ValidationError(units.axis, total, f"this {baker.kind} recipe has no {units.axis} axis to split")
+    share = parse_shard(shard) if shard is not None else ((proc.index, proc.count) if proc.count > 1 else None)
+    todo = blocks_of(total, block, share)
+    if not todo:
+        raise errors.ValidationError("shard" if shard is not None else "num_processes", share[1],
+                                     f"empty share: {total} {units.axis} make {len(blocks_of(total, block))} blocks")
+    digest = recipe_hash(canonical_json(recipe))
+    out = Path(out)
+    t0 = time.perf_counter()
+    writes_out = proc.leader or shard is not None
+    want = todo[-1][1] - todo[0][0]
+    report = {"out": str(out), "kind": baker.kind if shard is None else baker.shard_kind, "units": want,
+              "unit_range": [todo[0][0], todo[-1][1]], "total_units": total, "computed": 0, "resumed": 0,
+              "process": proc.index, "processes": proc.count, "merge": merge if shard is None else "shard",
+              "recipe_hash": digest}
+    with locked(out, f".{proc.index}" if proc.count > 1 else "") as waited:
+        if waited and share is None and valid_asset(out, baker.kind, digest):
+            report.update(resumed=want, seconds=time.perf_counter() - t0, bytes=out.stat().st_size, status="reused")
+            return report  # another bake of this output finished while we waited for it
+        folder = open_folder(out)
+        clean_temporaries([folder / part_name(s, e) for s, e in todo] + ([out] if writes_out else []))
+        done = 0
+        mine = []
+        for s, e in todo:
+            part = folder / part_name(s, e)
+            mine.append(part)
+            if part.exists() and _intact(part, baker, digest, s, e, total):
+                report["resumed"] += e - s
+            else:
+                units.bake_part(recipe, s, e, total, part, **inputs)
+                report["computed"] += e - s
+            done += e - s
+            if progress:
+                progress(done, want)
+        if shard is not None:
+            path = units.join(recipe, mine, out)
+        else:
+            barrier(f"hairlut:{out.name}:parts")
+            path = out
+            if proc.leader:
+                parts = [(folder / part_name(s, e), s, e) for s, e in blocks_of(total, block)]
+                for p, s, e in parts:
+                    if not _intact(p, baker, digest, s, e, total):
+                        raise errors.AssetNotFoundError(p, "part missing or damaged after every process finished")
+                paths = [p for p, _, _ in parts]
+                if merge == "virtual":
+                    axes, variables, attrs = units.whole(recipe, paths, **inputs)
+                    write_virtual(out, baker.kind, recipe, units.axis, parts, axes, variables, attrs)
+                else:
+                    units.assemble(recipe, paths, out, **inputs)
+            barrier(f"hairlut:{out.name}:final")
+        if not keep_parts and merge == "copy" and writes_out:
+            remove_folder(folder)
+    report.update(seconds=time.perf_counter() - t0, bytes=Path(path).stat().st_size, out=str(path), status="baked")
+    return report
+
+
+def merge(baker: Baker, shards, out) -> dict:
+    """Join ``shard_kind`` files covering every unit of one recipe into one self-contained asset."""
+    shards = [Path(p) for p in shards]
+    if not shards:
+        raise errors.ValidationError("shards", shards, "give at least one shard")
+    items = sorted(((*header(p, baker), p) for p in shards), key=lambda x: x[0])
+    total, digest, recipe = items[0][2], items[0][3], items[0][4]
+    pos = 0
+    for start, stop, t, h, _, p in items:
+        if h != digest or t != total:
+            raise errors.CorruptAssetError(p, "shard of a different bake (recipe or unit count differs)")
+        if start != pos:
+            raise errors.CorruptAssetError(p, f"{baker.units.axis} {pos}..{start - 1} are missing or overlap" if start > pos
+                                           else f"overlaps the previous shard at {baker.units.axis} {start}")
+        pos = stop
+    if pos != total:
+        raise errors.ValidationError("shards", [str(i[5]) for i in items], f"cover {baker.units.axis} 0..{pos - 1} of {total}")
+    path = baker.units.assemble(recipe, [i[5] for i in items], out)
+    return {"out": str(path), "shards": len(items), "units": pos, "bytes": Path(path).stat().st_size,
+            "recipe_hash": digest}
