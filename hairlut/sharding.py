@@ -109,16 +109,16 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
         raise errors.ValidationError(units.axis, total, f"this {baker.kind} recipe has no {units.axis} axis to split")
     share = parse_shard(shard) if shard is not None else ((proc.index, proc.count) if proc.count > 1 else None)
     todo = blocks_of(total, block, share)
-    if not todo:
-        raise errors.ValidationError("shard" if shard is not None else "num_processes", share[1],
-                                     f"empty share: {total} {units.axis} make {len(blocks_of(total, block))} blocks")
+    if not todo and shard is not None:  # a distributed process with no block just waits for the others
+        raise errors.ValidationError("shard", shard, f"empty: {total} {units.axis} make {len(blocks_of(total, block))} "
+                                     "blocks, fewer than shards")
     digest = recipe_hash(canonical_json(recipe))
     out = Path(out)
     t0 = time.perf_counter()
     writes_out = proc.leader or shard is not None
-    want = todo[-1][1] - todo[0][0]
+    want = todo[-1][1] - todo[0][0] if todo else 0
     report = {"out": str(out), "kind": baker.kind if shard is None else baker.shard_kind, "units": want,
-              "unit_range": [todo[0][0], todo[-1][1]], "total_units": total, "computed": 0, "resumed": 0,
+              "unit_range": [todo[0][0], todo[-1][1]] if todo else [0, 0], "total_units": total, "computed": 0, "resumed": 0,
               "process": proc.index, "processes": proc.count, "merge": merge if shard is None else "shard",
               "recipe_hash": digest}
     with locked(out, f".{proc.index}" if proc.count > 1 else "") as waited:
