@@ -12,40 +12,69 @@ import click
 @click.option("--out", "out_path", required=True, type=click.Path(dir_okay=False), help="The frame's EXR (R, G, B, A, Z).")
 @click.option("--png", is_flag=True, help="Also write a PNG beside the EXR.")
 @click.option("--reference", is_flag=True, help="The strand-level reference (the strands ray-marched, converged).")
+@click.option("--db", "db_path", type=click.Path(dir_okay=False),
+              help="Layered: the hrir_db file of the satf map method (default: from the table cache).")
+@click.option("--sh", "sh_path", type=click.Path(dir_okay=False),
+              help="Layered: the sh_tables file of the scene's environment light (default: from the cache).")
+@click.option("--cache", "cache_root", type=click.Path(file_okay=False),
+              help="Table cache folder (default: $HAIRLUT_CACHE, else tables/).")
 @click.option("--bound", default=0.01, show_default=True, type=float,
               help="Reference: stop when one more level changes RGB and α RMSE by less than this.")
 @click.option("--max-level", default=3, show_default=True, type=int, help="Reference: the finest level tried.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-def render_cmd(scene, out_path, png, reference, bound, max_level, as_json):
+def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bound, max_level, as_json):
     """Render SCENE through its [camera] into an EXR (R, G, B, A premultiplied, Z; the camera's
-    4 x 4 world-to-clip matrix in the hairlut:recipe metadata).
+    4 x 4 world-to-clip matrix, resolution and projection in the hairlut:camera header, JSON).
 
     \b
+    Default, the layered model: each cluster's layer meshes textured with the online
+    module's maps ([render] method), lit with the scene's lights (and environment),
+    rasterised in JAX with perspective-correct interpolation, eq 14 between a cluster's
+    layers and front-to-back "over" between clusters.  The maps' time and the frame time
+    (the rasteriser, maps excluded) are reported.
     --reference: the strands as the Gaussian tubes of the sector densities, ray-marched with
     Beer-Lambert opacity, shaded with the scene's terms per strand tangent and shadowed through
     the same density; refined until converged (the bound and each level's change are stored).
-    Example:
+    Examples:
+      hairlut render tables/scenes/sintel-groom.toml --out out/sintel.exr --png
       hairlut render tables/scenes/sintel-groom.toml --reference --out out/sintel-ref.exr --png
     """
-    from hairlut.render import render_reference, write_frame
+    from hairlut.render import render_layered, render_reference, write_frame
     from hairlut.scene import load_scene
 
-    if not reference:
-        raise click.UsageError("this build renders the strand-level reference only: add --reference "
-                               "(the layered-model rasteriser is not built yet)")
-    frame = render_reference(load_scene(scene), bound=bound, max_level=max_level)
+    sc = load_scene(scene)
+    if reference:
+        frame = render_reference(sc, bound=bound, max_level=max_level)
+    else:
+        maps_path = None
+        if db_path is None or (sh_path is None and sc.environment is not None):
+            from hairlut.scene import find_assets
+
+            found = find_assets(sc, cache_root)
+            db_path = db_path or (str(found["hrir_db"]) if "hrir_db" in found else None)
+            maps_path = str(found["scene_maps"]) if "scene_maps" in found and db_path is None else None
+            sh_path = sh_path or (str(found["sh_tables"]) if "sh_tables" in found else None)
+        frame = render_layered(sc, db=db_path, sh=sh_path, maps=maps_path)
     files = write_frame(frame, out_path, png=png)
     report = {**files, **frame.info, "camera": frame.camera.to_json()}
     if as_json:
         click.echo(json.dumps(report, indent=2, default=str))
         return
-    last = frame.info["levels"][-1]
-    ch = last.get("change_from_previous", {})
-    click.echo(f"reference {frame.camera.width} x {frame.camera.height} ({frame.camera.projection}): frame "
-               f"{frame.info['seconds']['frame']:.1f} s, level {last['level']} ({last['samples_per_pixel']} spp, "
-               f"{last['steps_per_crossing']} steps), converged={frame.info['converged']} "
-               + (f"(change RGB {ch['rgb_rmse']:.2g}, alpha {ch['alpha_rmse']:.2g}; bound {bound:g})" if ch else ""))
-    for k, v in files.items():
+    cam = frame.camera
+    if reference:
+        last = frame.info["levels"][-1]
+        ch = last.get("change_from_previous", {})
+        click.echo(f"reference {cam.width} x {cam.height} ({cam.projection}): frame "
+                   f"{frame.info['seconds']['frame']:.1f} s, level {last['level']} ({last['samples_per_pixel']} spp, "
+                   f"{last['steps_per_crossing']} steps), converged={frame.info['converged']} "
+                   + (f"(change RGB {ch['rgb_rmse']:.2g}, alpha {ch['alpha_rmse']:.2g}; bound {bound:g})" if ch else ""))
+    else:
+        sec = frame.info["seconds"]
+        click.echo(f"layered {cam.width} x {cam.height} ({cam.projection}), map method {frame.info['map_method']}: "
+                   f"{frame.info['clusters']} clusters x {frame.info['layers']} layers, {frame.info['triangles']} triangles; "
+                   f"maps {1e3 * sec['maps']:.0f} ms, shade {1e3 * sec['shade']:.0f} ms, frame (raster) "
+                   f"{1e3 * sec['raster']:.0f} ms (first call with compile {sec['raster_first']:.1f} s)")
+    for v in files.values():
         click.echo(f"  wrote {v}")
 
 

@@ -11,6 +11,8 @@ mangles int and float header values:
 ``hairlut:version``        the hairlut version that wrote it
 ``hairlut:sha256``         SHA-256 over the entries above and every part's channels
                            (EXR has no checksum of its own; PIZ has no integrity check)
+``hairlut:<name>``         any further string attribute a writer adds (``attributes=``, e.g. a frame's
+                           ``hairlut:camera`` JSON); covered by the checksum, read back in ``ExrImage.attributes``
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ COMPRESSIONS = {"zip": OpenEXR.ZIP_COMPRESSION, "piz": OpenEXR.PIZ_COMPRESSION}
 PIXEL_TYPES = {"float32": np.float32, "half": np.float16}
 _CHANNEL = re.compile(r"^[A-Za-z0-9_]+(\.[A-Za-z0-9_]+)*$")
 SHA_KEY = "hairlut:sha256"
+_RESERVED = frozenset({"hairlut:version", "hairlut:recipe", "hairlut:recipe_hash", "hairlut:kind", SHA_KEY})
 
 
 @dataclass
@@ -64,6 +67,7 @@ class ExrImage:
     recipe_hash: str | None
     kind: str | None
     checksum: str  # "verified", or why there is nothing to verify
+    attributes: dict = field(default_factory=dict)  # the further hairlut:<name> string attributes
 
     def part(self, name: str | None = None) -> ExrPart:
         if name is None:
@@ -143,17 +147,26 @@ def write_exr(
     kind: str | None = None,
     compression: str = "zip",
     pixel_type: str | None = None,
+    attributes: Mapping[str, str] | None = None,
 ) -> Path:
     """Write an EXR atomically.
 
     ``image`` is a mapping of channel name to 2-D array (one part) or a list of
     :class:`ExrPart` (multi-part, for images of different sizes).  Float64 input
     is stored as float32 unless ``pixel_type="half"``; float16 stays half.
+    ``attributes``: further header strings (JSON text, say), each named ``hairlut:<name>``
+    other than the reserved names above; covered by the checksum.
     """
     if compression not in COMPRESSIONS:
         raise errors.ValidationError("compression", compression, f"lossless only: {sorted(COMPRESSIONS)}")
     parts = _prepare(_as_parts(image), pixel_type)
     meta = {"hairlut:version": __version__}
+    for key, value in (attributes or {}).items():
+        if not (isinstance(key, str) and key.startswith("hairlut:") and len(key) > 8) or key in _RESERVED:
+            raise errors.ValidationError("attributes", key, f"names are hairlut:<name>, not one of {sorted(_RESERVED)}")
+        if not isinstance(value, str):
+            raise errors.ValidationError(f"attributes[{key!r}]", type(value).__name__, "values are strings (JSON text)")
+        meta[key] = value
     if recipe is not None:
         text = canonical_json(recipe)
         meta.update({"hairlut:recipe": text, "hairlut:recipe_hash": recipe_hash(text)})
@@ -285,4 +298,5 @@ def read_exr(path: str | os.PathLike, kind: str | None = None, header_only: bool
         if _content_sha256(parts, meta) != stored:
             raise errors.ChecksumError(path, f"metadata or pixels fail their {SHA_KEY} checksum")
         checksum = "verified"
-    return ExrImage(path, parts, recipe, stored_hash, file_kind, checksum)
+    extra = {k: v for k, v in meta.items() if k not in _RESERVED}
+    return ExrImage(path, parts, recipe, stored_hash, file_kind, checksum, extra)

@@ -1,7 +1,8 @@
 """The picture a person sees: a camera render of the textured cluster layers, the strand-level
 reference, and the two compared.
 
-``render_reference(scene)``:
+``render_layered(scene)``: the layered cluster model, its layer meshes textured with the online module's
+maps and rasterised in JAX (``_layered``, ``_raster``).  ``render_reference(scene)``:
 the strands as the Gaussian tubes of the sector densities, ray-marched through the camera and refined until
 converged (``_reference``, ``_strands``).  ``compare(a, b)``: RMSE, α bias, 8 × 8-block figures and FLIP
 (``_compare``).  ``write_frame``/``read_frame``: the EXR with R, G, B, A, Z and the camera (``_frame``).
@@ -11,13 +12,15 @@ JAX loads on first use of a name.
 from .._lazy import lazy_exports
 
 _LAZY = {
-    "Frame": "_frame", "KIND": "_frame", "read_frame": "_frame", "write_frame": "_frame",
+    "CAMERA_KEY": "_frame", "Frame": "_frame", "KIND": "_frame", "read_frame": "_frame", "write_frame": "_frame",
     "BOUND": "_render", "extinction": "_render", "render_reference": "_render", "scene_camera": "_render",
     "segment_lighting": "_render", "scene_strands": "_render",
     "reference_kernel": "_reference", "render_level": "_reference", "shadow_grid": "_reference",
     "shadow_kernel": "_reference",
     "Segments": "_strands", "Z_CUT": "_strands", "crossings": "_strands", "segments_of": "_strands",
     "bin_boxes": "_tiles",
+    "FAR": "_raster", "raster_kernel": "_raster", "sample_texture": "_raster",
+    "layout": "_layered", "premultiplied": "_layered", "rasterise": "_layered", "render_layered": "_layered",
     "compare": "_compare", "block_average": "_compare", "side_by_side": "_compare",
 }
 

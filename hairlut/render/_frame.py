@@ -1,14 +1,16 @@
 """A rendered frame and its EXR: ``R, G, B, A`` (premultiplied, linear) and ``Z`` (eye depth), the camera
 as metadata.
 
-The camera travels in the EXR's ``hairlut:recipe`` JSON under ``camera`` (``Camera.to_json``: the 4 × 4
-``world_to_clip`` matrix, ``resolution`` and ``projection``, plus the eye and axes), beside the frame's
-``method``, ``seconds`` and, for the reference, its convergence record; the asset kind is
+The camera travels in the EXR header attribute ``hairlut:camera`` (JSON, ``Camera.to_json``: the 4 × 4
+``world_to_clip`` matrix, ``resolution`` and ``projection``, plus the eye and axes), so any EXR tool can
+reproduce the projection; the ``hairlut:recipe`` JSON holds the same record under ``camera`` beside the
+frame's ``method``, ``seconds`` and, for the reference, its convergence record; the asset kind is
 ``render_frame``.  ``Z`` is 1e10 where nothing was drawn (A = 0).
 """
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,6 +20,8 @@ from .. import errors
 from ..assets import atomic_write_bytes, encode_png, read_exr, tonemap, write_exr
 
 KIND = "render_frame"
+#: The EXR header attribute holding the camera (JSON).
+CAMERA_KEY = "hairlut:camera"
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,7 +56,8 @@ def write_frame(frame: Frame, path, png: bool = False) -> dict:
     ch = {c: frame.rgba[..., i].astype(np.float32) for i, c in enumerate("RGBA")}
     ch["Z"] = frame.depth.astype(np.float32)
     recipe = _plain({"camera": frame.camera.to_json(), **frame.info})
-    out = {"exr": str(write_exr(path, ch, recipe=recipe, kind=KIND))}
+    attrs = {CAMERA_KEY: json.dumps(recipe["camera"], sort_keys=True)}
+    out = {"exr": str(write_exr(path, ch, recipe=recipe, kind=KIND, attributes=attrs))}
     if png:
         p = Path(path).with_suffix(".png")
         atomic_write_bytes(p, encode_png(tonemap(frame.rgba[..., :3])))
@@ -72,5 +77,11 @@ def read_frame(path) -> Frame:
     rgba = np.stack([np.asarray(part.channels[c], np.float32) for c in "RGBA"], -1)
     depth = np.asarray(part.channels["Z"], np.float32) if "Z" in part.channels else np.zeros(rgba.shape[:2], np.float32)
     rec = img.recipe or {}
-    cam = Camera.from_json(rec["camera"]) if "camera" in rec else None
+    if CAMERA_KEY in img.attributes:
+        try:
+            cam = Camera.from_json(json.loads(img.attributes[CAMERA_KEY]))
+        except ValueError as exc:  # JSONDecodeError
+            raise errors.CorruptAssetError(path, f"{CAMERA_KEY} is not JSON ({exc})") from None
+    else:
+        cam = Camera.from_json(rec["camera"]) if "camera" in rec else None
     return Frame(rgba, depth, cam, {k: v for k, v in rec.items() if k != "camera"})

@@ -1,0 +1,144 @@
+"""``render_layered(scene)``: the layered cluster model through the scene's camera (satf §6), as a :class:`Frame`.
+
+The online module (``hairlut.synth.prepare`` / ``render``) gives every layer of every cluster its shaded
+RGBA on the (n_t, n_u) texel grid: the map method's re- and α-maps, the scene's lights (eqs 8–11), its
+shadow method (eq 12 or a light-space map), eq 13 and the environment term when the scene has one, all
+for the scene's ``[camera] view`` (a perspective camera's per-pixel view direction is not re-shaded).
+The layer meshes (``hairlut.geometry.layer_meshes``, refined until a mesh edge spans at most
+:data:`EDGE_PIXELS` pixels) carry those maps as textures into :func:`raster_kernel` (``_raster``: perspective-
+correct rasterisation, eq 14 between a cluster's layers, front-to-back "over" between clusters).
+
+Compile shapes are bucketed: the stamp is a power of two, the cluster tile a multiple of :data:`TILE_STEP`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .. import errors
+from ._frame import Frame
+from ._raster import raster_kernel
+
+#: The longest mesh edge, in pixels, the host refines the layer meshes to.
+EDGE_PIXELS = 6.0
+#: Tile sides are rounded up to a multiple of this (fewer compile shapes).
+TILE_STEP = 32
+MAX_STAMP = 64
+MAX_SUBDIV = 32
+
+
+def _bucket(n: float) -> int:
+    s = 2
+    while s < n:
+        s *= 2
+    return s
+
+
+def _edges_px(cam, verts: np.ndarray, rows: int, cols: int) -> tuple[float, float]:
+    """Longest projected mesh edge along t (rows) and along u (columns), pixels; verts (…, rows·cols, 3)."""
+    x, y, _ = cam.project(verts.reshape(-1, rows, cols, 3))
+    p = np.stack([x, y], -1)
+    along_t = np.linalg.norm(np.diff(p, axis=1), axis=-1).max(initial=0.0)
+    along_u = np.linalg.norm(np.diff(p, axis=2), axis=-1).max(initial=0.0)
+    return float(along_t), float(along_u)
+
+
+def layout(cam, geometry, *, edge_pixels: float = EDGE_PIXELS):
+    """The layer meshes refined for ``cam`` and the kernel's static layout: (meshes, stamp, tile (th, tw),
+    origins (C, 2) int32).  Refines ``t_subdiv``/``u_subdiv`` until every projected edge spans ≤ ``edge_pixels``."""
+    from ..geometry import layer_meshes
+
+    base = layer_meshes(geometry)
+    et, eu = _edges_px(cam, base.vertices, base.rows, base.cols)
+    t_sub = int(min(max(math.ceil(et / edge_pixels), 1), MAX_SUBDIV))
+    u_sub = int(min(max(math.ceil(eu / edge_pixels), 1), MAX_SUBDIV))
+    meshes = layer_meshes(geometry, t_subdiv=t_sub, u_subdiv=u_sub)
+    x, y, d = cam.project(meshes.vertices)  # (C, K, V)
+    if not (np.isfinite(x).all() and np.isfinite(y).all()):
+        raise errors.ValidationError("camera", cam.to_json()["eye"], "the layer meshes do not project to finite pixels")
+    if (d <= 0).any():
+        raise errors.ValidationError("camera.position", cam.eye.tolist(), "layer meshes lie behind the camera")
+    tri = meshes.triangles
+    tx, ty = x[..., tri], y[..., tri]  # (C, K, T, 3)
+    span = max(np.ptp(tx, -1).max(initial=0.0), np.ptp(ty, -1).max(initial=0.0))
+    stamp = _bucket(span + 2)
+    if stamp > MAX_STAMP:
+        raise errors.ValidationError("camera", cam.to_json()["resolution"], f"a layer triangle spans {span:.0f} pixels "
+                                     f"even at subdivision {t_sub} × {u_sub}; at most {MAX_STAMP - 2}")
+    W, H = cam.width, cam.height
+    lo_x = np.clip(np.floor(x.min(axis=(1, 2))), 0, W - 1)
+    hi_x = np.clip(np.ceil(x.max(axis=(1, 2))), 0, W)
+    lo_y = np.clip(np.floor(y.min(axis=(1, 2))), 0, H - 1)
+    hi_y = np.clip(np.ceil(y.max(axis=(1, 2))), 0, H)
+    tw = int(min(TILE_STEP * math.ceil(max((hi_x - lo_x).max(), 1) / TILE_STEP), W))
+    th = int(min(TILE_STEP * math.ceil(max((hi_y - lo_y).max(), 1) / TILE_STEP), H))
+    origins = np.stack([np.minimum(lo_x, W - tw), np.minimum(lo_y, H - th)], -1).astype(np.int32)
+    return meshes, stamp, (th, tw), origins, (t_sub, u_sub)
+
+
+def premultiplied(rgba: np.ndarray) -> np.ndarray:
+    """(…, 4) shaded RGB and α → premultiplied (RGB·α, α)."""
+    rgba = np.asarray(rgba, np.float32)
+    return np.concatenate([rgba[..., :3] * rgba[..., 3:], rgba[..., 3:]], -1)
+
+
+def rasterise(cam, vertices, triangles, uv, textures, *, stamp: int, tile, origins, repeat: int = 0):
+    """Run :func:`raster_kernel` (``repeat`` more warm runs timed); returns (rgba, depth, seconds dict)."""
+    f32 = jnp.float32
+    args = (jnp.asarray(vertices, f32), jnp.asarray(textures, f32), jnp.asarray(origins, jnp.int32),
+            jnp.asarray(triangles, jnp.int32), jnp.asarray(uv, f32), jnp.asarray(cam.matrix, f32),
+            jnp.asarray(cam.eye, f32), jnp.asarray(cam.back, f32))
+    kw = {"size": (cam.width, cam.height), "tile": tuple(int(t) for t in tile), "stamp": int(stamp)}
+    t0 = time.perf_counter()
+    out = jax.block_until_ready(raster_kernel(*args, **kw))
+    times = [time.perf_counter() - t0]
+    for _ in range(max(int(repeat), 0)):
+        t0 = time.perf_counter()
+        out = jax.block_until_ready(raster_kernel(*args, **kw))
+        times.append(time.perf_counter() - t0)
+    rgba, depth = (np.asarray(a) for a in out)
+    if not (np.isfinite(rgba).all() and np.isfinite(depth).all()):
+        raise errors.ValidationError("frame", "non-finite", "the rasteriser produced non-finite pixels")
+    sec = {"raster_first": times[0]}
+    if len(times) > 1:
+        sec["raster"] = min(times[1:])
+    return rgba, depth, sec
+
+
+def render_layered(scene, camera=None, *, db=None, sh=None, maps=None, prepared=None, repeat: int = 1,
+                   edge_pixels: float = EDGE_PIXELS) -> Frame:
+    """The layered model of ``scene`` through its camera (module docstring).  ``db``/``sh``/``maps``: the
+    assets ``hairlut.synth.prepare`` reads (the scene's map method decides which); ``prepared``: a
+    ``hairlut.synth.Prepared`` to reuse.  ``info["seconds"]``: ``maps`` and ``shade`` (the online module's
+    frame), ``raster_first`` (the first kernel call, compile included) and ``raster`` (the best of
+    ``repeat`` warm calls: the frame time, maps excluded)."""
+    from ..geometry import ClusterGeometry
+    from ..scene import as_scene
+    from ..synth import prepare, render
+    from ._render import scene_camera
+
+    t0 = time.perf_counter()
+    sc = as_scene(scene) if prepared is None else prepared.scene
+    prep = prepare(sc, db, sh, maps) if prepared is None else prepared
+    t1 = time.perf_counter()
+    result = render(prep)
+    cam = scene_camera(sc) if camera is None else camera
+    geometry = ClusterGeometry([pc.spec for pc in prep.clusters])
+    meshes, stamp, tile, origins, subdiv = layout(cam, geometry, edge_pixels=edge_pixels)
+    tex = np.stack([premultiplied(r.rgba) for r in result.clusters])
+    t2 = time.perf_counter()
+    rgba, depth, sec = rasterise(cam, meshes.vertices, meshes.triangles, meshes.uv, tex, stamp=stamp, tile=tile,
+                                 origins=origins, repeat=repeat)
+    st = result.stats["seconds"]
+    info = {"method": "layered", "map_method": prep.method, "scene": sc.source,
+            "clusters": len(prep.clusters), "layers": int(tex.shape[1]), "texels": list(tex.shape[2:4]),
+            "subdivision": list(subdiv), "triangles": int(meshes.triangles.shape[0] * tex.shape[0] * tex.shape[1]),
+            "stamp": stamp, "tile": list(tile), "environment": "included" if prep.environment is not None else "none in scene",
+            "seconds": {"prepare": t1 - t0, "maps": st.get("maps", 0.0), "shade": st.get("shade", 0.0),
+                        "setup": t2 - t1, **sec}}
+    return Frame(rgba, depth, cam, info)
