@@ -144,7 +144,7 @@ def _scene_truth(prepared, db):
         r = np.where(m.any(1), (splats.radius * m).sum(1) / np.maximum(m.sum(1), 1), np.median(tb.crossing_radius))
         # metric (A x, B y) ellipse scaled by 1/A: the tracer's (1, B/A) ellipse, same angles
         params = {"phase": tb.twist + tb.u_range[:, 0], "s_u": 2 * np.pi / du, "v_range": tb.v_range,
-                  "aspect": b / a, "radius": r / np.sqrt(splats.sector_areas())}
+                  "aspect": b / a, "radius_rel": r / np.sqrt(splats.sector_areas())}
         g = sector_geometry(params, kappa=rec["trace"]["extinction"], n_pix=rec["trace"]["pixels"],
                             smooth_ratio=rec["trace"]["smooth_ratio"])
         ext = pc.frames.extent / a  # the extent the texels' pixel coordinates use

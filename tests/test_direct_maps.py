@@ -36,7 +36,7 @@ def _one_strand_sector(sigma=0.09, n_s=512, n_r=384, sigma_t=5.0, pixels=64):
     """An annular sector v ∈ [1, 2], Δu = π/4, holding one Gaussian strand at its middle: ρ given at
     the cell centres (peak 1).  Returns (ρ, geometry row, strand centre in the local frame)."""
     params = {"phase": np.array([0.3]), "s_u": np.array([8]), "v_range": np.array([[1.0, 2.0]]),
-              "aspect": np.array([1.0]), "radius": np.array([0.05])}
+              "aspect": np.array([1.0]), "radius_rel": np.array([0.05])}
     g = sector_geometry(params, kappa=1.0, n_pix=pixels)
     g[:, COL["sigma_t"]] = sigma_t
     phi = 0.3 + np.pi / 4 * (np.arange(n_s) + 0.5) / n_s

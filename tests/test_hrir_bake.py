@@ -32,7 +32,7 @@ def _sha(path) -> str:
     ({"phong": {"shininess": -1.0}}, "phong.shininess"),
     ({"sectors": {"grid": [8]}}, "sectors.grid"),
     ({"sectors": {"space": {"aspect": [0.5, 2.0]}}}, "sectors.space.aspect"),
-    ({"sectors": {"space": {"radius": [0.1, 0.01]}}}, "sectors.space.radius"),
+    ({"sectors": {"space": {"radius_rel": [0.1, 0.01]}}}, "sectors.space.radius_rel"),
     ({"storage": {"dtype": "int8"}}, "storage.dtype"),
     ({"sectors": 3}, "sectors"),
 ])

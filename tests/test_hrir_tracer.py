@@ -104,7 +104,7 @@ def test_mirrored_sector_mirrors_the_hrir():
 def test_smoothing_width_is_one_and_a_half_strand_sigmas():
     _, g, params = _random(3, pixels=64)
     area = params["aspect"] * 2 * np.pi / params["s_u"] * 0.5 * (params["v_range"][:, 1] ** 2 - params["v_range"][:, 0] ** 2)
-    sigma_strand = SIGMA_PER_RADIUS * params["radius"] * np.sqrt(area)
+    sigma_strand = SIGMA_PER_RADIUS * params["radius_rel"] * np.sqrt(area)
     pixel = 2 * g[:, COL["extent"]] / 64
     np.testing.assert_allclose(g[:, COL["sigma_px"]], 1.5 * sigma_strand / pixel, rtol=1e-12)
     # a delta through the kernel's smoothing gives a Gaussian of that standard deviation
@@ -160,7 +160,7 @@ def test_convergence_in_step_and_grid():
     """
     from hairlut.geometry.sampler import SectorSpace
 
-    s = sample_sectors(4, SectorSpace(radius=(0.03, 0.1)), seed=21)
+    s = sample_sectors(4, SectorSpace(radius_rel=(0.03, 0.1)), seed=21)
     means, maxes, prev = [], [], None
     for grid, steps in ((16, 48), (32, 96), (64, 192)):
         rho = sector_density(s.splats, (grid, grid))

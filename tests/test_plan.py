@@ -75,8 +75,8 @@ def test_sector_space_fits_the_scene(tmp_path):
     space = plan(sc, tmp_path).step("hrir_db").recipe["sectors"]["space"]
     assert space["s_u"] == [4, 4]
     for key, values in (("aspect", ss.aspect), ("v_inner", ss.v_range[:, 0]),
-                        ("thickness", ss.v_range[:, 1] - ss.v_range[:, 0]), ("strands", ss.strands),
-                        ("radius", ss.radius[np.isfinite(ss.radius)])):
+                        ("radial_extent", ss.v_range[:, 1] - ss.v_range[:, 0]), ("strands", ss.strands),
+                        ("radius_rel", ss.radius_rel[np.isfinite(ss.radius_rel)])):
         lo, hi = space[key]
         assert lo <= values.min() and values.max() <= hi, key
     unrestricted = plan(scene(tables={"restrict": False}), tmp_path).step("hrir_db").recipe["sectors"]["space"]
@@ -126,8 +126,8 @@ def test_bake_then_nothing_new_and_one_parameter_change(tmp_path):
 
 
 def test_covering_database_is_reused(tmp_path):
-    space = {"strands": [0, 1000], "radius": [1e-3, 10.0], "aspect": [1e-3, 1.0], "v_inner": [0.0, 0.9],
-             "thickness": [1e-3, 1.0], "s_u": [1, 64]}
+    space = {"strands": [0, 1000], "radius_rel": [1e-3, 10.0], "aspect": [1e-3, 1.0], "v_inner": [0.0, 0.9],
+             "radial_extent": [1e-3, 1.0], "s_u": [1, 64]}
     wide = scene(tables={"restrict": False, "hrir": {**TINY_HRIR, "sectors": {**TINY_HRIR["sectors"], "space": space}}})
     bake(plan(wide, tmp_path))
     step = plan(scene(), tmp_path).step("hrir_db")

@@ -122,8 +122,8 @@ def test_sampler_is_deterministic_and_stays_in_its_space():
     assert ((p["v_range"][:, 1] <= 1) & (p["v_range"][:, 0] >= 0)).all()
     assert set(np.unique(p["profile"])) == {0, 1, 2}
     with pytest.raises(ValidationError) as exc:
-        SectorSpace(radius=(0.1, 0.01))
-    assert exc.value.field == "space.radius"
+        SectorSpace(radius_rel=(0.1, 0.01))
+    assert exc.value.field == "space.radius_rel"
 
 
 def _coverage(groom: str, n_clusters: int):

@@ -5,7 +5,7 @@
 those parameters explicit.  A sampled sector is a (v, u)
 patch of an ellipse with major half-axis A = 1 (features are scale-free: ρ is an area
 fraction, centroids are parametric), minor half-axis B = ``aspect``, radial range
-[v0, v0 + thickness] ∩ [0, 1], phase extent Δu = 2π/s_u, whose s = 0 edge sits at
+[v0, v0 + radial_extent] ∩ [0, 1], phase extent Δu = 2π/s_u, whose s = 0 edge sits at
 polar angle ``phase``.  The strand radius is ``radius`` · √(sector area), so the
 coverage n·π·radius² does not depend on the sector's size.  ``strands`` strands cross
 the sector or a margin of 3σ around it (as in a real cross-section, where neighbours'
@@ -49,8 +49,8 @@ class SampledSectors:
     """Random sectors: their splats (for ``sector_density``) and the parameters drawn.
 
     ``params`` holds one entry per sector for each :class:`SectorSpace` field (``strands``,
-    ``radius`` relative to √area, ``spread``, ``clumps``, ``aspect``, ``v_inner``,
-    ``thickness``, ``s_u``), plus ``phase`` (polar angle of the s = 0 edge), ``profile``
+    ``radius_rel``, the strand radius relative to √area, ``spread``, ``clumps``, ``aspect``, ``v_inner``,
+    ``radial_extent``, ``s_u``), plus ``phase`` (polar angle of the s = 0 edge), ``profile``
     (index into ``SECTOR_PROFILES``) and ``v_range`` (N, 2).
     """
 
@@ -77,22 +77,22 @@ def sample_sectors(n: int, space: SectorSpace = SectorSpace(), *, seed: int = 0)
     rng = np.random.default_rng(check_int(seed, "seed", 0))
     p = {
         "strands": np.floor(_log_uniform(rng, space.strands[0] + 1, space.strands[1] + 1 + 1e-9, n)).astype(np.int64) - 1,
-        "radius": _log_uniform(rng, *space.radius, n),
+        "radius_rel": _log_uniform(rng, *space.radius_rel, n),
         "spread": _log_uniform(rng, *space.spread, n),
         "clumps": rng.integers(space.clumps[0], space.clumps[1] + 1, n),
         "aspect": rng.uniform(*space.aspect, n),
         "v_inner": rng.uniform(*space.v_inner, n),
-        "thickness": rng.uniform(*space.thickness, n),
+        "radial_extent": rng.uniform(*space.radial_extent, n),
         "s_u": rng.integers(space.s_u[0], space.s_u[1] + 1, n),
         "phase": rng.uniform(0.0, 2 * np.pi, n),
         "profile": rng.choice(3, n, p=np.asarray(space.profile_weights) / sum(space.profile_weights)),
     }
     p["strands"] = np.clip(p["strands"], space.strands[0], space.strands[1])
     v0 = p["v_inner"]
-    v1 = np.minimum(v0 + p["thickness"], 1.0)
+    v1 = np.minimum(v0 + p["radial_extent"], 1.0)
     du = 2 * np.pi / p["s_u"]
     area = p["aspect"] * du * 0.5 * (v1**2 - v0**2)
-    r_metric = p["radius"] * np.sqrt(area)
+    r_metric = p["radius_rel"] * np.sqrt(area)
     # the window strands may cross: the sector plus a margin of 3σ (at its centre) on every side
     su_c, sv_c = param_sigma(SIGMA_PER_RADIUS * r_metric, 0.5 * (v0 + v1), p["phase"] + 0.5 * du, 1.0, p["aspect"])
     margin = 3.0 * np.stack([su_c / du, sv_c / (v1 - v0)], axis=1)

@@ -18,12 +18,12 @@ from ..errors import ValidationError
 #: Each range's rule: (integer?, low bound, low bound excluded?, high bound or None, high excluded?, doc).
 RULES = {
     "strands": (True, 0, False, None, False, "strands crossing a sector"),
-    "radius": (False, 0.0, True, None, False, "strand radius / √(sector area)"),
+    "radius_rel": (False, 0.0, True, None, False, "strand radius / √(sector area)"),
     "spread": (False, 0.0, True, None, False, "blob standard deviation (sector units)"),
     "clumps": (True, 1, False, None, False, "blobs of a clumped sector"),
     "aspect": (False, 0.0, True, 1.0, False, "B / A of the ellipse"),
     "v_inner": (False, 0.0, False, 1.0, True, "inner radius v0 (ellipse fraction)"),
-    "thickness": (False, 0.0, True, None, False, "radial extent (ellipse fraction)"),
+    "radial_extent": (False, 0.0, True, None, False, "radial extent v1 − v0 (ellipse fraction)"),
     "s_u": (True, 1, False, None, False, "phase steps (Δu = 2π / s_u)"),
 }
 WEIGHTS_DOC = "weights of the profiles uniform, gaussian, clumped"
@@ -34,12 +34,12 @@ class SectorSpace:
     """The parameter space of random sectors: each entry a (low, high) range (:data:`RULES`)."""
 
     strands: tuple[int, int] = (0, 48)
-    radius: tuple[float, float] = (0.002, 0.1)
+    radius_rel: tuple[float, float] = (0.002, 0.1)
     spread: tuple[float, float] = (0.05, 1.0)
     clumps: tuple[int, int] = (2, 5)
     aspect: tuple[float, float] = (0.3, 1.0)
     v_inner: tuple[float, float] = (0.0, 0.9)
-    thickness: tuple[float, float] = (0.05, 0.5)
+    radial_extent: tuple[float, float] = (0.05, 0.5)
     s_u: tuple[int, int] = (4, 32)
     profile_weights: tuple[float, float, float] = (1.0, 1.0, 1.0)
 

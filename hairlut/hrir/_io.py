@@ -39,7 +39,7 @@ from ..geometry.features import FeatureStats, feature_names, sector_features
 from ._kind import KIND, SHARD_KIND
 from ._tracer import GEOM
 
-PARAMS = ("strands", "radius", "spread", "clumps", "aspect", "v_inner", "thickness", "s_u", "phase", "profile")
+PARAMS = ("strands", "radius_rel", "spread", "clumps", "aspect", "v_inner", "radial_extent", "s_u", "phase", "profile")
 
 FRAME = ("local frame: origin at the sector's parametric centre, +x the outward ellipse normal (radial), "
          "+y the tangent (increasing phase); theta from +x toward the viewer / light; pixels span "

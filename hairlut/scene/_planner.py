@@ -9,7 +9,7 @@
 * **HRIR database** (only for the ``satf`` map method, which reads it).  Its recipe is the
   defaults with ``[tables.hrir]`` over them; with ``tables.restrict`` (the default) the
   sampled sector space is fitted to the scene's own sectors (phase steps s_u exactly;
-  aspect, inner radius, thickness, strand count and strand radius over their ranges in
+  aspect, inner radius, radial extent, strand count and relative strand radius over their ranges in
   the scene, widened by a margin): narrower where the scene uses less of the default
   space, so the same N records cover its features more densely, and wider where its
   sectors fall outside the defaults, which would not cover them.  A cached database is reused when its recipe hash matches, or

@@ -22,14 +22,14 @@ MARGIN = 0.1  # relative widening of each measured sector-space range
 @dataclass(frozen=True, eq=False)
 class SceneSectors:
     """What the planner measures on a scene's own sectors: per sector ``aspect`` (B/A ≤ 1),
-    ``v_range`` (N, 2), ``strands`` crossing it, strand ``radius`` / √area (NaN when empty),
+    ``v_range`` (N, 2), ``strands`` crossing it, strand ``radius_rel`` = radius / √area (NaN when empty),
     and the in-plane azimuths ``theta_v`` (N,) and ``theta_l`` (N, L) of the view and lights."""
 
     s_u: int
     aspect: np.ndarray
     v_range: np.ndarray
     strands: np.ndarray
-    radius: np.ndarray
+    radius_rel: np.ndarray
     theta_v: np.ndarray
     theta_l: np.ndarray
 
@@ -38,7 +38,7 @@ def scene_sectors(scene) -> SceneSectors:
     """Build every cluster's sectors (no features) and measure them (see :class:`SceneSectors`)."""
     from ..geometry import ClusterGeometry, azimuths, build_sectors, sector_axes
 
-    cols = {k: [] for k in ("aspect", "v_range", "strands", "radius", "theta_v", "theta_l")}
+    cols = {k: [] for k in ("aspect", "v_range", "strands", "radius_rel", "theta_v", "theta_l")}
     s_u = None
     for spec, strands in scene_clusters(scene):
         geom = ClusterGeometry(spec)
@@ -51,7 +51,7 @@ def scene_sectors(scene) -> SceneSectors:
         rsum = np.bincount(table.crossing_sector, weights=table.crossing_radius, minlength=table.n_sectors)
         area = A * B * du * 0.5 * (v1**2 - v0**2)
         with np.errstate(invalid="ignore", divide="ignore"):
-            cols["radius"].append(np.where(n > 0, rsum / np.maximum(n, 1) / np.sqrt(area), np.nan))
+            cols["radius_rel"].append(np.where(n > 0, rsum / np.maximum(n, 1) / np.sqrt(area), np.nan))
         cols["aspect"].append(np.minimum(A, B) / np.maximum(A, B))
         cols["v_range"].append(table.v_range)
         cols["strands"].append(n)
@@ -80,13 +80,13 @@ def restricted_space(ss: SceneSectors, base: dict) -> dict:
     profile weights are not measured and stay as given."""
     out = dict(base)
     v0, th = ss.v_range[:, 0], ss.v_range[:, 1] - ss.v_range[:, 0]
-    r = ss.radius[np.isfinite(ss.radius)]
+    r = ss.radius_rel[np.isfinite(ss.radius_rel)]
     out["s_u"] = [int(ss.s_u), int(ss.s_u)]
     out["aspect"] = _widen(ss.aspect.min(), ss.aspect.max(), 1e-3, 1.0)
     out["v_inner"] = _widen(v0.min(), v0.max(), 0.0, 0.9)
-    out["thickness"] = _widen(th.min(), th.max(), 1e-3, 1.0)
+    out["radial_extent"] = _widen(th.min(), th.max(), 1e-3, 1.0)
     hi = int(ss.strands.max())
     out["strands"] = [int(ss.strands.min()), hi + max(1, math.ceil(MARGIN * hi))]
     if r.size:
-        out["radius"] = [float(r.min() / (1 + MARGIN)), float(r.max() * (1 + MARGIN))]
+        out["radius_rel"] = [float(r.min() / (1 + MARGIN)), float(r.max() * (1 + MARGIN))]
     return out

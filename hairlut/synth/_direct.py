@@ -457,7 +457,7 @@ def scene_sector_inputs(table, recipe: dict, *, extent=None, n_pix: int | None =
     m = splats.mask
     r = np.where(m.any(1), (splats.radius * m).sum(1) / np.maximum(m.sum(1), 1), np.median(table.crossing_radius))
     params = {"phase": table.twist + table.u_range[:, 0], "s_u": 2 * np.pi / du, "v_range": table.v_range,
-              "aspect": b / a, "radius": r / np.sqrt(splats.sector_areas())}
+              "aspect": b / a, "radius_rel": r / np.sqrt(splats.sector_areas())}
     geometry = sector_geometry(params, kappa=kappa, n_pix=pixels, smooth_ratio=ratio)
     ext = sector_extent(table) if extent is None else np.asarray(getattr(extent, "extent", extent), np.float64)
     if ext.shape != (len(geometry),) or not (np.isfinite(ext).all() and (ext > 0).all()):
