@@ -32,9 +32,9 @@ def project_cmd(envmap, bands, layout, up, out, as_json):
     error: the relative L2 energy of the map that the bands leave out.
 
     \b
-    Examples:
-      hairlut sh project studio.exr --bands 3
-      hairlut sh project cross.exr --layout cube --bands 8 --out light.h5
+    Examples (ENV.exr: your own map; lat-long, or a cube cross with --layout cube):
+      hairlut sh project ENV.exr --bands 3
+      hairlut sh project ENV.exr --layout cube --bands 8 --out light.h5
     """
     light = load_env_light(envmap, bands - 1, layout, up)
     if out:

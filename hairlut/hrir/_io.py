@@ -35,6 +35,7 @@ from .. import errors
 from ..assets import Axis, Variable, read_table, write_exr, write_table
 from ..assets.h5 import HDF5_SIGNATURE, check_file
 from ..parts import check_virtual
+from ..geometry import angle_grid as angles
 from ..geometry.features import FeatureStats, feature_names, sector_features
 from ._kind import KIND, SHARD_KIND
 from ._tracer import GEOM
@@ -56,11 +57,6 @@ def _source_date(epoch: int | None):
     finally:
         if old is None:
             os.environ.pop("SOURCE_DATE_EPOCH", None)
-
-
-def angles(n: int) -> np.ndarray:
-    """The periodic angle grid 2πi/n, i = 0 … n − 1."""
-    return 2 * np.pi * np.arange(n) / n
 
 
 def _axes(recipe: dict, n: int, *, sector0: int = 0) -> list[Axis]:

@@ -48,6 +48,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
+from ..validate import check_int
 
 HIGHEST = jax.lax.Precision.HIGHEST
 
@@ -287,12 +288,6 @@ def bucket(n: int, block: int) -> int:
     return (3 * p // 4 if 3 * p // 4 >= k else p) * block
 
 
-def _positive_int(name, value, least=1) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
-        raise errors.ValidationError(name, value, f"must be an integer ≥ {least}")
-    return int(value)
-
-
 SHADOW_LOOKUPS = ("march", "grid")
 
 
@@ -313,7 +308,7 @@ def _settings(recipe, n_pix, overrides, shadow_lookup="march") -> tuple[dict, np
         raise errors.ValidationError(sorted(unknown)[0], overrides[sorted(unknown)[0]], "not a trace setting")
     cfg.update(overrides)
     for key, least in (("n_pix", 1), ("n_steps", 2), ("rays", 1)):
-        cfg[key] = _positive_int(key, cfg[key], least)
+        cfg[key] = check_int(cfg[key], key, least)
     if shadow_lookup not in SHADOW_LOOKUPS:
         raise errors.ValidationError("shadow_lookup", shadow_lookup, f"one of {SHADOW_LOOKUPS}")
     cfg["shadow"], cfg["smooth"] = (shadow_lookup if cfg["shadow"] else False), bool(cfg["smooth"])
@@ -378,7 +373,7 @@ def direct_sector_maps(density, geometry, theta_v, theta_l, recipe: dict, *, n_p
     :class:`hairlut.errors.HairlutError` if the kernel's output is not finite.
     """
     cfg, phong = _settings(recipe, n_pix, overrides, shadow_lookup)
-    block = _positive_int("block", block)
+    block = check_int(block, "block", 1)
     rho, g, tv, tl = _check_inputs(density, geometry, theta_v, theta_l)
     n, n_l, P = rho.shape[0], tl.shape[1], cfg["n_pix"]
     alpha = np.zeros((n, P), np.float32)
@@ -450,7 +445,7 @@ def scene_sector_inputs(table, recipe: dict, *, extent=None, n_pix: int | None =
     except (KeyError, TypeError) as e:
         raise errors.ValidationError("recipe", type(recipe).__name__,
                                      f"need an HRIR recipe with sectors.grid, sectors.density_scale and trace ({e})") from None
-    pixels = _positive_int("n_pix", pixels)
+    pixels = check_int(pixels, "n_pix", 1)
     splats = table.splats()
     density = sector_density(splats, grid, density_scale=scale)
     (a, b), du = np.asarray(table.half_axes, np.float64).T, table.u_range[:, 1] - table.u_range[:, 0]
