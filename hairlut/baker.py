@@ -80,7 +80,10 @@ class Units:
     consecutive parts as one ``shard_kind`` file; ``assemble(recipe, parts, out, **inputs)`` writes the
     self-contained asset from parts covering every unit; ``whole(recipe, parts, **inputs)`` returns
     (axes, variables, attrs): everything a virtual asset stores besides the per-unit tables (whole axes,
-    tables computed from all units).  A unit's numbers must not depend on how units are grouped.
+    tables computed from all units); ``check(recipe, path)`` (optional) raises a :mod:`hairlut.errors`
+    AssetError unless a part file holds everything ``join``/``assemble``/``whole`` read from it (a part left
+    by an older part format is then baked again, not resumed).  A unit's numbers must not depend on how
+    units are grouped.
     """
 
     axis: str
@@ -90,6 +93,7 @@ class Units:
     assemble: Callable
     whole: Callable
     block: int = 32
+    check: Callable | None = None
 
 
 @dataclass(frozen=True)

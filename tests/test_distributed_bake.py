@@ -30,7 +30,7 @@ def _sha(path) -> str:
 def _datasets(path) -> dict:
     out = {}
     with h5py.File(path, "r") as f:
-        f.visititems(lambda n, o: out.setdefault(n, o[()]) if isinstance(o, h5py.Dataset) else None)
+        f.visititems(lambda n, o: out.__setitem__(n, o[()]) if isinstance(o, h5py.Dataset) else None)  # None: visit all
     return out
 
 

@@ -65,6 +65,12 @@ def _whole(recipe, parts, **inputs):
     return index_parts(recipe, parts)
 
 
+def _check(recipe, path):
+    from ._io import read_shard
+
+    read_shard(path)  # every table and attribute a part must hold (a part of an older format is baked again)
+
+
 def _load(path):
     from ._io import load_hrir_db
 
@@ -104,7 +110,7 @@ BAKER = Baker(
     shard_kind=SHARD_KIND,
     shard_required=("alpha", "reflectance", "density"),
     merge=_merge,
-    units=Units("sector", _count, _bake_part, _join, _assemble, _whole, block=32),
+    units=Units("sector", _count, _bake_part, _join, _assemble, _whole, block=32, check=_check),
     help="""HRIR database: planar ray tracing of random generalized sectors (satf §5).
 
     Resumable: finished blocks are kept in OUT.parts/; rerun the same command after an

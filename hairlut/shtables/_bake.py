@@ -5,6 +5,15 @@ Chebyshev–Lobatto nodes of both θ′ halves (doubling the node count until th
 series' tail is below ``CHEB_TOL`` of its largest coefficient), and takes the
 Gaunt tensor.  Dense Rd/Rs on cube-map tangents and a θ′ grid are optional,
 for shaders that want textures.
+
+The dense tables (Rd, Rs and, with a light, Cd, Cs at each cube-map tangent t) are the
+bake's units: :mod:`hairlut.sharding` splits them over ``t`` into resumable parts,
+``--shard K/N`` slices and ``--distributed`` processes.  Each tangent is computed inside
+one fixed micro-chunk of :data:`MICRO` tangents (chunk c holds tangents [c·MICRO,
+(c+1)·MICRO), whatever the block, shard or process), by one executable spread over the
+local devices (:func:`hairlut.distributed.map_units`), so its numbers do not depend on how
+the bake was shared.  The compact tables are recomputed by each process (a fraction of a
+second) and memoised per recipe.
 """
 
 from __future__ import annotations
@@ -18,17 +27,19 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ..assets import recipe_hash
-from ..baker import no_shard
+from ..assets import canonical_json, read_table, recipe_hash
+from ..distributed import map_units
 from ..sh import gaunt
-from ._io import write_sh_tables, write_textures
-from ._kind import KIND
+from ._io import concat_parts, read_part, whole_tables, write_part, write_sh_tables, write_textures
+from ._kind import BLOCK, KIND
 from ._recipe import full_recipe, resolve_recipe, specular_band_rule
-from ._tables import Bands, SHTables
+from ._tables import Bands, SHTables, _l_of_k, _rd_kernel, _rs_kernel
 from ._zonal import cheb_coeffs, diffuse_coeffs, diffuse_nodes, lobatto_nodes, specular_coeffs, specular_nodes
 
 CHEB_TOL = 1e-14
 CHEB_START, CHEB_MAX = 16, 512
+#: Tangents per micro-chunk of the dense tables: the fixed unit of work of one executable call.
+MICRO = 32
 
 
 @functools.partial(jax.jit, static_argnames=("lmax_d", "lmax_s", "n_d", "n_s"))
@@ -100,50 +111,146 @@ def truncation_error(tables: SHTables, theta_v) -> float:
     return band_truncation_error(tables.p, tables.bands.light_specular, theta_v)
 
 
+def compact(recipe: dict) -> tuple[SHTables, dict]:
+    """The compact tables of a resolved recipe and their bake info (nodes, tail, θ′ nodes, truncation error)."""
+    tables, info = _compact(canonical_json(recipe))
+    return tables, dict(info)
+
+
+@functools.lru_cache(maxsize=8)
+def _compact(text: str) -> tuple[SHTables, dict]:
+    import json
+
+    tables, info = bake_compact(json.loads(text))
+    info["theta_v_nodes"] = lobatto_nodes(info["chebyshev_nodes"])
+    if tables.has_specular:
+        info["truncation_error"] = truncation_error(tables, np.linspace(0.0, np.pi, 65))
+    return tables, info
+
+
+def tangent_grid(recipe: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(t_dirs (6n², 3), θ′ samples) of a recipe's dense tables (n = dense.t_resolution > 0)."""
+    from ..envlight import cube_dirs
+
+    t_dirs, _ = cube_dirs(recipe["dense"]["t_resolution"])
+    return t_dirs, np.linspace(0.0, np.pi, recipe["dense"]["theta_v_steps"])
+
+
+def _dense_units(t, theta_v, kd, cheb, gd, gs, hd, hs, l_of_k, *, lmax_d, lmax_s, diffuse, specular, light):
+    """Rd, Rs (and with a light Cd, Cs) at a micro-chunk of tangents t (m, 3) (float64; eqs 2–5)."""
+    out = []
+    if diffuse:
+        out.append(_rd_kernel(t, kd, gd, lmax_d))
+    if specular:
+        out.append(_rs_kernel(t[:, None, :], theta_v[None, :], cheb, gs, lmax_s, l_of_k))
+    if light and diffuse:
+        out.append(_rd_kernel(t, kd, hd, lmax_d).swapaxes(-1, -2))
+    if light and specular:
+        out.append(_rs_kernel(t[:, None, :], theta_v[None, :], cheb, hs, lmax_s, l_of_k).swapaxes(-1, -2))
+    return tuple(out)
+
+
+def dense_block(tables: SHTables, t_dirs, theta_v, start: int, stop: int, light=None) -> tuple[dict, dict | None]:
+    """(dense, light products) of tangents [start, stop) of ``t_dirs`` (the whole grid), each computed in its fixed
+    micro-chunk (module docstring); ``light`` an EnvLight or None."""
+    total = len(t_dirs)
+    lo, hi = start // MICRO * MICRO, min(total, -(-stop // MICRO) * MICRO)
+    zero = np.zeros(1)
+    d, s = tables.has_diffuse, tables.has_specular
+    kd = tables.kd_l[_l_of_k(tables.lmax_d)] if d else zero
+    gd = tables._g(tables.lmax_d, tables.bands.n_light_diffuse) if d else zero
+    gs = tables._g(tables.lmax_s, tables.bands.n_light_specular) if s else zero
+    hd = hs = zero
+    if light is not None:
+        con = tables.contract(light.coeffs)
+        hd = np.asarray(con.hd).transpose(0, 2, 1) if d else zero
+        hs = np.asarray(con.hs).transpose(0, 2, 1) if s else zero
+    rep = (np.asarray(theta_v, np.float64), kd, tables.ks_cheb if s else zero, gd, gs, hd, hs,
+           _l_of_k(tables.lmax_s) if s else np.zeros(1, np.int64))
+    with jax.enable_x64(True):
+        outs = list(map_units(_dense_units, (np.asarray(t_dirs[lo:hi], np.float64),), rep, micro=MICRO,
+                              lmax_d=max(tables.lmax_d, 0), lmax_s=max(tables.lmax_s, 0), diffuse=d, specular=s,
+                              light=light is not None))
+    outs = [o[start - lo:stop - lo] for o in outs]
+    dense = {"t_dirs": np.asarray(t_dirs[start:stop]), "theta_v": np.asarray(theta_v)}
+    for key, ok in (("rd", d), ("rs", s)):
+        if ok:
+            dense[key] = outs.pop(0)
+    products = None
+    if light is not None:
+        products = {"a": light.coeffs, "channels": list(light.channels)}
+        for key, ok in (("cd", d), ("cs", s)):
+            if ok:
+                products[key] = outs.pop(0)
+    return dense, products
+
+
 def compute(recipe: dict | None = None, light=None) -> dict:
     """Compute everything a recipe asks for, in memory; ``light`` is an :class:`hairlut.envlight.EnvLight` or None.
 
     Returns a dict with the resolved ``recipe``, the exact ``tables``, bake
     ``info`` (Chebyshev nodes and tail, truncation error), optional ``dense``
-    grids and optional ``light`` products (a, Cd, Cs).
+    grids and optional ``light`` products (a, Cd, Cs).  The dense grids are the
+    numbers a (sharded) bake stores, before the storage dtype.
     """
-    from ..envlight import cube_dirs
-
     r = full_recipe(recipe, light)
-    tables, info = bake_compact(r)
-    info["theta_v_nodes"] = lobatto_nodes(info["chebyshev_nodes"])
-    if tables.has_specular:
-        info["truncation_error"] = truncation_error(tables, np.linspace(0.0, np.pi, 65))
-    dense = None
-    n = r["dense"]["t_resolution"]
-    if n > 0:
-        t_dirs, _ = cube_dirs(n)
-        theta_v = np.linspace(0.0, np.pi, r["dense"]["theta_v_steps"])
-        dense = {"t_dirs": t_dirs, "theta_v": theta_v, "n": n}
-        if tables.has_diffuse:
-            dense["rd"] = np.asarray(tables.rd(t_dirs))
-        if tables.has_specular:
-            dense["rs"] = np.asarray(tables.rs(t_dirs[:, None, :], theta_v[None, :]))
-    products = None
+    tables, info = compact(r)
+    dense = products = None
+    if r["dense"]["t_resolution"] > 0:
+        t_dirs, theta_v = tangent_grid(r)
+        dense, products = dense_block(tables, t_dirs, theta_v, 0, len(t_dirs), light)
+        dense["n"] = r["dense"]["t_resolution"]
     if light is not None:
-        contracted = tables.contract(light.coeffs)
-        products = {"a": light.coeffs, "channels": list(light.channels), "contracted": contracted}
-        if dense is not None:
-            if tables.has_diffuse:
-                products["cd"] = np.asarray(contracted.cd(dense["t_dirs"]))
-            if tables.has_specular:
-                products["cs"] = np.asarray(contracted.cs(dense["t_dirs"][:, None, :], dense["theta_v"][None, :]))
+        products = {**(products or {}), "a": light.coeffs, "channels": list(light.channels)}
+    if products is not None:
+        products["contracted"] = tables.contract(light.coeffs)
     return {"recipe": r, "tables": tables, "info": info, "dense": dense, "light": products}
 
 
-def bake(recipe: dict | None, out, *, progress=None, shard=None, light=None, textures=None) -> dict:
+# ----------------------------------------------------------------------------- the shard path's pieces
+
+
+def bake_part(recipe: dict, start: int, stop: int, total: int, path, light=None, **_) -> None:
+    """Bake tangents [start, stop) into the ``sh_shard`` part ``path`` (the sharding path's unit of work)."""
+    tables, _ = compact(recipe)
+    t_dirs, theta_v = tangent_grid(recipe)
+    if len(t_dirs) != total:
+        raise errors.ValidationError("t", total, f"the recipe's tangent grid has {len(t_dirs)} tangents")
+    dense, products = dense_block(tables, t_dirs, theta_v, start, stop, light)
+    write_part(path, tables, dense, products, start, total)
+
+
+def join_parts(recipe: dict, parts, out):
+    """Consecutive parts as one ``sh_shard`` file (``--shard K/N``)."""
+    read = [read_part(p, recipe) for p in parts]
+    dense, light = concat_parts(read)
+    return write_part(out, compact(recipe)[0], dense, light, read[0][2], read[0][3])
+
+
+def assemble_parts(recipe: dict, parts, out):
+    """Parts covering every tangent as one self-contained ``sh_tables`` (the light's coefficients from the parts)."""
+    tables, info = compact(recipe)
+    dense, light = concat_parts([read_part(p, recipe) for p in parts])
+    return write_sh_tables(out, tables, info, dense, light)
+
+
+def whole_parts(recipe: dict, parts):
+    """What a virtual ``sh_tables`` stores itself: the compact tables, the whole axes, the light's coefficients."""
+    tables, info = compact(recipe)
+    dense, light, _, total = read_part(parts[0], recipe)
+    return whole_tables(tables, info, {"total": total, "theta_v": dense["theta_v"]}, light)
+
+
+def bake(recipe: dict | None, out, *, progress=None, shard=None, light=None, textures=None, block: int = BLOCK,
+         keep_parts: bool = False, distributed=False, merge: str | None = None) -> dict:
     """Bake a recipe into the ``sh_tables`` asset ``out`` (written atomically); the baker protocol's bake.
 
     ``light`` (an :class:`hairlut.envlight.EnvLight`) also bakes the contracted Cd/Cs; a recipe that
     names a light (its ``light`` section) needs that light.  ``textures``: also write Cd/Cs shader
-    textures (EXR), which need a light and ``dense.t_resolution`` > 0.  SH tables cannot shard.
-    ``progress(done, total)`` counts the two stages (tables, file)."""
-    no_shard(KIND, shard)
+    textures (EXR), which need a light and ``dense.t_resolution`` > 0.  A recipe with dense tables
+    bakes through :mod:`hairlut.sharding` over its tangents (``block`` tangents per resumable part,
+    ``shard`` 'K/N', ``distributed``, ``merge`` 'virtual' or 'copy'); ``progress(done, total)`` then
+    counts tangents, else the two stages (tables, file)."""
     t0 = time.perf_counter()
     r = resolve_recipe(recipe, light)
     if "light" in r and light is None:
@@ -151,20 +258,50 @@ def bake(recipe: dict | None, out, *, progress=None, shard=None, light=None, tex
                                      f"{str(r['light']['source_sha256'])[:16]}…): pass that light")
     if textures and (light is None or r["dense"]["t_resolution"] == 0):
         raise errors.ValidationError("textures", str(textures), "needs --light and dense.t_resolution > 0")
+    if r["dense"]["t_resolution"] > 0:
+        return _bake_split(r, out, t0, progress=progress, shard=shard, light=light, textures=textures, block=block,
+                           keep_parts=keep_parts, distributed=distributed, merge=merge)
+    for name, value in (("shard", shard), ("distributed", distributed), ("merge", merge)):
+        if value:
+            raise errors.ValidationError(name, value, "SH tables split over their dense tangent grid: set "
+                                         "dense.t_resolution > 0 (without dense tables a bake takes a second)")
     if progress:
         progress(0, 2)
     result = compute(r, light)
     if progress:
         progress(1, 2)
     path = write_sh_tables(out, result["tables"], result["info"], result["dense"], result["light"])
-    tex = None
-    if textures:
-        lp = result["light"]
-        tex = write_textures(textures, lp.get("cd"), lp.get("cs"), result["dense"]["n"], lp["channels"], r)
     if progress:
         progress(2, 2)
-    info = result["info"]
-    return {"out": str(path), "kind": KIND, "textures": None if tex is None else str(tex),
-            "seconds": time.perf_counter() - t0, "bytes": Path(path).stat().st_size, "recipe": r,
-            "recipe_hash": recipe_hash(r), "chebyshev_nodes": info["chebyshev_nodes"],
-            "chebyshev_tail": info["chebyshev_tail"], "specular_truncation_error": info.get("truncation_error")}
+    return _report(r, result["info"], path, t0)
+
+
+def _bake_split(r, out, t0, *, progress, shard, light, textures, block, keep_parts, distributed, merge) -> dict:
+    from ..sharding import run
+
+    from ._kind import BAKER
+
+    if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1:
+        raise errors.ValidationError("block", block, "must be an integer ≥ 1")
+    if textures and shard is not None:
+        raise errors.ValidationError("textures", str(textures), "a --shard file holds a slice: write textures "
+                                     "from the merged asset")
+    rep = run(BAKER, r, out, progress=progress, shard=shard, block=int(block), keep_parts=keep_parts,
+              distributed=distributed, merge=merge, light=light)
+    tex = None
+    if textures and (rep["process"] == 0):
+        t = read_table(rep["out"], kind=KIND)
+        tex = write_textures(textures, t["light/cd"] if "light/cd" in t.variables else None,
+                             t["light/cs"] if "light/cs" in t.variables else None, r["dense"]["t_resolution"],
+                             light.channels, r)
+    _, info = compact(r)
+    rep.update(_report(r, info, rep["out"], t0, kind=rep["kind"]), textures=None if tex is None else str(tex),
+               tangents=rep["units"], tangent_range=rep["unit_range"], total_tangents=rep["total_units"])
+    return rep
+
+
+def _report(r: dict, info: dict, path, t0: float, kind: str = KIND) -> dict:
+    return {"out": str(path), "kind": kind, "textures": None, "seconds": time.perf_counter() - t0,
+            "bytes": Path(path).stat().st_size, "recipe": r, "recipe_hash": recipe_hash(r),
+            "chebyshev_nodes": info["chebyshev_nodes"], "chebyshev_tail": info["chebyshev_tail"],
+            "specular_truncation_error": info.get("truncation_error")}

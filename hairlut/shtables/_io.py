@@ -13,6 +13,11 @@ HDF5 layout (axes in /axes, see hairlut.assets.h5):
 ``light/a``            (light, channel)        light SH coefficients (when a light is given)
 ``light/cd``, ``light/cs``                     Cd, Cs on the dense grid (when both are present)
 
+The per-tangent tables (``t`` first) are what a bake splits (:mod:`hairlut.sharding`): an
+``sh_shard`` file (a part in ``<out>.parts/``, or the output of ``--shard``) holds tangents
+[t_start, t_stop) of them, plus ``light/a``; a virtual ``sh_tables`` stores them as HDF5
+virtual datasets over the parts and everything else itself (:func:`whole_tables`).
+
 Textures (EXR, one part each, layers indexed by j, the paper's "2-D texture
 arrays"): part ``cd`` is n × 6n per layer ``j<j>.R/G/B`` (the six cube faces
 +x −x +y −y +z −z side by side, OpenGL face orientation); part ``cs`` stacks one
@@ -26,64 +31,172 @@ from pathlib import Path
 import numpy as np
 
 from .. import errors
-from ..assets import Axis, ExrPart, Variable, write_exr, write_table
-from ._kind import KIND
+from ..assets import Axis, ExrPart, Variable, read_table, write_exr, write_table
+from ._kind import KIND, SHARD_KIND
 from ._tables import SHTables
 
 
-def _index_axis(name, n, long_name):
-    return Axis(name, np.arange(n, dtype=np.int32), "1", long_name)
+def _index_axis(name, n, long_name, start: int = 0):
+    return Axis(name, np.arange(start, start + n, dtype=np.int32), "1", long_name)
 
 
-def write_sh_tables(path, tables: SHTables, info: dict, dense: dict | None = None, light: dict | None = None) -> Path:
-    """Write the asset; ``dense`` holds t_dirs/theta_v/rd/rs, ``light`` holds a/channels/cd/cs."""
-    b = tables.bands
+def table_axes(tables: SHTables, info: dict) -> list[Axis]:
+    """The axes of the compact exact tables (Gaunt tensor, kernel coefficients)."""
     g = tables.gaunt
     axes = [
         _index_axis("sh_k", g.shape[0], "SH index k of the kernel expansion (i = l*l + l + m)"),
         _index_axis("light", g.shape[1], "light SH index i"),
         _index_axis("trans", g.shape[2], "transmittance SH index j"),
     ]
-    variables = [Variable("gaunt", g, ("sh_k", "light", "trans"), "1", "real Gaunt coefficients: integral of Y_k Y_i Y_j")]
     if tables.has_diffuse:
         axes.append(_index_axis("l_d", len(tables.kd_l), "Legendre degree l (diffuse)"))
-        variables.append(Variable("kernel/diffuse_k", tables.kd_l, ("l_d",), "sr", "Legendre coefficients k_l of sin(theta)"))
     if tables.has_specular:
         nodes = info["theta_v_nodes"]
         axes.append(Axis("theta_v_node", nodes.ravel(), "rad", "theta' at Chebyshev-Lobatto nodes of [0,pi/2] and [pi/2,pi]"))
         axes.append(_index_axis("l_s", info["specular_nodes"].shape[-1], "Legendre degree l (specular)"))
+    return axes
+
+
+def table_variables(tables: SHTables, info: dict) -> list[Variable]:
+    """The compact exact tables: the Gaunt tensor and the kernels' Legendre coefficients."""
+    variables = [Variable("gaunt", tables.gaunt, ("sh_k", "light", "trans"), "1",
+                          "real Gaunt coefficients: integral of Y_k Y_i Y_j")]
+    if tables.has_diffuse:
+        variables.append(Variable("kernel/diffuse_k", tables.kd_l, ("l_d",), "sr", "Legendre coefficients k_l of sin(theta)"))
+    if tables.has_specular:
         variables.append(Variable(
             "kernel/specular_k", info["specular_nodes"].reshape(-1, info["specular_nodes"].shape[-1]), ("theta_v_node", "l_s"),
             "sr", "Legendre coefficients k_l(theta') of max(0, cos(pi - theta - theta'))^p",
         ))
-    if dense:
-        st = np.dtype(tables.recipe["dense"]["storage"])
-        axes += [_index_axis("t", len(dense["t_dirs"]), "tangent direction index (cube-map texel centres)"),
-                 Axis("xyz", np.arange(3, dtype=np.int32), "1", "x, y, z"),
-                 Axis("theta_v", dense["theta_v"], "rad", "theta' = angle(tangent, view)")]
-        variables.append(Variable("dense/t_dirs", dense["t_dirs"], ("t", "xyz"), "1", "unit tangent directions"))
-        if "rd" in dense:
-            axes.append(_index_axis("light_d", b.n_light_diffuse, "light SH index (diffuse)"))
-            variables.append(Variable("dense/rd", dense["rd"].astype(st), ("t", "light_d", "trans"), "sr", "Rd(i, j, t)",
-                                      chunks=(min(64, len(dense["t_dirs"])), b.n_light_diffuse, b.n_trans)))
-        if "rs" in dense:
-            axes.append(_index_axis("light_s", b.n_light_specular, "light SH index (specular)"))
-            variables.append(Variable("dense/rs", dense["rs"].astype(st), ("t", "theta_v", "light_s", "trans"), "sr",
-                                      "Rs(i, j, t, theta')", chunks=(16, len(dense["theta_v"]), b.n_light_specular, b.n_trans)))
-    if light:
-        a = light["a"]
-        axes += [_index_axis("light_coeff", a.shape[0], "light SH index"),
-                 Axis("channel", np.arange(a.shape[1], dtype=np.int32), "1", "colour channel: " + ",".join(light["channels"]))]
-        variables.append(Variable("light/a", a, ("light_coeff", "channel"), "W/(m2 sr)", "light SH coefficients a_i"))
-        if dense and "cd" in light:
-            variables.append(Variable("light/cd", light["cd"].astype(np.float32), ("t", "trans", "channel"), "1", "Cd(j, t)"))
-        if dense and "cs" in light:
-            variables.append(Variable("light/cs", light["cs"].astype(np.float32), ("t", "theta_v", "trans", "channel"), "1",
-                                      "Cs(j, t, theta')"))
+    return variables
+
+
+def light_axes(light: dict) -> list[Axis]:
+    a = light["a"]
+    return [_index_axis("light_coeff", a.shape[0], "light SH index"),
+            Axis("channel", np.arange(a.shape[1], dtype=np.int32), "1", "colour channel: " + ",".join(light["channels"]))]
+
+
+def light_variables(light: dict) -> list[Variable]:
+    return [Variable("light/a", light["a"], ("light_coeff", "channel"), "W/(m2 sr)", "light SH coefficients a_i")]
+
+
+def dense_axes(tables: SHTables, n: int, theta_v, start: int = 0) -> list[Axis]:
+    """The axes of the per-tangent tables of tangents [start, start + n) (the split axis ``t`` first)."""
+    b = tables.bands
+    axes = [_index_axis("t", n, "tangent direction index (cube-map texel centres)", start),
+            Axis("xyz", np.arange(3, dtype=np.int32), "1", "x, y, z"),
+            Axis("theta_v", np.asarray(theta_v), "rad", "theta' = angle(tangent, view)")]
+    if tables.has_diffuse:
+        axes.append(_index_axis("light_d", b.n_light_diffuse, "light SH index (diffuse)"))
+    if tables.has_specular:
+        axes.append(_index_axis("light_s", b.n_light_specular, "light SH index (specular)"))
+    return axes
+
+
+def dense_variables(tables: SHTables, dense: dict, light: dict | None = None) -> list[Variable]:
+    """The per-tangent tables (``t`` first): t_dirs, Rd, Rs in the recipe's dense storage, Cd, Cs (float32)."""
+    b = tables.bands
+    st = np.dtype(tables.recipe["dense"]["storage"])
+    n = len(dense["t_dirs"])
+    variables = [Variable("dense/t_dirs", dense["t_dirs"], ("t", "xyz"), "1", "unit tangent directions")]
+    if "rd" in dense:
+        variables.append(Variable("dense/rd", dense["rd"].astype(st), ("t", "light_d", "trans"), "sr", "Rd(i, j, t)",
+                                  chunks=(min(64, n), b.n_light_diffuse, b.n_trans)))
+    if "rs" in dense:
+        variables.append(Variable("dense/rs", dense["rs"].astype(st), ("t", "theta_v", "light_s", "trans"), "sr",
+                                  "Rs(i, j, t, theta')", chunks=(min(16, n), len(dense["theta_v"]), b.n_light_specular,
+                                                                 b.n_trans)))
+    if light and "cd" in light:
+        variables.append(Variable("light/cd", light["cd"].astype(np.float32), ("t", "trans", "channel"), "1", "Cd(j, t)"))
+    if light and "cs" in light:
+        variables.append(Variable("light/cs", light["cs"].astype(np.float32), ("t", "theta_v", "trans", "channel"), "1",
+                                  "Cs(j, t, theta')"))
+    return variables
+
+
+def table_attrs(info: dict) -> dict:
     attrs = {"chebyshev_tail": float(info["chebyshev_tail"])}
     if "truncation_error" in info:
         attrs["specular_truncation_error"] = float(info["truncation_error"])
+    return attrs
+
+
+def _unique(axes: list[Axis]) -> list[Axis]:
+    return list({a.name: a for a in axes}.values())
+
+
+def whole_tables(tables: SHTables, info: dict, dense_meta: dict | None, light: dict | None):
+    """(axes, variables, attrs): everything an ``sh_tables`` asset stores besides its per-tangent tables.
+
+    ``dense_meta`` holds ``total`` (tangents) and ``theta_v`` when the asset has dense tables."""
+    axes = table_axes(tables, info)
+    variables = table_variables(tables, info)
+    if dense_meta:
+        axes += dense_axes(tables, dense_meta["total"], dense_meta["theta_v"])
+    if light:
+        axes += light_axes(light)
+        variables += light_variables(light)
+    return _unique(axes), variables, table_attrs(info)
+
+
+def write_sh_tables(path, tables: SHTables, info: dict, dense: dict | None = None, light: dict | None = None) -> Path:
+    """Write the asset; ``dense`` holds t_dirs/theta_v/rd/rs, ``light`` holds a/channels/cd/cs."""
+    meta = {"total": len(dense["t_dirs"]), "theta_v": dense["theta_v"]} if dense else None
+    axes, variables, attrs = whole_tables(tables, info, meta, light)
+    if dense:
+        variables += dense_variables(tables, dense, light)
     return write_table(path, KIND, tables.recipe, axes, variables, attrs=attrs)
+
+
+def write_part(path, tables: SHTables, dense: dict, light: dict | None, start: int, total: int) -> Path:
+    """Tangents [start, start + n) of a bake as an ``sh_shard`` file: the per-tangent tables, and the light's
+    coefficients (so that parts alone make the asset)."""
+    n = len(dense["t_dirs"])
+    axes = dense_axes(tables, n, dense["theta_v"], start) + [_index_axis("trans", tables.bands.n_trans,
+                                                                         "transmittance SH index j")]
+    variables = dense_variables(tables, dense, light)
+    attrs = {"t_start": np.int64(start), "t_stop": np.int64(start + n), "t_total": np.int64(total)}
+    if light:
+        axes += light_axes(light)
+        variables += light_variables(light)
+        attrs["channels"] = ",".join(light["channels"])
+    return write_table(path, SHARD_KIND, tables.recipe, _unique(axes), variables, attrs=attrs)
+
+
+def read_part(path, recipe: dict) -> tuple[dict, dict | None, int, int]:
+    """(dense, light, start, total) of an ``sh_shard`` file of ``recipe`` (every table the recipe implies)."""
+    t = read_table(path, kind=SHARD_KIND)
+    kern = recipe["kernel"]
+    want = ["dense/t_dirs", *(["dense/rd"] if kern["diffuse"] else []), *(["dense/rs"] if kern["specular"] else [])]
+    if "light" in recipe:
+        want += ["light/a", *(["light/cd"] if kern["diffuse"] else []), *(["light/cs"] if kern["specular"] else [])]
+    try:
+        start, stop, total = (int(t.attrs[f"t_{k}"]) for k in ("start", "stop", "total"))
+        dense = {"t_dirs": t["dense/t_dirs"], "theta_v": t.axes["theta_v"].values,
+                 **{k: t[f"dense/{k}"] for k in ("rd", "rs") if f"dense/{k}" in want}}
+        light = None
+        if "light" in recipe:
+            channels = t.attrs["channels"]
+            channels = channels.decode() if isinstance(channels, bytes) else str(channels)
+            light = {"a": t["light/a"], "channels": channels.split(","),
+                     **{k: t[f"light/{k}"] for k in ("cd", "cs") if f"light/{k}" in want}}
+    except KeyError as exc:
+        raise errors.MissingDatasetError(path, f"sh_shard lacks {exc}") from None
+    if len(dense["t_dirs"]) != stop - start:
+        raise errors.CorruptAssetError(path, f"t range {start}..{stop} does not match its {len(dense['t_dirs'])} tangents")
+    return dense, light, start, total
+
+
+def concat_parts(read: list[tuple[dict, dict | None, int, int]]) -> tuple[dict, dict | None]:
+    """Join the per-tangent tables of consecutive parts (as :func:`read_part` returns them)."""
+    dense = {k: np.concatenate([r[0][k] for r in read]) for k in read[0][0] if k != "theta_v"}
+    dense["theta_v"] = read[0][0]["theta_v"]
+    light = None
+    if read[0][1] is not None:
+        light = {"a": read[0][1]["a"], "channels": read[0][1]["channels"],
+                 **{k: np.concatenate([r[1][k] for r in read]) for k in ("cd", "cs") if k in read[0][1]}}
+    return dense, light
 
 
 def cube_strip(values: np.ndarray, n: int) -> np.ndarray:

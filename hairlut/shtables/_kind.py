@@ -9,10 +9,13 @@ path (an EXR map, projected with ``--layout``/``--up`` to the recipe's bands, or
 
 from __future__ import annotations
 
-from ..baker import Baker, Option
+from ..baker import Baker, Option, Units
 from ._recipe import SCHEMA, light_bands, resolve_recipe
 
 KIND = "sh_tables"
+SHARD_KIND = "sh_shard"
+#: Tangents per resumable part (``OUT.parts/``) of a bake with dense tables.
+BLOCK = 512
 LIGHT_KIND = "sh_light"
 #: EXR environment-map layouts (``hairlut.envlight.LAYOUTS``, which needs JAX to import).
 LAYOUTS = ("auto", "latlong", "cube")
@@ -41,15 +44,54 @@ def load_light_option(value, recipe: dict, options: dict):
     return load_light(value, light_bands(recipe) - 1, options.get("layout") or "auto", options.get("up") or "z")
 
 
-def _bake(recipe, out, *, progress=None, shard=None, light=None, textures=None, layout=None, up=None):
+def _bake(recipe, out, *, progress=None, shard=None, light=None, textures=None, layout=None, up=None, block=None,
+          keep_parts=False, distributed=False, merge=None):
     from ._bake import bake
 
-    return bake(recipe, out, progress=progress, shard=shard, light=light, textures=textures)
+    return bake(recipe, out, progress=progress, shard=shard, light=light, textures=textures,
+                block=BLOCK if block is None else block, keep_parts=keep_parts, distributed=distributed, merge=merge)
+
+
+def _count(recipe):
+    n = resolve_recipe(recipe)["dense"]["t_resolution"]
+    return 6 * n * n
+
+
+def _bake_part(recipe, start, stop, total, path, **inputs):
+    from ._bake import bake_part
+
+    return bake_part(recipe, start, stop, total, path, **inputs)
+
+
+def _join(recipe, parts, out):
+    from ._bake import join_parts
+
+    return join_parts(recipe, parts, out)
+
+
+def _assemble(recipe, parts, out, **inputs):
+    from ._bake import assemble_parts
+
+    return assemble_parts(recipe, parts, out)
+
+
+def _whole(recipe, parts, **inputs):
+    from ._bake import whole_parts
+
+    return whole_parts(recipe, parts)
+
+
+def _check(recipe, path):
+    from ._io import read_part
+
+    read_part(path, resolve_recipe(recipe))
 
 
 def _load(path):
+    from ..parts import check_virtual
     from ._tables import load_sh_tables
 
+    check_virtual(path)  # a virtual asset: every part present and of this recipe, before a read
     return load_sh_tables(path)
 
 
@@ -82,6 +124,9 @@ BAKER = Baker(
     estimate=estimate,
     describe=describe,
     options=(
+        Option("block", int, BLOCK, "Tangents per resumable part (OUT.parts/) of a bake with dense tables; does "
+               "not change the result.", minimum=1),
+        Option("keep_parts", bool, False, "Keep OUT.parts/ after the final file is written."),
         Option("p", float, None, "Shortcut for --set kernel.p=P.", sets="kernel.p"),
         Option("light", "path", None, "Environment map (.exr), sh_light table or `sky` (built-in): also bake Cd/Cs.",
                load=load_light_option),
@@ -92,12 +137,18 @@ BAKER = Baker(
     ),
     keyed=("light",),
     unit=None,  # a bake of seconds: no progress bar
+    shard_kind=SHARD_KIND,
+    shard_required=("dense/t_dirs",),
+    units=Units("t", _count, _bake_part, _join, _assemble, _whole, block=BLOCK, check=_check),
     assets=((LIGHT_KIND, ("a",), "SH coefficients of an environment light (xing §4)"),),
     help="""Exact SH convolution tables Rd, Rs for Kajiya–Kay hair (xing §4).
 
     Stores the compact exact form (kernel Legendre coefficients over θ′ and the
     Gaunt tensor), optional dense Rd/Rs on cube-map tangents, and with --light
-    the contracted Cd/Cs.  SH tables cannot be sharded.
+    the contracted Cd/Cs.  A bake with dense tables (dense.t_resolution > 0) splits
+    over its tangents t like the HRIR database over sectors: resumable blocks in
+    OUT.parts/, --shard K/N and `hairlut merge`, --distributed processes (process 0
+    writes OUT as HDF5 virtual datasets over OUT.parts/; --merge copy: one file).
 
     \b
     Examples:
@@ -105,5 +156,7 @@ BAKER = Baker(
       hairlut bake sh --recipe tables/sh-paper.toml --out paper.h5 --light sky --textures paper_tex.exr
       hairlut bake sh --out p200.h5 --p 200 --set bands.light_specular=auto
       hairlut bake sh --p 16                     # into the table cache (tables/), reused when baked
+      hairlut bake sh --set dense.t_resolution=64 --out s0.h5 --shard 0/2   # and 1/2; then
+      hairlut merge s0.h5 s1.h5 --out sh64.h5
     """,
 )
