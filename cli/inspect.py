@@ -8,6 +8,7 @@ import click
 
 from hairlut import registry
 from hairlut.assets import preview, summarize
+from hairlut.parts import check_virtual
 
 from .format import render
 
@@ -27,8 +28,9 @@ def inspect_cmd(paths, as_json, png, channel, part, dataset, index, exposure, no
 
     Shows kind (and what the kind is, from the kind registry), schema, the recipe,
     and for each dataset or channel its shape, dtype, axes and units, min/max/mean
-    and NaN/Inf counts.  Every checksum is verified on the way.  EXR files from
-    other tools are read too.
+    and NaN/Inf counts.  Every checksum is verified on the way, and a virtual table
+    (a split bake's, over OUT.parts/) is read only when each of its parts is there and
+    of its recipe.  EXR files from other tools are read too.
 
     \b
     Examples (after `hairlut bake sh --out tables/sh.h5 --set dense.t_resolution=8` and `hairlut demo`):
@@ -39,6 +41,8 @@ def inspect_cmd(paths, as_json, png, channel, part, dataset, index, exposure, no
     """
     if png and len(paths) != 1:
         raise click.UsageError("--png takes exactly one input file")
+    for p in paths:
+        check_virtual(p)  # a virtual table (a sharded bake's) only with every part, of its recipe: else one line naming it
     summaries = [summarize(p) for p in paths]
     for s in summaries:
         if s.get("kind"):

@@ -67,20 +67,11 @@ def is_valid(path: Path, kind: str, digest: str) -> bool:
 
 @contextlib.contextmanager
 def _locked(path: Path):
-    """Hold ``<asset>.lock`` (flock); a symlink there is refused, never followed (issue 14 item 11)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    lock = path.with_name(path.name + ".lock")
-    try:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
-    except OSError as exc:
-        if exc.errno == errno.ELOOP:
-            raise errors.ValidationError("cache", str(lock), "the cache lock is a symlink; hairlut does not follow it") from None
-        raise
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
+    """Hold ``<asset>.lock`` (:func:`hairlut.parts.lock_file`: flock, no symlink followed, removed on release)."""
+    from .parts import lock_file
+
+    with lock_file(path.with_name(path.name + ".lock"), "cache"):
         yield
-    finally:
-        os.close(fd)
 
 
 def ensure(kind: str, recipe: dict, bake: Callable[[Path], object], root=None) -> tuple[Path, str]:
@@ -124,7 +115,7 @@ def entries(root=None) -> list[Entry]:
 
 def prune(root=None, *, kinds=None, older_than_days: float | None = None, everything: bool = False,
           dry_run: bool = False) -> list[Path]:
-    """Remove cached assets (by kind and/or age, or all), stale temporaries and unused locks."""
+    """Remove cached assets (by kind and/or age, or all), stale temporaries, unused locks and orphaned parts folders."""
     for kind in kinds or ():
         if kind not in KINDS:
             raise errors.ValidationError("kind", kind, f"unknown asset kind; known: {', '.join(known_kinds())}")
@@ -139,9 +130,34 @@ def prune(root=None, *, kinds=None, older_than_days: float | None = None, everyt
     now = time.time()
     # a temporary younger than STALE_SECONDS may belong to a bake that is still running
     victims += [p for p in (stale_temporaries(folder) if folder.is_dir() else []) if now - p.stat().st_mtime > STALE_SECONDS]
-    victims += [p for p in folder.glob("*.h5.lock") if not p.with_suffix("").exists() or p.with_suffix("") in victims]
     if not dry_run:
         for p in victims:
             with contextlib.suppress(FileNotFoundError):
                 p.unlink()
-    return victims
+    return victims + _leftovers(folder, victims, dry_run, everything)
+
+
+def _leftovers(folder: Path, removed: list[Path], dry_run: bool, everything: bool = False) -> list[Path]:
+    """Lock files killed bakes left (``X.h5.lock``, ``X.h5.parts.lock[.K]``) that nobody holds, and the parts folders
+    (``X.h5.parts/``, hairlut's own) of assets that are gone, when no bake of them holds a lock and (unless
+    ``everything``) they are older than :data:`STALE_SECONDS` (a killed bake's parts resume it)."""
+    from .parts import MARKER, remove_folder, remove_if_unused
+
+    if not folder.is_dir():
+        return []
+    gone, held = [], []
+    for p in sorted({*folder.glob("*.h5.lock"), *folder.glob("*.h5.parts.lock"), *folder.glob("*.h5.parts.lock.*")}):
+        (gone if remove_if_unused(p, dry_run) else held).append(p)
+    now = time.time()
+    for d in sorted(folder.glob("*.h5.parts")):
+        asset = d.with_name(d.name[: -len(".parts")])
+        if d.is_symlink() or not (d / MARKER).is_file() or (asset.exists() and asset not in removed):
+            continue
+        if any(p.name.startswith(asset.name + ".") for p in held):
+            continue  # a bake of it holds (or waits for) a lock
+        if not everything and now - d.stat().st_mtime <= STALE_SECONDS:
+            continue
+        gone.append(d)
+        if not dry_run:
+            remove_folder(d)
+    return gone

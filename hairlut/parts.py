@@ -5,13 +5,16 @@ each (the kind's shard kind).  hairlut creates the folder atomically with a mark
 (:data:`MARKER`) inside, and refuses a folder without it, or a symlink, rather than touch
 what it did not create; it deletes only the part files, temporaries and marker it wrote.
 Bakes of one output take turns on an advisory lock (``fcntl.flock`` on
-``<out>.parts.lock``, opened without following symlinks).
+``<out>.parts.lock``, opened without following symlinks, removed by its holder on release:
+:func:`lock_file`; ``hairlut cache prune`` removes the ones killed processes left,
+:func:`remove_if_unused`).
 
 A *virtual* asset (:func:`write_virtual`) stores its per-unit tables as HDF5 virtual
 datasets over the part files, which stay beside it: nothing is copied.  HDF5 fills a
 missing source with the fill value silently, so :func:`check_virtual` validates every
-source before a reader trusts the file: it must be a part inside ``<asset>.parts/``
-(relative name, no symlink), exist, and carry the asset's recipe hash.
+source before a reader trusts the file, by the readers' own rule
+(:func:`hairlut.assets.trust.allowed_virtual_sources`: a part inside ``<asset>.parts/``,
+no symlink, that exists and carries the asset's recipe hash), and names the fault.
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ from .assets import Axis, Variable, atomic_path, canonical_json, open_table, rec
 from .assets.h5 import LIBVER, dims_of, disk_name
 from .assets.kinds import SCHEMA
 from .assets.layout import layout
+from .assets.trust import allowed_virtual_sources
 
 MARKER = ".hairlut-parts"
 MARKER_TEXT = "hairlut parts folder: finished blocks of a bake; hairlut deletes only its own files here\n"
@@ -109,28 +113,86 @@ def remove_folder(folder: Path) -> None:
             folder.rmdir()
 
 
-@contextlib.contextmanager
-def locked(out, suffix: str = ""):
-    """Hold ``<out>.parts.lock<suffix>`` (flock, no symlinks followed); yields whether it had to wait."""
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    path = out.with_name(out.name + ".parts.lock" + suffix)
+def _open_lock(path: Path, what: str) -> int:
     try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
+        return os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
     except OSError as exc:
         if exc.errno == errno.ELOOP:
-            raise errors.ValidationError("out", str(out), f"{path} is a symlink; hairlut does not follow it") from None
+            raise errors.ValidationError(what, str(path), f"{path} is a symlink; hairlut does not follow it") from None
         raise
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    """Whether the locked descriptor is still the file at ``path`` (a releaser or prune may have unlinked it)."""
     try:
-        waited = False
+        st = os.stat(path, follow_symlinks=False)
+    except FileNotFoundError:
+        return False
+    mine = os.fstat(fd)
+    return (st.st_dev, st.st_ino) == (mine.st_dev, mine.st_ino)
+
+
+@contextlib.contextmanager
+def lock_file(path, what: str = "out"):
+    """Hold the advisory lock file ``path`` (flock; a symlink there is refused); yields whether it had to wait.
+
+    The file exists only while someone holds or waits for it: the holder removes it on release, and a
+    waiter that wakes on a removed file takes the lock again on the new one, so no lock files pile up
+    beside outputs and two holders never hold different files of one name."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    waited = False
+    while True:
+        fd = _open_lock(path, what)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             waited = True
             fcntl.flock(fd, fcntl.LOCK_EX)
+        if _same_file(fd, path):
+            break
+        os.close(fd)
+    try:
         yield waited
     finally:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(path)  # while still held: a waiter on this file sees it gone and retries
         os.close(fd)  # closing releases the lock
+
+
+def remove_if_unused(path, dry_run: bool = False) -> bool:
+    """Remove the lock file ``path`` when nobody holds it (a leftover of a killed process); whether it was (would be)."""
+    path = Path(path)
+    if path.is_symlink() or not path.is_file():
+        return False
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_NOFOLLOW)
+    except OSError:
+        return False
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return False  # held: a bake is running
+        if not _same_file(fd, path):
+            return False
+        if not dry_run:
+            os.unlink(path)
+        return True
+    finally:
+        os.close(fd)
+
+
+def lock_path(out, suffix: str = "") -> Path:
+    out = Path(out)
+    return out.with_name(out.name + ".parts.lock" + suffix)
+
+
+@contextlib.contextmanager
+def locked(out, suffix: str = ""):
+    """Hold ``<out>.parts.lock<suffix>`` (:func:`lock_file`); yields whether it had to wait."""
+    with lock_file(lock_path(out, suffix), "out") as waited:
+        yield waited
 
 
 # ----------------------------------------------------------------------------- virtual assets
@@ -226,10 +288,12 @@ def is_virtual(path) -> bool:
 def check_virtual(path) -> list[Path]:
     """Validate the sources of every virtual dataset of a table file; returns the part files (none: not virtual).
 
-    Raises :class:`hairlut.errors.CorruptAssetError` for a source outside ``<asset>.parts/``, a symlink, a
-    part of another recipe or a part lacking its dataset, and AssetNotFoundError for a missing part."""
+    Whether a source may be read is decided in one place, the readers' own rule
+    (:func:`hairlut.assets.trust.allowed_virtual_sources`: a regular file, no symlink, directly in
+    ``<asset>.parts/``, HDF5, the asset's recipe hash); this names what is wrong with a refused one:
+    AssetNotFoundError for a missing part, CorruptAssetError for a source outside the parts folder, a
+    symlink, a part of another recipe, or a part lacking its dataset."""
     path = Path(path)
-    folder = parts_dir(path).resolve()
     sources = []
 
     def visit(name, obj):
@@ -242,28 +306,42 @@ def check_virtual(path) -> list[Path]:
             f.visititems(visit)
     except (OSError, KeyError, RuntimeError, ValueError):
         return []  # not readable as HDF5: the table reader names that fault
+    if all(file_name == "." for _, file_name, _, _ in sources):
+        return []
+    allowed = {str(p) for p in allowed_virtual_sources(path, digest)}
     seen: dict[Path, bool] = {}
     for name, file_name, dset, shape in sources:
         if file_name == ".":
             continue
-        part = path.parent / file_name
-        if os.path.isabs(file_name) or ".." in Path(file_name).parts or part.parent.resolve() != folder:
-            raise errors.CorruptAssetError(path, f"virtual dataset {name!r} points outside the asset's parts folder "
-                                           f"({file_name!r})")
+        part = Path(file_name) if os.path.isabs(file_name) else path.parent / file_name
         if part not in seen:
-            if part.is_symlink():
-                raise errors.CorruptAssetError(part, f"part of {path} is a symlink; parts are regular files")
-            if not part.exists():
-                raise errors.AssetNotFoundError(part, f"part of {path} is missing (rebake, or copy the parts folder "
-                                                "with the asset)")
-            with open_table(part) as pf:
-                got = _text(pf.attrs["recipe_hash"])
-            if got != digest:
-                raise errors.CorruptAssetError(part, f"part of {path} was baked from another recipe (recipe hash "
-                                               f"{got[:16]}, the asset's is {digest[:16]})")
+            if os.path.join(os.path.realpath(part.parent), part.name) not in allowed:
+                raise _refused(path, name, file_name, part, digest)
             seen[part] = True
         with h5py.File(part, "r") as pf:
             if dset not in pf or not isinstance(pf[dset], h5py.Dataset) or pf[dset].shape[1:] != tuple(shape):
                 raise errors.CorruptAssetError(part, f"part of {path} lacks dataset {dset!r} of shape (n, "
                                                f"{', '.join(map(str, shape))})")
     return sorted(seen)
+
+
+def _refused(path: Path, name: str, file_name: str, part: Path, digest: str) -> errors.AssetError:
+    """The error that names why ``part`` is not one of ``path``'s parts (the rule refused it)."""
+    folder = parts_dir(path)
+    if os.path.isabs(file_name) or ".." in Path(file_name).parts or part.parent.is_symlink() \
+            or os.path.realpath(part.parent) != os.path.realpath(folder):
+        return errors.CorruptAssetError(path, f"virtual dataset {name!r} points outside the asset's parts folder "
+                                        f"({file_name!r})")
+    if part.is_symlink():
+        return errors.CorruptAssetError(part, f"part of {path} is a symlink; parts are regular files")
+    if not part.exists():
+        return errors.AssetNotFoundError(part, f"part of {path} is missing (rebake, or copy the parts folder with the asset)")
+    try:
+        with h5py.File(part, "r") as pf:
+            got = _text(pf.attrs.get("recipe_hash", ""))
+    except (OSError, KeyError, RuntimeError, ValueError):
+        return errors.CorruptAssetError(part, f"part of {path} is not a readable HDF5 file")
+    if got != digest:
+        return errors.CorruptAssetError(part, f"part of {path} was baked from another recipe (recipe hash "
+                                        f"{got[:16] or 'none'}, the asset's is {digest[:16]})")
+    return errors.CorruptAssetError(part, f"part of {path} is not a regular HDF5 file of its parts folder")

@@ -207,3 +207,151 @@ def test_concurrent_bakes_of_one_output_wait_and_stray_temporaries_go(tmp_path):
     assert _sha(out) == _sha(first["out"])
     rep = bake(SMALL, out, block=4)  # nobody holds the lock: a normal (resumed) bake, temporaries cleaned
     assert rep["status"] == "baked" and not any(p.exists() for p in stray)
+
+
+# ----------------------------------------------------------------------------- every kind on the one shard path
+
+SH = {"kernel": {"p": 16.0}, "dense": {"t_resolution": 4, "theta_v_steps": 5}}  # 96 tangents
+SPLIT = {"hrir_db": (SMALL, {"block": 4}), "sh_tables": (SH, {"block": 40, "light": "sky"})}
+
+
+def test_every_kind_that_splits_bakes_the_same_data_sharded_virtual_and_whole(tmp_path):
+    from hairlut import registry
+
+    kinds = [k for k in registry.kinds() if registry.get(k).units is not None]
+    assert set(SPLIT) <= set(kinds)
+    for kind in kinds:
+        recipe, options = SPLIT[kind]
+        whole = registry.bake(kind, recipe, tmp_path / f"{kind}.h5", options=options)
+        assert whole["computed"] == whole["total_units"] > options["block"] and not parts_dir(whole["out"]).exists()
+        virtual = registry.bake(kind, recipe, tmp_path / f"{kind}-v.h5", options=options, merge="virtual")
+        shards = [registry.bake(kind, recipe, tmp_path / f"{kind}-{k}.h5", shard=f"{k}/2", options=options)["out"]
+                  for k in range(2)]
+        merged = registry.merge(shards[::-1], tmp_path / f"{kind}-m.h5")
+        for other in (virtual["out"], merged["out"]):
+            _assert_same_data(whole["out"], other)
+        assert len(_datasets(whole["out"])) > 8  # every dataset compared, not the first
+        assert len(check_virtual(virtual["out"])) == len(list(parts_dir(virtual["out"]).glob("part-*.h5"))) > 1
+        registry.get(kind).load(virtual["out"])
+        assert not list(tmp_path.glob("*.lock*"))  # the locks go with their holders
+
+
+def test_sh_dense_tables_do_not_depend_on_blocks_and_match_the_exact_tables(tmp_path):
+    import numpy as np
+
+    from hairlut.shtables import bake as bake_sh_asset, compute, load_sh_tables
+
+    a = bake_sh_asset(SH, tmp_path / "a.h5", block=7)
+    b = bake_sh_asset({**SH, "dense": {**SH["dense"], "storage": "float64"}}, tmp_path / "b.h5", block=96)
+    assert a["computed"] == 96 and len(_datasets(a["out"])) == len(_datasets(b["out"]))
+    ref = compute(SH)
+    t = load_sh_tables(b["out"]).source
+    exact = load_sh_tables(b["out"])
+    np.testing.assert_array_equal(t["dense/rs"], ref["dense"]["rs"])  # float64 storage: the computed numbers
+    np.testing.assert_array_equal(_datasets(a["out"])["dense/rd"], ref["dense"]["rd"].astype(np.float32))
+    # an independent evaluation: the tables' own rd/rs at the stored tangents, all at once
+    np.testing.assert_allclose(t["dense/rd"], np.asarray(exact.rd(t["dense/t_dirs"])), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(t["dense/rs"], np.asarray(exact.rs(t["dense/t_dirs"][:, None], t.axes["theta_v"].values[None])),
+                               rtol=0, atol=1e-13)
+
+
+def _sh_cmd(out, *extra):
+    return [sys.executable, "-c", CODE, "bake", "sh", "--p", "16", "--set", "dense.t_resolution=4", "--set",
+            "dense.theta_v_steps=5", "--light", "sky", "--block", "16", "--out", str(out), "--no-progress", *extra]
+
+
+@pytest.mark.slow
+def test_two_processes_on_loopback_bake_the_sh_tables_of_one(tmp_path):
+    subprocess.run(_sh_cmd(tmp_path / "one.h5"), env=_env(1), check=True, capture_output=True)
+    out = tmp_path / "sh.h5"
+    port = _free_port()
+    procs = [subprocess.Popen(_sh_cmd(out, "--distributed", "--coordinator", f"127.0.0.1:{port}", "--num-processes", "2",
+                                      "--process-id", str(k), "--json"), env=_env(2), stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for k in range(2)]
+    docs = _finish(procs)
+    assert [d["tangent_range"] for d in docs] == [[0, 48], [48, 96]] and all(d["computed"] == 48 for d in docs)
+    _assert_same_data(tmp_path / "one.h5", out)
+    with h5py.File(out, "r") as f:
+        assert f["dense/rs"].is_virtual and f["light_group/cs"].is_virtual and not f["gaunt"].is_virtual
+    assert len(check_virtual(out)) == 6
+    dump = subprocess.run(["h5dump", "-d", "/dense/rd", str(out)], capture_output=True, text=True)
+    assert dump.returncode == 0 and "DATASPACE  SIMPLE { ( 96, 9, 9 )" in dump.stdout and "nan" not in dump.stdout.lower()
+
+
+def test_inspect_reads_an_own_virtual_asset_and_names_a_missing_or_foreign_part(tmp_path):
+    from click.testing import CliRunner
+
+    from hairlut.assets import read_table
+    from hairlut.shtables import bake as bake_sh_asset
+    from hairlut_cli.main import cli
+
+    out = tmp_path / "sh.h5"
+    bake_sh_asset(SH, out, block=40, merge="virtual")
+    res = CliRunner().invoke(cli, ["inspect", str(out), "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.output)["kind"] == "sh_tables" and read_table(out, kind="sh_tables")["dense/rs"].shape[0] == 96
+    parts = sorted(parts_dir(out).glob("part-*.h5"))
+    other = tmp_path / "o.h5"
+    bake_sh_asset({**SH, "kernel": {"p": 17.0}}, other, block=40, keep_parts=True)
+    saved = parts[1].read_bytes()
+    parts[1].write_bytes(sorted(parts_dir(other).glob("part-*.h5"))[1].read_bytes())
+    for run_it in (lambda: CliRunner().invoke(cli, ["inspect", str(out)]),):
+        res = run_it()
+        assert res.exit_code == 2 and str(parts[1]) in res.output and "another recipe" in res.output
+        assert len(res.output.strip().splitlines()) == 1
+    with pytest.raises(errors.ForeignReferenceError):  # the readers' own rule refuses it too
+        read_table(out, kind="sh_tables")
+    parts[1].unlink()
+    res = CliRunner().invoke(cli, ["inspect", str(out)])
+    assert res.exit_code == 2 and str(parts[1]) in res.output and "missing" in res.output
+    # a part reached through a symlink, or a source outside the parts folder, is refused as well
+    parts[1].symlink_to(parts_dir(other) / parts[1].name)
+    with pytest.raises(errors.CorruptAssetError, match="symlink"):
+        check_virtual(out)
+    parts[1].unlink()
+    parts[1].write_bytes(saved)
+    assert len(check_virtual(out)) == 3
+    outside = tmp_path / "elsewhere.h5"
+    with h5py.File(out, "r") as f:
+        shape, dtype = f["dense/rd"].shape, f["dense/rd"].dtype
+    (tmp_path / "part-copy.h5").write_bytes(saved)
+    with h5py.File(outside, "w") as f:
+        f.attrs.update({k: v for k, v in h5py.File(out, "r").attrs.items()})
+        layout = h5py.VirtualLayout(shape=shape, dtype=dtype)
+        layout[40:80] = h5py.VirtualSource("part-copy.h5", "dense/rd", shape=(40, *shape[1:]))
+        f.create_virtual_dataset("dense/rd", layout, fillvalue=0)
+    with pytest.raises(errors.CorruptAssetError, match="outside the asset's parts folder"):
+        check_virtual(outside)
+    res = CliRunner().invoke(cli, ["inspect", str(outside)])
+    assert res.exit_code == 2 and "outside" in res.output
+
+
+def test_lock_files_go_and_prune_removes_only_the_unused_ones(tmp_path):
+    from hairlut.cache import prune
+
+    bake(SMALL, tmp_path / "db.h5", block=4)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["db.h5"]
+    left = [tmp_path / "a.h5.lock", tmp_path / "b.h5.parts.lock", tmp_path / "b.h5.parts.lock.1"]
+    for p in left:
+        p.write_text("")  # what a killed process leaves
+    with locked(tmp_path / "c.h5"):
+        held = tmp_path / "c.h5.parts.lock"
+        assert held.exists()
+        assert set(prune(tmp_path, dry_run=True)) == set(left) and all(p.exists() for p in left)
+        assert set(prune(tmp_path)) == set(left) and not any(p.exists() for p in left)
+        assert held.exists()  # a bake holds it
+    assert not held.exists()
+
+
+def test_a_part_of_an_older_format_is_baked_again(tmp_path):
+    out = tmp_path / "db.h5"
+    ref = bake(SMALL, out, block=4, keep_parts=True)
+    old = sorted(parts_dir(out).glob("part-*.h5"))[1]
+    with h5py.File(old, "r+") as f:
+        del f.attrs["storage_max_abs_error_alpha"]  # as parts written before the storage errors were recorded
+    first = ref["out"]
+    saved = Path(first).read_bytes()
+    out.unlink()
+    rep = bake(SMALL, out, block=4)
+    assert rep["computed"] == 4 and rep["resumed"] == 8
+    assert Path(out).read_bytes() == saved
