@@ -104,4 +104,86 @@ def product(*factors) -> float:
     return out
 
 
-__all__ = ["ENV", "check", "describe", "memory_limit", "parse_size", "physical_memory", "product"]
+def driver(*pairs) -> tuple[str, object]:
+    """(key, value) of the factor furthest above its default, from ``(key, value, default)`` triples:
+    the key the user set that drives an estimate."""
+    key, value, _ = max(pairs, key=lambda p: float(p[1]) / float(p[2]) if p[2] else float(p[1]))
+    return key, value
+
+
+# ----------------------------------------------------------------------------- estimates at the boundaries
+# Each is a lower bound of the peak: the arrays that must exist at once, with a
+# small factor for the float64 intermediates the code is known to make.
+
+STRAND_POINTS = 32  # points per procedural strand (hairlut.geometry.generate_strands)
+STRAND_BYTES = STRAND_POINTS * 3 * 8 * 4  # float64 points, tangents and two work copies
+TEXEL_BYTES = 256  # per texel, layer and cluster: frames, positions and maps (float64 / float32)
+TEXEL_LIGHT_BYTES = 32  # per texel, layer, cluster and light: transmittance and shading terms
+PIXEL_BYTES = 64  # per preview pixel: RGBA float32 and its tone-mapped copies
+
+
+def check_scene(cfg: dict, n_clusters: int, n_layers: int, n_lights: int, limit: int | None = None) -> None:
+    """Refuse a scene whose strands, maps or preview would not fit (keys ``strands.count``,
+    ``render.resolution``, ``lights.directions``, ``render.preview_size``)."""
+    n = cfg["strands"]["count"]
+    check("strands.count", n, product(n, max(n_clusters, 1), STRAND_BYTES), f"{n} strands in each of {n_clusters} clusters",
+          limit)
+    n_u, n_t = cfg["render"]["resolution"]
+    texels = product(n_u, n_t, max(n_layers, 1), max(n_clusters, 1))
+    check("render.resolution", cfg["render"]["resolution"], texels * TEXEL_BYTES,
+          f"the texel frames of {n_layers} layers × {n_clusters} clusters", limit)
+    check("lights.directions", f"{n_lights} directions", texels * (TEXEL_BYTES + TEXEL_LIGHT_BYTES * n_lights),
+          f"the per-light maps at render.resolution {cfg['render']['resolution']}", limit)
+    size = cfg["render"]["preview_size"]
+    check("render.preview_size", size, product(size, size, PIXEL_BYTES), "the preview image", limit)
+
+
+HRIR_DEFAULTS = {"sectors.count": 512, "angles.views": 32, "angles.lights": 32, "trace.pixels": 64, "trace.steps": 64,
+                 "trace.rays_per_pixel": 1, "sectors.grid": 32 * 32, "sectors.space.strands": 48}
+HRIR_BLOCK = 32  # sectors sampled and traced together (hairlut.hrir BLOCK)
+
+
+def check_hrir(r: dict, limit: int | None = None) -> None:
+    """Refuse an ``hrir_db`` recipe whose database, tracer working set, grids or splats would not fit."""
+    d = HRIR_DEFAULTS
+    n, V, L = r["sectors"]["count"], r["angles"]["views"], r["angles"]["lights"]
+    P, K, rays = r["trace"]["pixels"], r["trace"]["steps"], r["trace"]["rays_per_pixel"]
+    n_s, n_r = r["sectors"]["grid"]
+    strands = max(r["sectors"]["space"]["strands"])
+
+    def keyed(*keys):
+        vals = {"sectors.count": n, "angles.views": V, "angles.lights": L, "trace.pixels": P, "trace.steps": K,
+                "trace.rays_per_pixel": rays, "sectors.grid": n_s * n_r, "sectors.space.strands": strands}
+        key, _ = driver(*((k, vals[k], d[k]) for k in keys))
+        shown = {"sectors.grid": r["sectors"]["grid"], "sectors.space.strands": r["sectors"]["space"]["strands"]}
+        return key, shown.get(key, vals[key])
+
+    check(*keyed("sectors.count", "angles.views", "angles.lights", "trace.pixels"),
+          product(n, V, P, L + 1, 4), f"the database's α and reflectance tables ({n} sectors × {V} views × {L} lights × "
+          f"{P} pixels, float32)", limit)
+    check(*keyed("angles.views", "angles.lights", "trace.pixels", "trace.steps", "trace.rays_per_pixel"),
+          product(V, P, rays, K, 6 + L, 4), f"tracing one sector ({V} views × {P}×{rays} rays × {K} steps × {L} lights)",
+          limit)
+    check(*keyed("sectors.grid", "sectors.count"), product(n, n_s, n_r, 4 * 2), f"{n} density grids of {n_s}×{n_r}", limit)
+    check(*keyed("sectors.space.strands"), product(HRIR_BLOCK, strands, 64, n_s * n_r / (32 * 32) + 1),
+          f"the splats of a block of {HRIR_BLOCK} sectors with up to {strands} strands each", limit)
+
+
+def check_sh(r: dict, limit: int | None = None) -> None:
+    """Refuse an ``sh_tables`` recipe whose Gaunt tensor or dense grids would not fit."""
+    k, b, dense = r["kernel"], r["bands"], r["dense"]
+    T = b["transmittance"]
+    li = max(b["light_specular"] if k["specular"] else 0, b["light_diffuse"] if k["diffuse"] else 0)
+    key = "bands.light_specular" if k["specular"] and b["light_specular"] >= b["light_diffuse"] else "bands.light_diffuse"
+    check(key, b[key.split(".")[1]], product((li + T - 1) ** 2, li**2, T**2, 8 * 2),
+          f"the float64 Gaunt tensor ({li} light bands, {T} transmittance bands)", limit)
+    n = dense["t_resolution"]
+    if n:
+        per_t = (b["light_diffuse"] ** 2 if k["diffuse"] else 0) + \
+            (b["light_specular"] ** 2 * dense["theta_v_steps"] if k["specular"] else 0)
+        check("dense.t_resolution", n, product(6, n, n, per_t, T**2, 8 * 2),
+              f"the dense Rd/Rs grids ({6 * n * n} tangent directions, float64)", limit)
+
+
+__all__ = ["ENV", "check", "check_hrir", "check_scene", "check_sh", "describe", "driver", "memory_limit",
+           "parse_size", "physical_memory", "product"]

@@ -7,9 +7,10 @@ from .preview import encode_png, parse_slice, preview, tonemap
 from .summary import array_stats, sniff, summarize
 from .kinds import KINDS, SCHEMA, register_kind
 from .recipe import canonical_json, recipe_hash
+from .trust import allowed_virtual_sources
 
 __all__ = [
-    "Axis", "ExrImage", "ExrPart", "KINDS", "SCHEMA", "Table", "Variable",
+    "Axis", "ExrImage", "allowed_virtual_sources", "ExrPart", "KINDS", "SCHEMA", "Table", "Variable",
     "atomic_path", "atomic_write_bytes", "canonical_json", "open_table", "read_exr", "read_table",
     "recipe_hash", "register_kind", "stale_temporaries", "write_exr", "write_table",
     "array_stats", "encode_png", "parse_slice", "preview", "sniff", "summarize", "tonemap",

@@ -306,6 +306,10 @@ def _validate_root(path: Path, f: h5py.File, kind: str | None, required: Iterabl
         raise errors.ChecksumError(path, "recipe_hash does not match the stored recipe")
     stored_recipe(path, f)
     check_links(path, f)  # before layout(), which resolves links
+    if schema == 1 and isinstance(f.get(AXES_GROUP), h5py.Group):
+        for name, obj in f[AXES_GROUP].items():
+            if not isinstance(obj, h5py.Dataset):
+                raise errors.CorruptAssetError(path, f"'{AXES_GROUP}/{name}' is a group; /{AXES_GROUP} holds only axis datasets")
     axes, tables = layout(f)
     for name in (*KINDS[file_kind].required, *required):
         if name not in tables:

@@ -106,23 +106,20 @@ def _expected_chunks(shape, chunks) -> int:
     return n
 
 
-def _part_folders(asset: Path) -> tuple[str, str]:
-    here = os.path.realpath(asset.parent)
-    return here, os.path.join(here, asset.name + PARTS_SUFFIX)
+def _part_folders(asset: Path) -> tuple[str]:
+    return (os.path.join(os.path.realpath(asset.parent), asset.name + PARTS_SUFFIX),)
 
 
 def _part_fault(asset: Path, candidate: Path, recipe_hash: str) -> str | None:
     """Why ``candidate`` may not feed a virtual dataset of ``asset`` (None: it may)."""
-    if os.path.realpath(candidate.parent) not in _part_folders(asset):
-        return "lies neither beside the asset nor in its .parts folder"
+    if os.path.islink(candidate.parent) or os.path.realpath(candidate.parent) not in _part_folders(asset):
+        return "is not in the asset's parts folder"
     try:
         st = os.lstat(candidate)
     except OSError:
         return "does not exist"
     if not stat.S_ISREG(st.st_mode):
         return "is not a regular file (symlinks are not followed)"
-    if os.path.realpath(candidate) == os.path.realpath(asset):
-        return None  # the asset itself
     try:
         with open(candidate, "rb") as fh:
             if fh.read(8) != b"\x89HDF\r\n\x1a\n":
@@ -141,13 +138,14 @@ def allowed_virtual_sources(path, recipe_hash: str) -> list[Path]:
     """The part files a virtual dataset in asset ``path`` may read.
 
     The one exception to "files never reach outside themselves", for sharded bakes
-    that join their parts with an HDF5 virtual dataset: a source is allowed when it
-    is a regular file (not a symlink) directly beside the asset or directly inside
-    ``<asset name>.parts/`` beside it, is an HDF5 file, and its root ``recipe_hash``
-    attribute equals the asset's (``recipe_hash``).  The asset itself ("." in a
-    virtual mapping) is always allowed.  Readers apply the same rule to each source a
-    virtual dataset names, and refuse any other (:class:`~hairlut.errors.ForeignReferenceError`);
-    they also refuse a source dataset that is itself virtual or external.
+    that join their parts with an HDF5 virtual dataset (:mod:`hairlut.parts`): a
+    source is allowed when it is a regular file (not a symlink) directly inside the
+    folder ``<asset name>.parts/`` beside the asset (itself not a symlink), is an HDF5
+    file, and its root ``recipe_hash`` attribute equals the asset's (``recipe_hash``).
+    The asset itself ("." in a virtual mapping) is always allowed.  Readers apply the
+    same rule to each source a virtual dataset names, and refuse any other
+    (:class:`~hairlut.errors.ForeignReferenceError`); they also refuse a source
+    dataset that is itself virtual or external.
     """
     asset = Path(path)
     found = []
@@ -155,8 +153,7 @@ def allowed_virtual_sources(path, recipe_hash: str) -> list[Path]:
         if not folder.is_dir() or folder.is_symlink():
             continue
         for candidate in sorted(folder.iterdir()):
-            if candidate.suffix == ".h5" and os.path.realpath(candidate) != os.path.realpath(asset) \
-                    and _part_fault(asset, candidate, recipe_hash) is None:
+            if candidate.suffix == ".h5" and _part_fault(asset, candidate, recipe_hash) is None:
                 found.append(candidate)
     return found
 
@@ -164,20 +161,21 @@ def allowed_virtual_sources(path, recipe_hash: str) -> list[Path]:
 def _check_virtual(path: Path, name: str, ds: h5py.Dataset, recipe_hash: str) -> None:
     for src in ds.virtual_sources():
         where = src.file_name
-        candidate = path if where == "." else (Path(where) if os.path.isabs(where) else path.parent / where)
+        if where == ".":
+            continue
+        candidate = Path(where) if os.path.isabs(where) else path.parent / where
         fault = _part_fault(path, candidate, recipe_hash)
         if fault is not None:
             raise errors.ForeignReferenceError(
                 path, f"dataset {name!r} is virtual with source {where}:{src.dset_name}, which {fault}; "
-                      "only the asset's own parts (same recipe hash, beside it) may be sources")
-        if where != ".":
-            with guard(candidate), h5py.File(candidate, "r") as g:
-                link = g.get(src.dset_name, getlink=True)
-                obj = g.get(src.dset_name) if isinstance(link, h5py.HardLink) else None
-                if not isinstance(obj, h5py.Dataset) or obj.external or obj.is_virtual:
-                    raise errors.ForeignReferenceError(
-                        path, f"dataset {name!r} is virtual with source {where}:{src.dset_name}, "
-                              "which is not a plain dataset of that part")
+                      "only the asset's own parts (<asset>.parts/, same recipe hash) may be sources")
+        with guard(candidate), h5py.File(candidate, "r") as g:
+            link = g.get(src.dset_name, getlink=True)
+            obj = g.get(src.dset_name) if isinstance(link, h5py.HardLink) else None
+            if not isinstance(obj, h5py.Dataset) or obj.external or obj.is_virtual:
+                raise errors.ForeignReferenceError(
+                    path, f"dataset {name!r} is virtual with source {where}:{src.dset_name}, "
+                          "which is not a plain dataset of that part")
 
 
 def check_dataset(path, name: str, ds: h5py.Dataset, recipe_hash: str) -> None:
