@@ -43,14 +43,14 @@ def _sh(dirs, lmax):
 @functools.partial(jax.jit, static_argnames=("lmax",))
 def _rd_kernel(t, kd, gaunt, lmax):
     y = _sh(t, lmax) * kd  # (..., K): k_l already expanded per k
-    return jnp.einsum("...k,kij->...ij", y, gaunt)
+    return jnp.einsum("...k,kij->...ij", y, gaunt, precision=jax.lax.Precision.HIGHEST)
 
 
 @functools.partial(jax.jit, static_argnames=("lmax",))
 def _rs_kernel(t, theta_v, cheb, gaunt, lmax, l_of_k):
     k_l = cheb_eval(cheb, theta_v)  # (..., L+1)
     y = _sh(t, lmax) * jnp.take(k_l, l_of_k, axis=-1)
-    return jnp.einsum("...k,kij->...ij", y, gaunt)
+    return jnp.einsum("...k,kij->...ij", y, gaunt, precision=jax.lax.Precision.HIGHEST)
 
 
 BLOCK = 2048  # vertices per block: keeps the (block, (L+1)²) working set in cache
@@ -66,11 +66,11 @@ def _radiance_block(t, theta_v, b, kd, ks, kd_k, hd, cheb, hs, l_of_k_s, lmax_d,
     out = 0.0
     if hd is not None:
         w = y[: hd.shape[0]] * kd_k[:, None] * kd[None, :]
-        out = out + jnp.einsum("kn,nj,kjc->nc", w, b[:, : hd.shape[1]], hd)
+        out = out + jnp.einsum("kn,nj,kjc->nc", w, b[:, : hd.shape[1]], hd, precision=jax.lax.Precision.HIGHEST)
     if hs is not None:
         k_l = jnp.take(cheb_eval(cheb, theta_v), l_of_k_s, axis=-1)  # (n, K)
         w = y[: hs.shape[0]] * k_l.T * ks[None, :]
-        out = out + jnp.einsum("kn,nj,kjc->nc", w, b[:, : hs.shape[1]], hs)
+        out = out + jnp.einsum("kn,nj,kjc->nc", w, b[:, : hs.shape[1]], hs, precision=jax.lax.Precision.HIGHEST)
     return out
 
 
@@ -193,10 +193,12 @@ class SHTables:
             hd = hs = None
             if self.has_diffuse:
                 g = jnp.asarray(self._g(self.lmax_d, self.bands.n_light_diffuse))
-                hd = jnp.einsum("kij,ic->kjc", g, jnp.asarray(a[: self.bands.n_light_diffuse]))
+                hd = jnp.einsum("kij,ic->kjc", g, jnp.asarray(a[: self.bands.n_light_diffuse]),
+                                precision=jax.lax.Precision.HIGHEST)
             if self.has_specular:
                 g = jnp.asarray(self._g(self.lmax_s, self.bands.n_light_specular))
-                hs = jnp.einsum("kij,ic->kjc", g, jnp.asarray(a[: self.bands.n_light_specular]))
+                hs = jnp.einsum("kij,ic->kjc", g, jnp.asarray(a[: self.bands.n_light_specular]),
+                                precision=jax.lax.Precision.HIGHEST)
         return Contracted(self, hd, hs, squeeze)
 
     def radiance(self, a, b, t, theta_v, kd=1.0, ks=1.0) -> Array:
