@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -166,7 +167,8 @@ def basis(x, knots, degree: int, n: int, deriv: int = 0, xp=jnp):
 
 def evaluate(x, knots, control, degree: int, deriv: int = 0, xp=jnp):
     """(M, d) values or derivatives of the spline at ``x`` (jnp: traceable, vmappable over knots/control)."""
-    return basis(x, knots, degree, control.shape[0], deriv, xp) @ control
+    b = basis(x, knots, degree, control.shape[0], deriv, xp)
+    return jnp.matmul(b, control, precision=jax.lax.Precision.HIGHEST) if xp is jnp else b @ control
 
 
 def fit_bspline(x, values, n_control: int, degree: int = 3, *, field: str = "values") -> BSpline:
@@ -226,7 +228,8 @@ def eval_piecewise(x, breaks, coeffs, inv_width, spans, deriv=0):
     k = jnp.clip(k, spans[0], spans[1])
     # one matmul against a one-hot row replaces three gathers (much cheaper to compile)
     table = jnp.concatenate([coeffs.reshape(n_span, q * d), breaks[:-1, None], inv_width[:, None]], axis=1)
-    row = (k[:, None] == jnp.arange(n_span)[None, :]).astype(x.dtype) @ table
+    # HIGHEST: a TF32 product would round the table's coefficients to 10 bits
+    row = jnp.matmul((k[:, None] == jnp.arange(n_span)[None, :]).astype(x.dtype), table, precision=jax.lax.Precision.HIGHEST)
     c = row[:, :q * d].reshape(-1, q, d)
     y = (x - row[:, q * d]) * row[:, q * d + 1]
     iw = row[:, q * d + 1:q * d + 2]

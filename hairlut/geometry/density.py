@@ -64,7 +64,7 @@ def _cell_mass(center, sigma, mass, n_s: int, n_r: int):
     er = jnp.linspace(0.0, 1.0, n_r + 1, dtype=center.dtype)
     ws = _cdf_diff(es, center[:, 0], sigma[:, 0])
     wr = _cdf_diff(er, center[:, 1], sigma[:, 1])
-    return jnp.einsum("k,ki,kj->ij", mass, ws, wr)
+    return jnp.einsum("k,ki,kj->ij", mass, ws, wr, precision=jax.lax.Precision.HIGHEST)
 
 
 def _row_area(area_scale, v_range, n_s: int, n_r: int):

@@ -62,6 +62,8 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 
+HIGHEST = jax.lax.Precision.HIGHEST  # stated, not inherited: XLA would use TF32 on NVIDIA GPUs
+
 #: Largest side M of the Cartesian shadow grid (M = min(steps, SHADOW_GRID)).
 SHADOW_GRID = 128
 
@@ -226,13 +228,14 @@ def _trace_one(rho, g, views, lights, phong, *, n_pix, n_steps, rays, shadow, sm
         # one view at a time: the loop boundary stops XLA fusing the field into the gather (10x slower)
         trans_l = jax.lax.map(lambda a: jnp.exp(-_bilerp(field, a[0], a[1])), (fi, fj))  # (V, lanes, K, L)
         direct = direct * jnp.moveaxis(trans_l, -1, 1)
-    refl = phong[0] * alpha[:, None] + jnp.einsum("vlnk,vnk->vln", direct, w)  # (V, L, lanes); a dot, not a reduce fusion
+    # (V, L, lanes); a dot, not a reduce fusion
+    refl = phong[0] * alpha[:, None] + jnp.einsum("vlnk,vnk->vln", direct, w, precision=HIGHEST)
     alpha = alpha.reshape(alpha.shape[0], n_pix, rays).mean(-1)
     refl = refl.reshape(*refl.shape[:2], n_pix, rays).mean(-1)
     if smooth:
         S = _smooth_matrix(g[10], n_pix)
-        alpha = alpha @ S
-        refl = refl @ S
+        alpha = jnp.matmul(alpha, S, precision=HIGHEST)
+        refl = jnp.matmul(refl, S, precision=HIGHEST)
     return alpha, refl
 
 

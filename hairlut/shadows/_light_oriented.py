@@ -39,6 +39,8 @@ from ._light import check_kappa, light_frame
 from ._volume import trilinear
 from ..geometry.strands import Strands
 
+HIGHEST = jax.lax.Precision.HIGHEST  # stated, not inherited: XLA would use TF32 on NVIDIA GPUs
+
 SUBSTEPS = 4  # density samples per cell edge along a segment
 MAX_CELLS = 1 << 27
 
@@ -46,7 +48,7 @@ MAX_CELLS = 1 << 27
 @functools.partial(jax.jit, static_argnames=("shape", "n_sub"))
 def _map_kernel(a, b, frame, origin, ds, kappa, shape, n_sub):
     """Segments (E, 3) → (density, transmittance), both ``shape``, in the light frame."""
-    pa, pb = a @ frame.T, b @ frame.T
+    pa, pb = jnp.matmul(a, frame.T, precision=HIGHEST), jnp.matmul(b, frame.T, precision=HIGHEST)
     length = jnp.linalg.norm(b - a, axis=1)
     f = (jnp.arange(n_sub) + 0.5) / n_sub
     samples = pa[:, None, :] + f[None, :, None] * (pb - pa)[:, None, :]  # (E, n_sub, 3)

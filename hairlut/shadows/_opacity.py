@@ -39,6 +39,8 @@ from ..validate import check_int, check_real, points as check_points
 from ._light import check_kappa, light_frame
 from ._volume import trilinear
 
+HIGHEST = jax.lax.Precision.HIGHEST  # stated, not inherited: XLA would use TF32 on NVIDIA GPUs
+
 PADDING = 1  # empty texels around the hair's footprint, so bilinear lookups fall to Ω = 0 outside it
 
 
@@ -86,7 +88,7 @@ class OpacityMaps:
 def _build(a, b, width, count, frame, origin, h, near, dz, shape, total):
     """Ω maps from segments a→b (E, 3) cut into ``count`` (E,) equal pieces (``total`` ≥ Σ count, static)."""
     n_slices, H, W = shape
-    pa, pb = a @ frame.T, b @ frame.T  # light frame: (x, y, depth)
+    pa, pb = jnp.matmul(a, frame.T, precision=HIGHEST), jnp.matmul(b, frame.T, precision=HIGHEST)  # light frame: (x, y, depth)
     weight = jnp.linalg.norm(b - a, axis=1) * width / count / (h * h)
     seg = jnp.repeat(jnp.arange(a.shape[0]), count, total_repeat_length=total)
     start = jnp.cumsum(count) - count
@@ -104,7 +106,7 @@ def _build(a, b, width, count, frame, origin, h, near, dz, shape, total):
 @jax.jit
 def _lookup(points, maps, frame, origin, h, near, dz):
     n_slices, H, W = maps.shape
-    q = points @ frame.T
+    q = jnp.matmul(points, frame.T, precision=HIGHEST)
     stack = jnp.concatenate([jnp.zeros((1, H, W), maps.dtype), maps])  # Ω(D_0) = 0
     s = jnp.clip((q[:, 2] - near) / dz, 0.0, n_slices)  # depth in slices, held at D_0 and D_N beyond them
     gx, gy = (q[:, 0] - origin[0]) / h - 0.5, (q[:, 1] - origin[1]) / h - 0.5  # texel centres at integers

@@ -47,8 +47,8 @@ def _cast_kernel(points, dirs, weights, ylm, density, grad, step, size, kappa, n
         dtau = trilinear(grad, pos).sum(-2) * dt / size  # (B, M, 3): ∇ρ per world unit
         T = jnp.exp(-kappa * tau)
         dT = -kappa * T[..., None] * dtau
-        b = jnp.einsum("bm,m,mj->bj", T, weights, ylm)
-        db = jnp.einsum("bmc,m,mj->bcj", dT, weights, ylm)
+        b = jnp.einsum("bm,m,mj->bj", T, weights, ylm, precision=jax.lax.Precision.HIGHEST)
+        db = jnp.einsum("bmc,m,mj->bcj", dT, weights, ylm, precision=jax.lax.Precision.HIGHEST)
         return b, db
 
     return map_blocks(one_block, (points,), CHUNK)

@@ -18,17 +18,19 @@ from .. import kernels as kk
 from ..envlight import cube_dirs
 from ..sh import real_sh_kernel
 
+HIGHEST = jax.lax.Precision.HIGHEST  # stated, not inherited: XLA would use TF32 on NVIDIA GPUs
+
 
 @functools.partial(jax.jit, static_argnames=("lmax_i", "lmax_j", "specular"))
 def _quadrature(t, theta_v, omega, weight, p, lmax_i, lmax_j, specular):
     y = real_sh_kernel(omega, lmax=max(lmax_i, lmax_j))
-    prod = jnp.einsum("wi,wj,w->wij", y[:, : (lmax_i + 1) ** 2], y[:, : (lmax_j + 1) ** 2], weight)
-    cos_theta = jnp.clip(t @ omega.T, -1.0, 1.0)  # (T, W)
+    prod = jnp.einsum("wi,wj,w->wij", y[:, : (lmax_i + 1) ** 2], y[:, : (lmax_j + 1) ** 2], weight, precision=HIGHEST)
+    cos_theta = jnp.clip(jnp.matmul(t, omega.T, precision=HIGHEST), -1.0, 1.0)  # (T, W)
     theta = jnp.arccos(cos_theta)
     if specular:
         lobe = kk.specular(theta[:, None, :], theta_v[None, :, None], p)  # (T, Θ, W)
-        return jnp.einsum("tvw,wij->tvij", lobe, prod)
-    return jnp.einsum("tw,wij->tij", kk.diffuse(theta), prod)
+        return jnp.einsum("tvw,wij->tvij", lobe, prod, precision=HIGHEST)
+    return jnp.einsum("tw,wij->tij", kk.diffuse(theta), prod, precision=HIGHEST)
 
 
 def paper_tables(n_omega: int, t_dirs, theta_v, p: float, lmax_light_d: int, lmax_light_s: int, lmax_trans: int):

@@ -29,6 +29,8 @@ import numpy as np
 
 from ..kernels import specular_offset
 
+HIGHEST = jax.lax.Precision.HIGHEST  # stated, not inherited: XLA would use TF32 on NVIDIA GPUs
+
 GRADING = 3  # s ↦ s**GRADING near the outer ends of the specular integral
 
 
@@ -67,7 +69,7 @@ def diffuse_coeffs(lmax: int, n: int):
     k = np.arange(1, n + 1)
     c = jnp.asarray(np.cos(k * np.pi / (n + 1)))
     w = jnp.asarray(np.pi / (n + 1) * np.sin(k * np.pi / (n + 1)) ** 2)
-    return 2 * jnp.pi * jnp.einsum("q,ql->l", w, legendre_p(lmax, c))
+    return 2 * jnp.pi * jnp.einsum("q,ql->l", w, legendre_p(lmax, c), precision=HIGHEST)
 
 
 def specular_coeffs(lmax: int, n: int, p, theta_v):
@@ -85,7 +87,7 @@ def specular_coeffs(lmax: int, n: int, p, theta_v):
     jac = jnp.concatenate([(half - lo) * dg, (hi - half) * dg], axis=-1)
     theta = jnp.clip(psi + a, 0.0, jnp.pi)
     f = jac * specular_offset(psi, p) * jnp.sin(theta)
-    return 2 * jnp.pi * jnp.einsum("...q,...ql->...l", f, legendre_p(lmax, jnp.cos(theta)))
+    return 2 * jnp.pi * jnp.einsum("...q,...ql->...l", f, legendre_p(lmax, jnp.cos(theta)), precision=HIGHEST)
 
 
 # ----------------------------------------------------------------------------- Chebyshev in θ′
@@ -126,4 +128,5 @@ def cheb_eval(coeffs, theta_v):
     for _ in range(2, n + 1):
         cols.append(2 * x * cols[-1] - cols[-2])
     basis = jnp.stack(cols[: n + 1], axis=-1)  # (..., n+1)
-    return jnp.where(upper[..., None], basis @ coeffs[1], basis @ coeffs[0])
+    hi, lo = jnp.matmul(basis, coeffs[1], precision=HIGHEST), jnp.matmul(basis, coeffs[0], precision=HIGHEST)
+    return jnp.where(upper[..., None], hi, lo)
