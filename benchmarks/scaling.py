@@ -74,7 +74,11 @@ def main(argv=None) -> dict:
     for r in rows:
         print(f"{r['devices']:>7} {r['processes']:>5} {r['merge']:>7} {r['bake_s']:>7.2f} {r['wall_s']:>7.2f} "
               f"{r['speedup']:>7.2f} {r['peak_rss_mib']:>8.0f}")
-    doc = {"sectors": a.sectors, "cores": os.cpu_count(), "rows": rows}
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from _common import machine, machine_line
+
+    print(machine_line())
+    doc = {"machine": machine(), "sectors": a.sectors, "cores": os.cpu_count(), "rows": rows}
     Path(a.json).parent.mkdir(parents=True, exist_ok=True)
     Path(a.json).write_text(json.dumps(doc, indent=2))
     return doc
