@@ -1,19 +1,29 @@
-"""JAX's own scale-out for bakes: every local device (``jax.sharding``), many processes (``jax.distributed``).
+"""JAX's own scale-out for bakes: every local device, many processes (``jax.distributed``).
 
-:func:`map_units` runs a per-unit kernel over a block of units (sectors, tangents) split
-across every local device with a 1-D :class:`jax.sharding.Mesh` and ``shard_map``.  Units
-are cut into micro-chunks of a fixed size *before* they are dealt to devices, and each
-call of the sharded kernel gives every device exactly one chunk (calls are dispatched
-asynchronously, so devices stay busy); so every unit is computed by the same compiled
-per-device program on the same neighbours whatever the device count.  (A loop over a
-device's chunks inside the kernel would not do: XLA compiles loops of different trip
-counts differently, and the last bits of float32 results move.)  A bake is bitwise
-identical on 1 or N devices (tested with ``JAX_NUM_CPU_DEVICES``).
+:func:`map_units` runs a per-unit kernel over a block of units (sectors, tangents) on every
+local device.  Units are cut into micro-chunks of a fixed size *before* they are dealt to
+devices; chunk c runs on device c mod D as one call of one single-device executable
+(``jax.jit`` of the kernel on one micro-chunk, inputs placed with ``jax.device_put``),
+dispatched asynchronously so that every device stays busy.  So every unit is computed by the
+same compiled program on the same neighbours whatever the device count, and a bake is
+bitwise identical on 1 or N devices (tested with ``JAX_NUM_CPU_DEVICES``).
+
+*Why not one SPMD program* (a 1-D ``Mesh`` with ``shard_map``, or ``jit`` on ``NamedSharding``
+inputs), which the issue proposed: it does not give the one-device bits.  Measured by
+``benchmarks/spmd_bits.py`` (JAX 0.10.2, 2 CPU devices, 8 HRIR sectors, 8 × 8 angles, 16 px,
+16 steps; against one sector per call on one device): ``shard_map`` with one sector per device
+per call (the very same per-device shapes) changes 632 of 8,192 reflectance values by up to
+11 float32 ULPs (2.7e-7 absolute); with four sectors per device, or ``jit`` on ``NamedSharding``
+inputs, 896 of 8,192 by up to 226 ULPs (2.1e-6) and 21 of 1,024 α values.  The batch alone
+also moves bits (two sectors per call on one device: 165 reflectance values), which is why the
+micro-chunk is fixed.  The round-robin dispatch costs one Python call per chunk, negligible
+against a sector's trace; it keeps the determinism rule (DESIGN.md: bitwise-identical assets
+however many devices shared the bake).
 
 :func:`initialize` joins JAX's distributed runtime (``jax.distributed.initialize``): with
 no arguments where JAX detects the cluster itself (SLURM, Open MPI, …), or with an explicit
 coordinator ``HOST:PORT``, process count and process id.  Processes talk only through
-:func:`barrier`; each computes its own share on its own devices (:mod:`hairlut.parts`).
+:func:`barrier`; each computes its own share on its own devices (:mod:`hairlut.sharding`).
 """
 
 from __future__ import annotations
