@@ -50,11 +50,10 @@ def ramp(shape=(16, 16)):
     return tex
 
 
-def draw(cam, verts, uv, tri, tex, stamp=64):
+def draw(cam, verts, uv, tri, tex):
     """verts (C, K, V, 3), tex (C, K, n_t, n_u, 4): one tile the size of the frame."""
     C = verts.shape[0]
-    return rasterise(cam, verts, tri, uv, tex, stamp=stamp, tile=(cam.height, cam.width),
-                     origins=np.zeros((C, 2), np.int32))[:2]
+    return rasterise(cam, verts, tri, uv, tex, tile=(cam.height, cam.width), origins=np.zeros((C, 2), np.int32))[:2]
 
 
 def test_constant_alpha_quad_renders_exactly_that_alpha():

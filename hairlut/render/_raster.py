@@ -5,8 +5,9 @@ One jitted kernel, :func:`raster_kernel`, no OpenGL, the same on CPU and GPU:
 1. **Projection.**  Each vertex through the camera's 4 × 4 world-to-clip matrix (``hairlut.scene.Camera``,
    the OpenGL convention): pixel x = (X/W + 1)/2 · w, y = (1 − Y/W)/2 · h (pixel centres at integers + ½),
    eye depth (eye − p)·back.
-2. **Coverage.**  Each triangle tests the pixel centres of an S × S stamp from its bounding box's corner
-   (S is static, chosen on the host so that every triangle's box fits).  A centre is inside when all three
+2. **Coverage.**  Triangles go in pairs (a grid quad's two) that share one box of pixel centres; every
+   box's pixels get consecutive candidate slots (a prefix sum; ``cap`` slots per cluster, static, sized on the
+   host), and each candidate tests both triangles of its pair.  A centre is inside when all three
    edge functions have the triangle's sign.  Each edge function is evaluated in one canonical vertex order
    (lower mesh index first), so a shared edge gives bitwise-opposite values in its two triangles, and a
    centre exactly on it belongs to the triangle on the positive side only: no pixel is drawn twice or
@@ -63,8 +64,38 @@ def sample_texture(tex, u, t):
     return top + wr * (bot - top)
 
 
-def _cluster(verts, tex, origin, tri, uv, matrix, eye, back, *, size, tile, stamp):
-    """One cluster: (th, tw, 4) premultiplied RGBA and (th, tw) nearest depth of its tile at ``origin``."""
+def _records(x, y, w, depth, uv, pairs):
+    """Per triangle pair (K, P) of one cluster: the record (K, P, 2, 27) each candidate pixel reads and the pair's
+    pixel box.  Per triangle: for each edge (opposite vertex 0, 1, 2) the canonical edge function's A, B, C
+    (E = A·x + B·y + C, lower mesh index first) and s = σ·sign(area) (σ = −1 where the canonical order reverses
+    the triangle's; 0 for a degenerate triangle or one behind the eye); 1/|area|; per vertex 1/w, d/w, u/w, t/w;
+    and whether it faces the viewer."""
+    X, Y, Wc, D = (a[:, pairs] for a in (x, y, w, depth))  # (K, P, 2, 3)
+    U, V = uv[pairs, 0], uv[pairs, 1]  # (P, 2, 3)
+    area = _edge(X[..., 0], Y[..., 0], X[..., 1], Y[..., 1], X[..., 2], Y[..., 2])  # (K, P, 2)
+    ok = (area != 0) & jnp.all(Wc > 0, -1)
+    sgn = jnp.where(ok, jnp.sign(area), 0.0)
+    fields = []
+    for a, b in ((1, 2), (2, 0), (0, 1)):
+        lo = pairs[..., a] < pairs[..., b]  # (P, 2)
+        ax, ay = jnp.where(lo, X[..., a], X[..., b]), jnp.where(lo, Y[..., a], Y[..., b])
+        bx, by = jnp.where(lo, X[..., b], X[..., a]), jnp.where(lo, Y[..., b], Y[..., a])
+        ca, cb = -(by - ay), bx - ax
+        fields += [ca, cb, -(ca * ax + cb * ay), jnp.where(lo, 1.0, -1.0) * sgn]
+    iw = 1.0 / jnp.where(Wc > 0, Wc, 1.0)
+    per_vertex = [iw, D * iw, jnp.broadcast_to(U, X.shape) * iw, jnp.broadcast_to(V, X.shape) * iw]
+    fields.append(1.0 / jnp.where(area != 0, jnp.abs(area), 1.0))
+    rec = jnp.concatenate([jnp.stack(fields, -1)] + per_vertex + [(area < 0)[..., None].astype(jnp.float32)], -1)
+    lo_x = jnp.ceil(jnp.min(jnp.where(ok[..., None], X, jnp.inf), axis=(-2, -1)) - 0.5)
+    hi_x = jnp.floor(jnp.max(jnp.where(ok[..., None], X, -jnp.inf), axis=(-2, -1)) - 0.5)
+    lo_y = jnp.ceil(jnp.min(jnp.where(ok[..., None], Y, jnp.inf), axis=(-2, -1)) - 0.5)
+    hi_y = jnp.floor(jnp.max(jnp.where(ok[..., None], Y, -jnp.inf), axis=(-2, -1)) - 0.5)
+    return rec, (lo_x, hi_x, lo_y, hi_y)
+
+
+def _cluster(verts, tex, origin, pairs, uv, matrix, eye, back, *, size, tile, cap):
+    """One cluster: (th, tw, 4) premultiplied RGBA, (th, tw) nearest depth of its tile at ``origin``, and the
+    number of candidate pixels it needed (at most ``cap`` are tested)."""
     W, H = size
     th, tw = tile
     K = verts.shape[0]
@@ -74,77 +105,79 @@ def _cluster(verts, tex, origin, tri, uv, matrix, eye, back, *, size, tile, stam
     x = (clip[..., 0] / ws + 1.0) * (0.5 * W) - origin[0]
     y = (1.0 - clip[..., 1] / ws) * (0.5 * H) - origin[1]
     depth = jnp.einsum("kvj,j->kv", eye - verts, back, precision=HIGHEST)
-    X, Y, Wc, D = (a[:, tri] for a in (x, y, w, depth))  # (K, T, 3)
-    U, V = uv[tri, 0], uv[tri, 1]  # (T, 3)
-    area = _edge(X[..., 0], Y[..., 0], X[..., 1], Y[..., 1], X[..., 2], Y[..., 2])  # (K, T)
-    ok = (area != 0) & jnp.all(Wc > 0, -1)
-    front = area < 0  # y points down on screen: a counter-clockwise (outward-facing) triangle has negative area
-    bx0 = jnp.ceil(jnp.min(X, -1) - 0.5)
-    by0 = jnp.ceil(jnp.min(Y, -1) - 0.5)
-    off = jnp.arange(stamp, dtype=jnp.float32)
-    px = bx0[..., None, None] + off[None, :]  # (K, T, 1, S): columns
-    py = by0[..., None, None] + off[:, None]  # (K, T, S, 1): rows
-    cx, cy = px + 0.5, py + 0.5
-    inside = ok[..., None, None] & (px >= 0) & (px < tw) & (py >= 0) & (py < th)
-    sgn = jnp.sign(area)[..., None, None]
-    lam = []
-    for a, b in ((1, 2), (2, 0), (0, 1)):  # the edge opposite vertex 0, 1, 2
-        lo = tri[:, a] < tri[:, b]  # canonical order: lower mesh index first
-        sig = jnp.where(lo, 1.0, -1.0)[None, :, None, None]
-        ax, ay = jnp.where(lo, X[..., a], X[..., b]), jnp.where(lo, Y[..., a], Y[..., b])
-        bx, by = jnp.where(lo, X[..., b], X[..., a]), jnp.where(lo, Y[..., b], Y[..., a])
-        e = _edge(ax[..., None, None], ay[..., None, None], bx[..., None, None], by[..., None, None], cx, cy)
-        s = sig * sgn
-        inside = inside & ((s * e > 0) | ((e == 0) & (s > 0)))
-        lam.append(sig * e / jnp.where(area != 0, area, 1.0)[..., None, None])
-    q = [lam[i] / Wc[..., i, None, None] for i in range(3)]  # perspective-correct weights
-    qs = q[0] + q[1] + q[2]
-    qs = jnp.where(inside, qs, 1.0)
-    b = [qi / qs for qi in q]
-
-    def interp(a):  # (…, 3) per triangle → (K, T, S, S)
-        a = jnp.broadcast_to(a, (K, *a.shape[-2:]))
-        return sum(b[i] * a[..., i, None, None] for i in range(3))
-
-    z = interp(D)
-    tu, tt = interp(U), interp(V)
+    rec, (lo_x, hi_x, lo_y, hi_y) = _records(x, y, w, depth, uv, pairs)
+    P = pairs.shape[0]
+    # each pair's box of pixel centres, clipped to the tile; its pixels get consecutive candidate slots
+    x0 = jnp.clip(lo_x, 0, tw).astype(jnp.int32)
+    x1 = jnp.clip(hi_x, -1, tw - 1).astype(jnp.int32)
+    y0 = jnp.clip(lo_y, 0, th).astype(jnp.int32)
+    y1 = jnp.clip(hi_y, -1, th - 1).astype(jnp.int32)
+    bw = jnp.maximum(x1 - x0 + 1, 0).reshape(-1)
+    n = bw * jnp.maximum(y1 - y0 + 1, 0).reshape(-1)
+    csum = jnp.cumsum(n)
+    start = csum - n
+    total = csum[-1]
+    owner = jnp.zeros(cap, jnp.int32).at[jnp.where(n > 0, start, cap)].max(jnp.arange(K * P, dtype=jnp.int32),
+                                                                           mode="drop")
+    owner = jax.lax.cummax(owner)
+    k = jnp.arange(cap, dtype=jnp.int32)
+    loc = k - start[owner]
+    wo = jnp.maximum(bw[owner], 1)
+    px = x0.reshape(-1)[owner] + loc % wo
+    py = y0.reshape(-1)[owner] + loc // wo
+    r = rec.reshape(K * P, 2, -1)[owner]  # (cap, 2, 27)
+    cx = (px.astype(jnp.float32) + 0.5)[:, None, None]
+    cy = (py.astype(jnp.float32) + 0.5)[:, None, None]
+    e = r[..., 0:12:4] * cx + r[..., 1:12:4] * cy + r[..., 2:12:4]  # (cap, 2, 3)
+    s = r[..., 3:12:4]
+    inside = jnp.all((s * e > 0) | ((e == 0) & (s > 0)), -1)  # (cap, 2)
+    first = inside[:, 0]
+    lam = jnp.where(first[:, None], (s * e)[:, 0], (s * e)[:, 1]) * jnp.where(first, r[:, 0, 12], r[:, 1, 12])[:, None]
+    rv = jnp.where(first[:, None], r[:, 0], r[:, 1])  # (cap, 27)
+    iw, dw, uw, tw_ = rv[:, 13:16], rv[:, 16:19], rv[:, 19:22], rv[:, 22:25]
+    qs = jnp.sum(lam * iw, -1)
+    qs = jnp.where(qs != 0, qs, 1.0)
+    z = jnp.sum(lam * dw, -1) / qs
+    tu = jnp.sum(lam * uw, -1) / qs
+    tt = jnp.sum(lam * tw_, -1) / qs
+    hit = (k < total) & (inside[:, 0] | inside[:, 1])
     n_pix = th * tw
-    slot = jnp.arange(K)[:, None] * 2 + jnp.where(front, 0, 1)  # (K, T): layer k front 2k, back 2k + 1
-    pix = (slot[..., None, None] * n_pix + py.astype(jnp.int32) * tw + px.astype(jnp.int32))
+    slot = (owner // P) * 2 + jnp.where(rv[:, 25] > 0, 0, 1)  # layer k: front faces 2k, back faces 2k + 1
     dump = 2 * K * n_pix
-    idx = jnp.where(inside, pix, dump).reshape(-1)
-    zf = jnp.where(inside, z, jnp.inf).reshape(-1)
+    idx = jnp.where(hit, slot * n_pix + py * tw + px, dump)
+    zf = jnp.where(hit, z, jnp.inf)
     zbuf = jnp.full(dump + 1, jnp.inf, jnp.float32).at[idx].min(zf)
-    win = inside.reshape(-1) & (zf == zbuf[idx])
-    widx = jnp.where(win, idx, dump)
-    uvbuf = jnp.zeros((dump + 1, 2), jnp.float32).at[widx].set(jnp.stack([tu.reshape(-1), tt.reshape(-1)], -1))
+    win = hit & (zf == zbuf[idx])
+    uvbuf = jnp.zeros((dump + 1, 2), jnp.float32).at[jnp.where(win, idx, dump)].set(jnp.stack([tu, tt], -1))
     zb = zbuf[:dump].reshape(2 * K, th, tw)
     uvb = uvbuf[:dump].reshape(2 * K, th, tw, 2)
-    layer_tex = jnp.repeat(tex, 2, axis=0)
-    rgba = jax.vmap(sample_texture)(layer_tex, uvb[..., 0], uvb[..., 1])
+    rgba = jax.vmap(sample_texture)(jnp.repeat(tex, 2, axis=0), uvb[..., 0], uvb[..., 1])
     drawn = jnp.isfinite(zb)
     rgba = jnp.where(drawn[..., None], rgba, 0.0)
     order = [2 * k for k in range(K - 1, -1, -1)] + [2 * k + 1 for k in range(K)]
     acc = jnp.zeros((th, tw, 4), jnp.float32)
     trans = jnp.ones((th, tw), jnp.float32)
-    for s in order:  # eq 14, front to back
-        acc = acc + trans[..., None] * rgba[s]
-        trans = trans * (1.0 - rgba[s, ..., 3])
+    for sl in order:  # eq 14, front to back
+        acc = acc + trans[..., None] * rgba[sl]
+        trans = trans * (1.0 - rgba[sl, ..., 3])
     near = jnp.min(jnp.where(drawn, zb, FAR), axis=0)
-    return acc, near
+    return acc, near, total
 
 
-@partial(jax.jit, static_argnames=("size", "tile", "stamp"))
-def raster_kernel(verts, tex, origins, tri, uv, matrix, eye, back, *, size, tile, stamp):
+@partial(jax.jit, static_argnames=("size", "tile", "cap"))
+def raster_kernel(verts, tex, origins, pairs, uv, matrix, eye, back, *, size, tile, cap):
     """The frame of the layered model (module docstring): ``verts`` (C, K, V, 3) world positions of every
     cluster's layer meshes (sharing ``tri`` (T, 3) and ``uv`` (V, 2) = (u/2π, t)); ``tex`` (C, K, n_t, n_u, 4)
     premultiplied RGBA per layer; ``origins`` (C, 2) each cluster's tile corner (x, y) in pixels; ``matrix``
     (4, 4) world-to-clip, ``eye`` and ``back`` (3,) the camera's eye and unit view axis; ``size`` (w, h),
-    ``tile`` (th, tw) and ``stamp`` S static.  Returns RGBA (h, w, 4) premultiplied and depth (h, w)."""
+    ``tile`` (th, tw) and ``cap`` (candidate pixels per cluster) static.  ``pairs`` (P, 2, 3): the triangles in
+    pairs that share a pixel box (a grid quad's two; pad with a degenerate triangle).  Returns RGBA (h, w, 4)
+    premultiplied, depth (h, w) and the most candidate pixels a cluster needed (> ``cap``: pixels were lost,
+    run again with a larger cap)."""
     W, H = size
     th, tw = tile
-    one = partial(_cluster, tri=tri, uv=uv, matrix=matrix, eye=eye, back=back, size=size, tile=tile, stamp=stamp)
-    rgba, near = jax.lax.map(lambda a: one(*a), (verts, tex, origins))  # (C, th, tw, 4), (C, th, tw)
+    one = partial(_cluster, pairs=pairs, uv=uv, matrix=matrix, eye=eye, back=back, size=size, tile=tile, cap=cap)
+    rgba, near, need = jax.lax.map(lambda a: one(*a), (verts, tex, origins))  # (C, th, tw, 4), (C, th, tw)
     C = verts.shape[0]
     gy = origins[:, 1, None, None] + jnp.arange(th)[None, :, None]
     gx = origins[:, 0, None, None] + jnp.arange(tw)[None, None, :]
@@ -163,4 +196,4 @@ def raster_kernel(verts, tex, origins, tri, uv, matrix, eye, back, *, size, tile
 
     init = (jnp.zeros((W * H, 4), jnp.float32), jnp.ones((W * H,), jnp.float32))
     (acc, _), _ = jax.lax.scan(over, init, keys)
-    return acc.reshape(H, W, 4), keys[0][0].reshape(H, W)
+    return acc.reshape(H, W, 4), keys[0][0].reshape(H, W), jnp.max(need)
