@@ -53,8 +53,10 @@ def _rows(prepared, view, lights):
     return (np.asarray(a), np.asarray(r)), (tv, tl, cs)
 
 
-def truth(scene_path: Path, quick: bool):
-    """Converged rows and texel maps (module docstring) and the direct-prepared scene they index."""
+def truth(scene_path: Path, quick: bool, level: int = 1):
+    """Converged rows and texel maps (module docstring) and the direct-prepared scene they index.
+    ``level`` 1: 4 rays per pixel, 2× grid, 2× steps; level 2 (one more refinement, to check the
+    first is converged): 8 rays, 4× grid, 4× steps."""
     import jax.numpy as jnp
     from hairlut.scene import direct_recipe
     from hairlut.synth import direct_sector_maps, prepare, scene_sector_inputs, sweep_sectors
@@ -62,13 +64,14 @@ def truth(scene_path: Path, quick: bool):
     sc = _scene(scene_path, method="direct", rays=1)
     prep = prepare(sc)
     rec = direct_recipe(sc)
-    fine = {**rec, "sectors": {**rec["sectors"], "grid": [2 * g for g in rec["sectors"]["grid"]]}}
+    m = 2 ** level
+    fine = {**rec, "sectors": {**rec["sectors"], "grid": [m * g for g in rec["sectors"]["grid"]]}}
     parts = [scene_sector_inputs(pc.table, fine, extent=pc.frames.extent) for pc in prep.clusters]
     dens, geom = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
     tv, tl, cs = _angles(prep, sc)
     t0 = time.perf_counter()
     a, r = direct_sector_maps(dens, geom, np.asarray(tv, np.float64), np.asarray(tl, np.float64), fine,
-                              rays=2 if quick else 4, n_steps=2 * rec["trace"]["steps"], shadow_lookup="grid")
+                              rays=2 if quick else 2 * m, n_steps=m * rec["trace"]["steps"], shadow_lookup="grid")
     secs = time.perf_counter() - t0
     re_t, a_t = sweep_sectors(prep.index, jnp.asarray(a), jnp.asarray(r), cs)
     return prep, (a, r), (np.asarray(re_t), np.asarray(a_t)), secs
@@ -111,6 +114,24 @@ def frame_ms(prepared) -> tuple[float, tuple]:
     return 1e3 * min(best), maps
 
 
+def convergence(args) -> dict:
+    """The truth's own error: level 1 against level 2 (texel re, α and coverage rel-L2)."""
+    _, rows1, maps1, s1 = truth(args.scene, False, 1)
+    _, rows2, maps2, s2 = truth(args.scene, False, 2)
+    rec = {"scene": str(args.scene), "level1_s": s1, "level2_s": s2,
+           **{k: v for k, v in errors_of(maps1, maps2, rows1, rows2).items()}}
+    print(f"\n## Truth convergence of {args.scene.name}: (4 rays, 2× grid, 2× steps) against (8 rays, 4× grid, 4× steps)\n")
+    print(table([rec], [("re_rel_l2", "re rel-L2", ".4f"), ("alpha_rel_l2", "α rel-L2", ".4f"),
+                        ("coverage_rel_l2", "coverage rel-L2", ".4f"), ("alpha_bias", "mean-α bias", "+.4f"),
+                        ("level1_s", "level 1 s", ".1f"), ("level2_s", "level 2 s", ".1f")]))
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(rec, indent=2, default=float))
+    else:
+        save(f"map_truth_{args.scene.stem}", rec)
+    return rec
+
+
 def main(argv=None):
     from hairlut import registry
     from hairlut.scene import plan, scene_maps_recipe
@@ -121,7 +142,13 @@ def main(argv=None):
     ap.add_argument("--json", type=Path)
     ap.add_argument("--quick", action="store_true", help="fewer knobs; a 2-ray truth")
     ap.add_argument("--no-satf", action="store_true", help="skip the SATF rows (their database bake)")
+    ap.add_argument("--convergence", action="store_true",
+                    help="only check the truth: level 1 against one more refinement (8 rays, 4× grid, 4× steps)")
+    ap.add_argument("--only", choices=("direct", "scene", "satf"), action="append",
+                    help="run only these methods (repeatable)")
     args = ap.parse_args(argv)
+    if args.convergence:
+        return convergence(args)
     prep_t, t_rows, t_maps, truth_s = truth(args.scene, args.quick)
     records = []
     for rays in ((2,) if args.quick else (1, 2)):
