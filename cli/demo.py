@@ -58,4 +58,15 @@ def demo_cmd(out_dir, scenes, cache_root, no_progress, as_json):
         click.echo("  accuracy: " + ", ".join(f"{k} {v:.2g}" for k, v in r["accuracy"].items()))
         click.echo("  times: " + ", ".join(f"{k} {v:.1f} s" for k, v in r["seconds"].items()))
         click.echo(f"  preview: {r['files']['preview']}")
+        cam = r.get("camera")
+        if cam:
+            f, lay, ref = cam["figures"], cam["layered"], cam["reference"]
+            w, h = cam["resolution"]
+            click.echo(f"  camera {w} x {h}: layered ({lay['map_method']} maps) frame {1e3 * lay['seconds']['raster']:.0f} ms "
+                       f"+ maps {1e3 * lay['seconds']['maps']:.0f} ms; reference level {ref['level']} "
+                       f"({ref['samples_per_pixel']} spp, {ref['steps_per_crossing']} steps per crossing; a fixed level, "
+                       f"not checked for convergence, environment {ref['environment']}) {ref['seconds']['frame']:.1f} s")
+            click.echo(f"  layered vs reference: FLIP {f['flip_mean']:.3f}, mean-alpha bias {f['alpha_bias']:+.4f} "
+                       f"({f['alpha_bias_relative']:+.1%}), RGB RMSE {f['rgb_rmse']:.4f}, 8x8 RGB RMSE {f['rgb_rmse_8x8']:.4f}")
+            click.echo(f"  side by side (layered | reference | FLIP): {cam['files']['side_by_side']}")
     click.echo(f"demo finished in {report['total_seconds']:.1f} s; outputs in {out_dir}/ (sky map {report['sky']})")

@@ -4,7 +4,10 @@ For each scene file: :func:`hairlut.plan.plan` decides what it needs and why,
 :func:`hairlut.plan.bake` bakes what the cache lacks (a second run reuses everything),
 :func:`hairlut.synth.synthesize` renders every cluster (SATF maps, lighting, s-maps,
 blending, and the environment light through the SH tables with voxel SH self-shadowing
-when the scene has one), and the EXR/PNG outputs land in ``out_dir/<scene>/``.  The
+when the scene has one), and the EXR/PNG outputs land in ``out_dir/<scene>/``.  A scene with a
+groom is also rendered through its camera with the layered model and with the strand reference
+(``hairlut.render.layered_vs_reference``, at :data:`REFERENCE_LEVEL`), side by side with the FLIP map
+in ``out_dir/<scene>/camera/side_by_side.png``.  The
 report keeps the plan, what was baked or reused, the times and accuracy figures: the
 SATF lookup's self-check at stored records, the SH tables' Chebyshev tail and specular
 truncation error, and the fraction of texels whose environment term rang below zero.
@@ -20,6 +23,10 @@ import numpy as np
 
 from .assets import write_exr
 from .envlight import SKY, sky_radiance
+
+#: The strand reference's level in the demo (2^ℓ × 2^ℓ samples per pixel, 2^(ℓ+1) steps per crossing): a fixed,
+#: stated level, not the converged one, to keep the demo's run time reasonable on a 2-core CPU.
+REFERENCE_LEVEL = 0
 
 
 def sky(height: int = 128) -> dict[str, np.ndarray]:
@@ -60,14 +67,23 @@ def run_scene(scene_path, out_dir, cache_root=None, progress=None) -> dict:
                         maps=assets.get("scene_maps", {}).get("path"))  # the map method auto picked (plan's map_method)
     t3 = time.perf_counter()
     files = write_outputs(result, out_dir)
+    t4 = time.perf_counter()
+    camera = None
+    if p.scene.groom_path is not None:  # a real groom: the layered model beside its strand reference (issue 13)
+        from .render import layered_vs_reference
+
+        camera = layered_vs_reference(p.scene, Path(out_dir) / "camera", db=assets.get("hrir_db", {}).get("path"),
+                                      sh=assets.get("sh_tables", {}).get("path"),
+                                      maps=assets.get("scene_maps", {}).get("path"), level=REFERENCE_LEVEL)
     accuracy = {"hrir_query_self_check": _hrir_self_check(assets["hrir_db"]["path"])} if "hrir_db" in assets else {}
     if "sh_tables" in assets:
         accuracy.update(_sh_figures(assets["sh_tables"]["path"]))
     if "environment_clamped" in result.stats:
         accuracy["environment_clamped_fraction"] = result.stats["environment_clamped"]
     return {"scene": str(scene_path), "plan": p.to_json()["steps"], "assets": assets, "files": files,
-            "stats": result.stats, "accuracy": accuracy,
-            "seconds": {"plan": t1 - t0, "bake": t2 - t1, "synth": t3 - t2, "write": time.perf_counter() - t3}}
+            "stats": result.stats, "accuracy": accuracy, "camera": camera,
+            "seconds": {"plan": t1 - t0, "bake": t2 - t1, "synth": t3 - t2, "write": t4 - t3,
+                        **({"camera": time.perf_counter() - t4} if camera else {})}}
 
 
 def run(out_dir: str | os.PathLike, scenes, cache_root=None, progress=None) -> dict:

@@ -1,0 +1,63 @@
+"""The layered model beside the strand reference it stands for, through one camera: both frames, the figures of
+:func:`compare` and one PNG (layered | reference | FLIP heat map), what ``hairlut demo`` shows."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import errors
+from ..assets import atomic_write_bytes, encode_png, tonemap
+from ._compare import compare
+from ._frame import write_frame
+from ._layered import render_layered
+from ._render import BOUND, render_reference
+
+GAP = 8
+
+
+def panels(*images8, gap: int = GAP) -> np.ndarray:
+    """8-bit (h, w, 3) images of equal height side by side with black gaps."""
+    h = images8[0].shape[0]
+    if any(im.shape[0] != h for im in images8):
+        raise errors.ValidationError("images", [im.shape for im in images8], "need equal heights")
+    out = []
+    for i, im in enumerate(images8):
+        if i:
+            out.append(np.zeros((h, gap, 3), np.uint8))
+        out.append(np.asarray(im, np.uint8)[..., :3])
+    return np.concatenate(out, axis=1)
+
+
+def layered_vs_reference(scene, out_dir, *, db=None, sh=None, maps=None, level: int | None = None,
+                         bound: float = BOUND, max_level: int = 3, prepared=None) -> dict:
+    """Render ``scene`` with the layered model and with the strand reference (converged to ``bound``, or exactly
+    ``level`` when given: no convergence claim), write ``layered.exr``, ``reference.exr``, ``flip.png`` and
+    ``side_by_side.png`` (layered | reference | FLIP) under ``out_dir``; returns the figures, times and paths."""
+    from ..scene import as_scene
+
+    sc = as_scene(scene) if prepared is None else prepared.scene
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
+    lay = render_layered(sc, db=db, sh=sh, maps=maps, prepared=prepared)
+    t1 = time.perf_counter()
+    ref = (render_reference(sc, lay.camera, levels=[level]) if level is not None else
+           render_reference(sc, lay.camera, bound=bound, max_level=max_level))
+    t2 = time.perf_counter()
+    figures, heat = compare(lay, ref)
+    files = {"layered": write_frame(lay, out / "layered.exr")["exr"], "reference": write_frame(ref, out / "reference.exr")["exr"]}
+    heat8 = np.round(np.clip(heat, 0, 1) * 255).astype(np.uint8)
+    atomic_write_bytes(out / "flip.png", encode_png(heat8))
+    atomic_write_bytes(out / "side_by_side.png",
+                       encode_png(panels(tonemap(lay.rgba[..., :3]), tonemap(ref.rgba[..., :3]), heat8)))
+    files.update(flip=str(out / "flip.png"), side_by_side=str(out / "side_by_side.png"))
+    last = ref.info["levels"][-1]
+    return {"figures": figures, "files": files, "resolution": [lay.camera.width, lay.camera.height],
+            "layered": {"map_method": lay.info["map_method"], "seconds": lay.info["seconds"], "wall_s": t1 - t0},
+            "reference": {"level": last["level"], "samples_per_pixel": last.get("samples_per_pixel"),
+                          "steps_per_crossing": last.get("steps_per_crossing"), "converged": ref.info["converged"],
+                          "bound": ref.info["bound"], "change_from_previous": last.get("change_from_previous"),
+                          "environment": ref.info.get("environment"), "seconds": ref.info["seconds"], "wall_s": t2 - t1}}
