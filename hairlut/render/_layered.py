@@ -85,7 +85,7 @@ def layout(cam, geometry, *, edge_pixels: float = EDGE_PIXELS):
     x, y, d = cam.project(meshes.vertices)  # (C, K, V)
     if not (np.isfinite(x).all() and np.isfinite(y).all()):
         raise errors.ValidationError("camera", cam.to_json()["eye"], "the layer meshes do not project to finite pixels")
-    if (d <= 0).any():
+    if cam.projection == "perspective" and (d <= 0).any():  # an orthographic view sees the whole line
         raise errors.ValidationError("camera.position", cam.eye.tolist(), "layer meshes lie behind the camera")
     W, H = cam.width, cam.height
     lo_x = np.clip(np.floor(x.min(axis=(1, 2))), 0, W - 1)

@@ -36,6 +36,8 @@ from ._tiles import bin_boxes, chunks
 
 TILE = 8
 BUDGET = 1 << 21
+#: The shadow grid's depth (nodes along the light) is computed in multiples of this.
+DEPTH_STEP = 16
 BACKGROUND_DEPTH = 1e10
 
 
@@ -75,6 +77,7 @@ def shadow_grid(segs: Segments, light, cell: float):
     shape = np.ceil((l_hi - l_lo) / cell).astype(int) + 2
     origin = l_lo @ axes
     nx, ny, nz = (int(x) for x in shape)
+    depth = DEPTH_STEP * -(-nz // DEPTH_STEP)  # the kernel's static depth, bucketed (fewer compiles; cropped below)
     p1 = segs.p0 + segs.tangent * segs.length[:, None]
     a, b = (segs.p0 - origin) @ axes[:2].T / cell, (p1 - origin) @ axes[:2].T / cell
     reach = Z_CUT * segs.radius / cell
@@ -85,12 +88,12 @@ def shadow_grid(segs: Segments, light, cell: float):
     dev = segs.device()
     f32 = partial(jnp.asarray, dtype=jnp.float32)
     for bk in buckets:
-        for s, n, tl, ix in chunks(bk, TILE * TILE * nz * bk.width, BUDGET):
+        for s, n, tl, ix in chunks(bk, TILE * TILE * depth * bk.width, BUDGET):
             tau = np.asarray(shadow_kernel(jnp.asarray(tl, jnp.int32), jnp.asarray(ix, jnp.int32), f32(origin), f32(axes),
-                                           f32(cell), *dev, depth=nz, tile=TILE))
+                                           f32(cell), *dev, depth=depth, tile=TILE))
             for m in range(n):
                 x, y = tl[m]
-                grid[x * TILE:(x + 1) * TILE, y * TILE:(y + 1) * TILE] = tau[m]
+                grid[x * TILE:(x + 1) * TILE, y * TILE:(y + 1) * TILE] = tau[m, ..., :nz]
     return grid[:nx, :ny], origin, axes
 
 
