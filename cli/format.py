@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 
 def num(x) -> str:
@@ -60,3 +61,19 @@ def render(summary: dict) -> str:
             for ch in part["channels"]:
                 lines.append(f"    {ch['name']:<16} {ch['dtype']:<8} {_stats(ch)}")
     return "\n".join(lines)
+
+
+def json_safe(value):
+    """``value`` with every non-finite float as the string "NaN", "Infinity" or "-Infinity" (JSON has none)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return "NaN" if math.isnan(value) else ("Infinity" if value > 0 else "-Infinity")
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    return value
+
+
+def dumps(value) -> str:
+    """Strict JSON (RFC 8259) of an inspect summary: non-finite numbers become strings."""
+    return json.dumps(json_safe(value), indent=2, allow_nan=False)

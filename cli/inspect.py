@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import json
-
 import click
 
 from hairlut import registry
 from hairlut.assets import preview, summarize
 from hairlut.parts import check_virtual
 
-from .format import render
+from .format import dumps, render
 
 
 @click.command("inspect")
@@ -50,7 +48,7 @@ def inspect_cmd(paths, as_json, png, channel, part, dataset, index, exposure, no
     if png:
         preview(paths[0], png, channel=channel, part=part, dataset=dataset, index=index, exposure=exposure, normalize=normalize)
     if as_json:
-        click.echo(json.dumps(summaries[0] if len(summaries) == 1 else summaries, indent=2))
+        click.echo(dumps(summaries[0] if len(summaries) == 1 else summaries))
     else:
         click.echo("\n\n".join(render(s) for s in summaries))
         if png:

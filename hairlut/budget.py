@@ -119,12 +119,17 @@ STRAND_POINTS = 32  # points per procedural strand (hairlut.geometry.generate_st
 STRAND_BYTES = STRAND_POINTS * 3 * 8 * 4  # float64 points, tangents and two work copies
 TEXEL_BYTES = 256  # per texel, layer and cluster: frames, positions and maps (float64 / float32)
 TEXEL_LIGHT_BYTES = 32  # per texel, layer, cluster and light: transmittance and shading terms
+MAX_LIGHTS = 256  # direct lights: each one's maps are computed and written separately (synth time grows with it)
 PIXEL_BYTES = 64  # per preview pixel: RGBA float32 and its tone-mapped copies
 
 
 def check_scene(cfg: dict, n_clusters: int, n_layers: int, n_lights: int, limit: int | None = None) -> None:
     """Refuse a scene whose strands, maps or preview would not fit (keys ``strands.count``,
     ``render.resolution``, ``lights.directions``, ``render.preview_size``)."""
+    if n_lights > MAX_LIGHTS:
+        raise errors.ValidationError("lights.directions", f"{n_lights} directions",
+                                     f"at most {MAX_LIGHTS} direct lights (each is shaded and written as its own maps; "
+                                     "light a scene with many directions through [environment] map)")
     n = cfg["strands"]["count"]
     check("strands.count", n, product(n, max(n_clusters, 1), STRAND_BYTES), f"{n} strands in each of {n_clusters} clusters",
           limit)

@@ -39,7 +39,8 @@ class _Stats:
         self.inf += int(inf.sum())
         if finite.size:
             self.finite += finite.size
-            self.total += float(finite.sum(dtype=np.float64))
+            with np.errstate(over="ignore"):  # a sum of huge finite values may overflow: the mean is then inf
+                self.total += float(finite.sum(dtype=np.float64))
             self.lo = min(self.lo, float(finite.min()))
             self.hi = max(self.hi, float(finite.max()))
 

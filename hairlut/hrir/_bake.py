@@ -82,6 +82,13 @@ def bake_block(recipe: dict, start: int, stop: int) -> dict:
     geometry = sector_geometry(params, kappa=recipe["trace"]["extinction"], n_pix=recipe["trace"]["pixels"],
                                smooth_ratio=recipe["trace"]["smooth_ratio"])
     alpha, refl = trace_sectors(density, geometry, recipe)
+    for name, arr in (("density", density), ("geometry", geometry), ("alpha", alpha), ("reflectance", refl)):
+        if not np.all(np.isfinite(np.asarray(arr))):  # finite or refused: never write NaN/Inf
+            raise errors.NonFiniteError(
+                f"hrir_db: the {name} of sectors [{start}, {stop}) is not finite; the recipe's extremes drive it: "
+                f"sectors.density_scale={recipe['sectors']['density_scale']}, trace.extinction={recipe['trace']['extinction']}, "
+                f"sectors.space.radial_extent={recipe['sectors']['space'].get('radial_extent')}, "
+                f"sectors.space.radius_rel={recipe['sectors']['space'].get('radius_rel')}")
     return {"alpha": alpha, "reflectance": refl, "density": density, "geometry": geometry,
             "params": {k: params[k] for k in PARAMS}}
 

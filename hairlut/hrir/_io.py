@@ -239,7 +239,7 @@ def _check_contents(path, t) -> tuple[str, ...]:
     from ._recipe import resolve_recipe
 
     try:
-        r = resolve_recipe(t.recipe)
+        r = resolve_recipe(t.recipe, budget=False)
     except errors.ValidationError as exc:
         raise errors.CorruptAssetError(path, f"stored recipe is not valid: {exc}") from None
     try:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+from .. import budget as _budget
 from .. import errors
 from ..geometry.sector_space import canonical as canonical_space
 from ..geometry.sector_space import recipe_fields as space_fields
@@ -63,10 +64,12 @@ SCHEMA = {
 }
 
 
-def resolve_recipe(given: dict | None = None) -> dict:
+def resolve_recipe(given: dict | None = None, *, budget: bool = True) -> dict:
     """Validated recipe with every default explicit (raises ValidationError naming the key path).
 
-    Idempotent: a resolved recipe (with its ``method``) resolves to itself."""
+    Idempotent: a resolved recipe (with its ``method``) resolves to itself.  With ``budget``,
+    a recipe whose bake would not fit in memory raises BudgetError naming the key that drives
+    it (:func:`hairlut.budget.check_hrir`); loaders of a baked file pass ``budget=False``."""
     given = dict(given or {})
     method = given.pop("method", METHOD)
     if method != METHOD:
@@ -74,6 +77,8 @@ def resolve_recipe(given: dict | None = None) -> dict:
     r = resolve(SCHEMA, given)
     r["sectors"]["space"] = canonical_space(r["sectors"]["space"])
     r["method"] = METHOD
+    if budget:
+        _budget.check_hrir(r)
     return r
 
 

@@ -30,7 +30,7 @@ from typing import Mapping
 
 import numpy as np
 
-from .. import errors
+from .. import budget, errors
 from ..geometry.cluster_defaults import STRUCTURE_DEFAULTS as _D
 from ..recipes import Field, load_toml, resolve
 from ..validate import at_least as _int_at_least
@@ -329,6 +329,8 @@ def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -
             if s.structure() != specs[0].structure():
                 raise errors.ValidationError(f"clusters[{i}]", s.structure(), "layer count, s_t, s_v and s_u must "
                                              f"agree across clusters ({specs[0].structure()})")
+    budget.check_scene(cfg, len(specs) if specs else cfg["groom"]["clusters"],
+                       specs[0].n_layers if specs else len(cfg["groom"]["layer_radii"]), len(lights))
     return Scene(cfg, specs, seeds, gpath, view, lights, np.asarray(cols, np.float64), source,
                  {**given, **({"clusters": clusters} if clusters is not None else {"groom": groom})})
 

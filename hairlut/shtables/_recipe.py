@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from .. import budget as _budget
 from .. import errors
 from ..kernels import exponent_reason
 from ..recipes import Field, resolve
@@ -68,9 +69,11 @@ def _check_light_section(section) -> dict:
     return dict(section)
 
 
-def resolve_recipe(given: dict | None = None, light=None) -> dict:
+def resolve_recipe(given: dict | None = None, light=None, *, budget: bool = True) -> dict:
     """Validated recipe with every default and 'auto' made explicit; with ``light``, its identity.
 
+    With ``budget``, a recipe whose tables would not fit in memory raises BudgetError naming
+    the key (:func:`hairlut.budget.check_sh`); loaders of a baked file pass ``budget=False``.
     Idempotent: a resolved recipe (``method``, and ``light`` when it names one) resolves to
     itself.  A recipe that names a light and a different ``light`` argument is an error."""
     given = dict(given or {})
@@ -96,6 +99,8 @@ def resolve_recipe(given: dict | None = None, light=None) -> dict:
         r["light"] = ident
     elif named is not None:
         r["light"] = _check_light_section(named)
+    if budget:
+        _budget.check_sh(r)
     return r
 
 

@@ -53,16 +53,23 @@ def _rs_kernel(t, theta_v, cheb, gaunt, lmax, l_of_k):
     return jnp.einsum("...k,kij->...ij", y, gaunt, precision=jax.lax.Precision.HIGHEST)
 
 
+SOA_LMAX = 16  # hairlut.sh.real_sh_soa unrolls up to this lmax (compile time grows fast beyond)
 BLOCK = 2048  # vertices per block: keeps the (block, (L+1)²) working set in cache
 
 
 def _radiance_block(t, theta_v, b, kd, ks, kd_k, hd, cheb, hs, l_of_k_s, lmax_d, lmax_s):
     """I = Σ_k Y_k(t) Σ_j b_j (Kd·kd_l Hd[k,j] + Ks·ks_l(θ′) Hs[k,j]) for one block (xing eq. 2 via 4–5).
 
-    Y is computed unrolled with the SH index leading, so the block's work stays
-    in cache; per vertex it costs (l_s + l_t + 1)²·n_trans·C multiply-adds.
+    Y is computed unrolled with the SH index leading up to lmax :data:`SOA_LMAX`, so
+    the block's work stays in cache; above it (tables with many bands) by the general
+    recurrence of ``real_sh_kernel``, the one ``rd``/``rs`` use.  Per vertex it costs
+    (l_s + l_t + 1)²·n_trans·C multiply-adds.
     """
-    y = real_sh_soa(t[:, 0], t[:, 1], t[:, 2], max(lmax_d, lmax_s))  # (K, n)
+    lmax = max(lmax_d, lmax_s)
+    if lmax <= SOA_LMAX:
+        y = real_sh_soa(t[:, 0], t[:, 1], t[:, 2], lmax)  # (K, n)
+    else:
+        y = _real_sh_kernel(t, lmax).T  # (K, n): general path for every band count the baker accepts
     out = 0.0
     if hd is not None:
         w = y[: hd.shape[0]] * kd_k[:, None] * kd[None, :]
@@ -270,26 +277,57 @@ class Contracted:
             return self._out(out)
 
 
+def _shape_fault(path, name: str, got: tuple, want: tuple, why: str):
+    """CorruptAssetError unless ``got`` has ``want``'s rank and each dimension ≥ want (None: any)."""
+    if len(got) != len(want) or any(w is not None and g < w for g, w in zip(got, want)):
+        shown = tuple("any" if w is None else f"≥{w}" for w in want)
+        raise errors.CorruptAssetError(path, f"table {name!r} has shape {got}, its recipe ({why}) needs {shown}")
+
+
 def load_sh_tables(path: str | os.PathLike) -> SHTables:
-    """Read a ``sh_tables`` asset (validated) into exact lookup tables."""
+    """Read a ``sh_tables`` asset (validated) into exact lookup tables.
+
+    Besides the store's checks (checksums, no foreign references, finite values), the
+    stored recipe must be a valid resolved recipe and every table must have the shape
+    that recipe implies; a file whose checksums pass but whose contents disagree with
+    its recipe raises :class:`~hairlut.errors.CorruptAssetError` naming the table.
+    """
+    from ._recipe import resolve_recipe
+
     t = read_table(path, kind=KIND)
-    r = t.recipe
     try:
-        bands = Bands(r["bands"]["light_diffuse"], r["bands"]["light_specular"], r["bands"]["transmittance"])
-        kern = r["kernel"]
-    except (KeyError, TypeError) as exc:
-        raise errors.CorruptAssetError(path, f"recipe lacks {exc}") from None
-    kd = t["kernel/diffuse_k"] if kern["diffuse"] else None
-    ks = None
+        r = resolve_recipe(t.recipe, budget=False)
+    except errors.ValidationError as exc:
+        raise errors.CorruptAssetError(path, f"stored recipe is not valid: {exc}") from None
+    bands = Bands(r["bands"]["light_diffuse"], r["bands"]["light_specular"], r["bands"]["transmittance"])
+    kern = r["kernel"]
+    for name in (["kernel/diffuse_k"] if kern["diffuse"] else []) + (["kernel/specular_k"] if kern["specular"] else []):
+        if name not in t.variables:
+            raise errors.MissingDatasetError(path, f"required dataset {name!r} is missing")
+    T = bands.transmittance
+    lmax_d = bands.light_diffuse + T - 2 if kern["diffuse"] else -1
+    lmax_s = bands.light_specular + T - 2 if kern["specular"] else -1
+    n_light = max(bands.n_light_diffuse if kern["diffuse"] else 0, bands.n_light_specular if kern["specular"] else 0)
+    why = f"bands {bands.light_diffuse}/{bands.light_specular}/{T}"
+    _shape_fault(path, "gaunt", t["gaunt"].shape, ((max(lmax_d, lmax_s) + 1) ** 2, n_light, bands.n_trans), why)
+    kd = ks = None
+    if kern["diffuse"]:
+        kd = t["kernel/diffuse_k"]
+        _shape_fault(path, "kernel/diffuse_k", kd.shape, (lmax_d + 1,), why)
     if kern["specular"]:
-        if "kernel/specular_k" not in t.variables:
-            raise errors.MissingDatasetError(path, "required dataset 'kernel/specular_k' is missing")
         values = t["kernel/specular_k"]
+        _shape_fault(path, "kernel/specular_k", values.shape, (4, lmax_s + 1), why)
+        if values.shape[0] % 2:
+            raise errors.CorruptAssetError(path, f"table 'kernel/specular_k' has {values.shape[0]} rows; "
+                                           "it holds two equal θ′ halves (an even count)")
         ks = cheb_coeffs(values.reshape(2, values.shape[0] // 2, values.shape[1]))
-    elif kd is None:
-        raise errors.CorruptAssetError(path, "neither diffuse nor specular tables")
-    if kern["diffuse"] and "kernel/diffuse_k" not in t.variables:
-        raise errors.MissingDatasetError(path, "required dataset 'kernel/diffuse_k' is missing")
+    if "light/a" in t.variables:
+        _shape_fault(path, "light/a", t["light/a"].shape, (n_light, 1), why)
+    dense = {"dense/t_dirs": (None, 3), "dense/rd": (None, bands.n_light_diffuse, bands.n_trans),
+             "dense/rs": (None, None, bands.n_light_specular, bands.n_trans)}
+    for name, want in dense.items():
+        if name in t.variables:
+            _shape_fault(path, name, t[name].shape, want, why)
     tables = SHTables(bands, float(kern["p"]), kd, ks, t["gaunt"], r)
     tables.source = t
     return tables
