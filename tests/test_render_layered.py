@@ -235,3 +235,28 @@ def test_cli_render_layered(tmp_path):
     scene.write_text(TINY.replace("resolution = [48, 40]", "resolution = [0, 40]"))
     r = CliRunner().invoke(cli, ["render", str(scene), "--out", str(out)])
     assert r.exit_code == 2 and "camera.resolution" in r.output
+
+
+def test_write_exr_attributes_round_trip_and_refusals(tmp_path):
+    from hairlut import errors
+    from hairlut.assets import read_exr, write_exr
+
+    ch = {"Y": np.zeros((2, 3), np.float32)}
+    write_exr(tmp_path / "a.exr", ch, attributes={"hairlut:note": '{"x": 1}'})
+    img = read_exr(tmp_path / "a.exr")
+    assert img.attributes == {"hairlut:note": '{"x": 1}'} and img.checksum == "verified"
+    for bad in ({"hairlut:kind": "x"}, {"note": "x"}, {"hairlut:": "x"}, {"hairlut:n": 3}):
+        with pytest.raises(errors.ValidationError):
+            write_exr(tmp_path / "b.exr", ch, attributes=bad)
+    assert not (tmp_path / "b.exr").exists()
+
+
+def test_pixel_centres_exactly_on_a_shared_edge_are_drawn_once():
+    """A quad whose diagonal passes exactly through 48 pixel centres: each is drawn by one triangle only."""
+    cam = camera(res=(64, 64), extent=2.0)
+    a = np.float32(0.5)
+    v, uv, tri = quad([(-0.75, -0.75, 0), (0.75, -0.75, 0), (-0.75, 0.75, 0), (0.75, 0.75, 0)], rows=2, cols=2)
+    rgba, _ = draw(cam, v[None, None], uv, tri, constant([1, 1, 1], a)[None, None])
+    assert set(np.unique(rgba[..., 3])) == {np.float32(0), a}
+    assert int((rgba[..., 3] == a).sum()) == 48 * 48
+    assert np.all(rgba[8:56, 8:56, 3] == a)
