@@ -119,13 +119,21 @@ STRAND_POINTS = 32  # points per procedural strand (hairlut.geometry.generate_st
 STRAND_BYTES = STRAND_POINTS * 3 * 8 * 4  # float64 points, tangents and two work copies
 TEXEL_BYTES = 256  # per texel, layer and cluster: frames, positions and maps (float64 / float32)
 TEXEL_LIGHT_BYTES = 32  # per texel, layer, cluster and light: transmittance and shading terms
+MAX_EXPONENT = 1e6  # material.p_I / p_II: the float32 shading's exponent range
 MAX_LIGHTS = 256  # direct lights: each one's maps are computed and written separately (synth time grows with it)
 PIXEL_BYTES = 64  # per preview pixel: RGBA float32 and its tone-mapped copies
 
 
 def check_scene(cfg: dict, n_clusters: int, n_layers: int, n_lights: int, limit: int | None = None) -> None:
     """Refuse a scene whose strands, maps or preview would not fit (keys ``strands.count``,
-    ``render.resolution``, ``lights.directions``, ``render.preview_size``)."""
+    ``render.resolution``, ``lights.directions``, ``render.preview_size``), or whose exponents
+    ``material.p_I``/``p_II`` the float32 shading cannot raise to, or with more than
+    :data:`MAX_LIGHTS` direct lights."""
+    for key in ("p_I", "p_II"):  # float32 shading: cos^p of a huge p overflows on the way (p_I = 1e300)
+        p = cfg["material"][key]
+        if not p <= MAX_EXPONENT:
+            raise errors.ValidationError(f"material.{key}", p, f"at most {MAX_EXPONENT:g} (the shading runs in float32; "
+                                         "beyond that the lobe is a single texel anyway)")
     if n_lights > MAX_LIGHTS:
         raise errors.ValidationError("lights.directions", f"{n_lights} directions",
                                      f"at most {MAX_LIGHTS} direct lights (each is shaded and written as its own maps; "

@@ -161,14 +161,15 @@ def read_envmap(path: str | os.PathLike, layout: str = "auto", up: str = "z") ->
             kind = "latlong"
         elif "cube" in envmap or h == 6 * w:
             if h != 6 * w:
-                raise errors.ValidationError("envmap.shape", (h, w), f"{path}: a stacked cube map is n × 6n")
+                raise errors.ValidationError("envmap.shape", (h, w), f"{path}: a stacked cube map is 6n high and n wide")
             faces, kind = {f: img[i * w : (i + 1) * w] for i, f in enumerate(FACES)}, "cube"
         elif 3 * w == 4 * h or 4 * w == 3 * h:
             n = w // 4 if 3 * w == 4 * h else w // 3
             faces, kind = _cross_faces(img, n, vertical=4 * w == 3 * h), "cube"
         else:
             raise errors.ValidationError(
-                "envmap.shape", (h, w), f"{path}: not 2:1 lat-long, n×6n cube, 4:3 or 3:4 cross, nor six cube parts"
+                "envmap.shape", (h, w), f"{path}: not a 2:1 lat-long map, a cube strip 6n high and n wide, a 4:3 or 3:4 cross, "
+                                    "nor six cube parts"
             )
         if kind == "latlong" and w != 2 * h:
             raise errors.ValidationError("envmap.shape", (h, w), f"{path}: a lat-long map is twice as wide as high")
@@ -188,6 +189,10 @@ def read_envmap(path: str | os.PathLike, layout: str = "auto", up: str = "z") ->
     bad = ~np.isfinite(radiance)
     if bad.any():
         raise errors.ValidationError("envmap", str(path), f"{int(bad.any(axis=-1).sum())} texels are NaN or infinite")
+    peak = float(np.abs(radiance).max()) if radiance.size else 0.0
+    if peak > MAX_RADIANCE:
+        raise errors.ValidationError("envmap", str(path), f"radiance up to {peak:.3g} exceeds {MAX_RADIANCE:g}: the light's "
+                                     "Cd/Cs tables are float32 (max 3.4e38) and would hold infinities; scale the map down")
     dirs = dirs.reshape(-1, 3)
     if up == "y":
         dirs = dirs[:, [1, 2, 0]]
@@ -197,6 +202,8 @@ def read_envmap(path: str | os.PathLike, layout: str = "auto", up: str = "z") ->
 # ----------------------------------------------------------------------------- projection
 
 _BLOCK = 1 << 16
+#: Largest |radiance| a map may hold: Cd/Cs (float32) multiply it by up to ~4π·(bands) and must stay finite.
+MAX_RADIANCE = 1e30
 
 
 def project_samples(dirs: np.ndarray, weights: np.ndarray, values: np.ndarray, lmax: int) -> np.ndarray:

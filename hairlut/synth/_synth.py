@@ -376,7 +376,12 @@ def write_outputs(result: SynthResult, out_dir) -> dict:
     recipe = _plain({"scene": result.scene.config, "source": result.scene.source})
     exrs, pngs = [], []
     for i, res in enumerate(result.clusters):
-        exrs.append(str(write_exr(out / f"cluster{i:03d}.exr", channels(res), recipe=recipe, kind=KIND)))
+        chans = channels(res)
+        bad = [name for name, arr in chans.items() if not np.all(np.isfinite(np.asarray(arr)))]
+        if bad:  # finite or refused: a NaN in the inputs must not become NaN pixels with exit 0
+            raise errors.NonFiniteError(f"synth: cluster {i} has non-finite values in {', '.join(bad[:4])}"
+                                        f"{' …' if len(bad) > 4 else ''}; check the database and the [material] keys")
+        exrs.append(str(write_exr(out / f"cluster{i:03d}.exr", chans, recipe=recipe, kind=KIND)))
         png = out / f"cluster{i:03d}.png"
         atomic_write_bytes(png, encode_png(tonemap(res.final[..., :3])))
         pngs.append(str(png))
