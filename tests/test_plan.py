@@ -52,15 +52,22 @@ def test_zero_ks_bakes_no_rs_and_zero_kd_no_rd(tmp_path):
 
 @pytest.mark.parametrize("p_exp", [9.0, 49.0, 100.0])
 def test_exponent_sets_light_bands_and_reports_truncation(tmp_path, p_exp):
+    from hairlut.scene import environment_bands
+
     p = plan(scene({"map": "sky"}, p_I=p_exp), tmp_path)
     sh = p.step("sh_tables")
     bands = sh.recipe["bands"]["light_specular"]
-    assert bands == math.ceil(math.sqrt(p_exp)) + 1 == specular_band_rule(p_exp)
+    eb = sh.details["environment_bands"]
+    assert eb == environment_bands(p.scene) and bands == eb["bands"] and eb["rule"] == specular_band_rule(p_exp)
+    assert eb["error"] <= 0.015 < eb["rule_error"] or bands <= eb["rule"]  # auto meets the default tolerance
+    tighter = plan(scene({"map": "sky", "tolerance": eb["error"] * 0.5}, p_I=p_exp), tmp_path).step("sh_tables")
+    assert tighter.recipe["bands"]["light_specular"] > bands  # a tighter tolerance needs more bands
     err = sh.details["specular_truncation_error"]
-    assert err == pytest.approx(band_truncation_error(p_exp, bands)) and 0 < err < 1
-    assert f"{bands} light bands" in sh.reason and f"{100 * err:.0f} %" in sh.reason
+    assert err == pytest.approx(band_truncation_error(p_exp, bands)) and 0 <= err < 1
+    assert f"{bands} light bands" in sh.reason and f"{100 * eb['error']:.1f} %" in sh.reason
     wider = plan(scene({"map": "sky", "bands": bands + 4}, p_I=p_exp), tmp_path).step("sh_tables")
     assert wider.details["specular_truncation_error"] < err  # more bands keep more of the lobe
+    assert wider.details["environment_bands"]["error"] < eb["error"]  # and more of the radiance
 
 
 def test_angle_coverage():

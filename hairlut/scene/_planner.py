@@ -43,6 +43,8 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from .. import cache, errors, registry
 from ..assets import recipe_hash
 from ._schema import as_scene
@@ -145,27 +147,77 @@ def _hrir_step(scene, ss: SceneSectors, root) -> Step:
                 str(path), nbytes, seconds, details)
 
 
-def environment_light(scene):
-    """The scene's environment light projected to the bands its SH tables need, or None."""
-    from ..envlight import load_env_light, sky_light
+def _reference_light(scene):
+    """The scene's environment light (intensity applied) at the reference's bands (``_envbands``)."""
+    from ..envlight import EnvLight, load_env_light, sky_light
+    from ._envbands import REFERENCE_BANDS
 
     env = scene.environment
-    if env is None:
-        return None
-    lmax = max(3, sh_bands(scene)) - 1
+    lmax = REFERENCE_BANDS - 1
     light = sky_light(lmax) if env["map"] == "sky" else load_env_light(env["map"], lmax, env["layout"], env["up"])
     if env["intensity"] != 1.0:
-        from ..envlight import EnvLight
         light = EnvLight(light.coeffs * env["intensity"], light.channels, light.lmax, light.band_error, light.layout,
                          f"{light.source_sha256}×{env['intensity']!r}")
     return light
 
 
-def sh_bands(scene) -> int:
+_BANDS: dict = {}
+
+
+def environment_bands(scene) -> dict:
+    """How many light bands the scene's environment term gets and what they cost in radiance
+    (``hairlut.scene._envbands``): ``bands``, ``error`` (relative RMS against 30 bands, after
+    ``environment.window``), ``clamped`` (share of (tangent, θ′) samples below 0), ``rule`` (the
+    paper's ⌈√p⌉ + 1) and ``rule_error``.  ``environment.bands = auto``: the fewest within
+    ``environment.tolerance``; an integer is kept and measured.  None without an environment light."""
+    from ._envbands import band_radiance, choose_bands, radiance_error
     from ..shtables import specular_band_rule
 
-    b = scene.config["environment"]["bands"]
-    return specular_band_rule(scene.material["p_I"]) if b == "auto" else int(b)
+    env, m, fx = scene.environment, scene.material, scene.effects
+    if env is None:
+        return None
+    kd = m["kd"] * float(np.mean(m["hair_color"])) if fx["diffuse"] else 0.0
+    ks = m["ks_I"] * fx["primary"] + m["ks_II"] * fx["secondary"]
+    key = (env["map"], env["layout"], env["up"], env["intensity"], env["bands"], env["tolerance"], env["window"],
+           kd, ks, m["p_I"], str(scene.source))
+    if key not in _BANDS:
+        light = _reference_light(scene)
+        terms = band_radiance(light.coeffs, kd, ks, m["p_I"], tangents=1024, theta_v=17)
+        rule = specular_band_rule(m["p_I"])
+        if env["bands"] == "auto":
+            b, err, clamped = choose_bands(terms, env["tolerance"], env["window"])
+        else:
+            b = int(env["bands"])
+            err, clamped = radiance_error(terms, min(b, terms.shape[0]), env["window"])
+        _BANDS[key] = ({"bands": b, "error": err, "clamped": clamped, "rule": rule,
+                        "rule_error": radiance_error(terms, min(rule, terms.shape[0]), "none")[0]}, light)
+    return dict(_BANDS[key][0])
+
+
+def environment_light(scene):
+    """The scene's environment light projected to the bands its SH tables need (windowed by
+    ``environment.window``), or None."""
+    from ..envlight import EnvLight
+    from ._envbands import window_coeffs
+
+    env = scene.environment
+    if env is None:
+        return None
+    info = environment_bands(scene)
+    ref = next(light for stored, light in _BANDS.values() if stored == info)
+    n = max(3, info["bands"])
+    a = ref.coeffs[:n * n]
+    total = (ref.coeffs ** 2).sum(0) / np.maximum(1.0 - np.asarray(ref.band_error) ** 2, 1e-300)
+    err = np.sqrt(np.clip(1.0 - (a ** 2).sum(0) / np.maximum(total, 1e-300), 0.0, None))
+    if env["window"] != "none":
+        a = window_coeffs(a, env["window"])
+    return EnvLight(a, ref.channels, n - 1, err, ref.layout,
+                    ref.source_sha256 if env["window"] == "none" else f"{ref.source_sha256}|{env['window']}")
+
+
+def sh_bands(scene) -> int:
+    b = environment_bands(scene)
+    return b["bands"] if b is not None else 0
 
 
 def sh_recipe(scene) -> dict | None:
@@ -196,9 +248,15 @@ def _sh_step(scene, root) -> Step:
     details = {"light_band_error": dict(zip(light.channels, light.band_error.tolist()))}
     if k["specular"]:
         err = band_truncation_error(k["p"], b["light_specular"])
+        eb = environment_bands(scene)
         details["specular_truncation_error"] = err
-        words.append(f"p = p_I = {k['p']:g} sets {b['light_specular']} light bands ((√p + 1)² = "
-                     f"{b['light_specular'] ** 2} coefficients), leaving {100 * err:.0f} % of the lobe's L2 energy")
+        details["environment_bands"] = eb
+        how = (f"the fewest within environment.tolerance = {env['tolerance']:g}" if env["bands"] == "auto"
+               else "environment.bands")
+        words.append(f"{b['light_specular']} light bands ({how}): the environment radiance is within "
+                     f"{100 * eb['error']:.1f} % RMS of 30 bands (window {env['window']}; {100 * eb['clamped']:.1f} % of "
+                     f"(tangent, θ′) samples below 0 before the clamp; the lobe keeps all but {100 * err:.0f} % of its "
+                     f"L2 energy; the paper's ⌈√p⌉ + 1 = {eb['rule']} would leave {100 * eb['rule_error']:.1f} %)")
     else:
         words.append("ks_I = ks_II = 0: no Rs")
     if not k["diffuse"]:

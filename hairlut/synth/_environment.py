@@ -8,7 +8,8 @@ one specular lobe of exponent p_I (the SH tables' p) for both highlights, unshif
 Without self-shadowing the environment is unoccluded: b = (√4π, 0, …).  With it, b is
 the strands' voxel SH transmittance (xing §5, ``hairlut.shadows``) at the texel's
 position.  9 coefficients cannot hold a sharp occlusion, so E can ring below 0; it is
-clamped at 0 and the clamped fraction is reported.  E is added to each layer's shaded
+clamped at 0 and the clamped fraction is reported.  ``environment.window`` (hanning or lanczos)
+scales b's band l by σ_l (``hairlut.scene.window_factors``), as the planner does the light's.  E is added to each layer's shaded
 colour before blending (eq 13 + E, then eq 14).
 """
 
@@ -79,6 +80,11 @@ def prepare_environment(scene, sh, strands: list, tangent: np.ndarray, position:
     n = tables.bands.n_trans
     if env["self_shadow"]:
         b = self_transmittance(strands, np.asarray(position, np.float64), env, n)
+        if env["window"] != "none":  # σ-factors against the 3-band transmittance's ringing
+            from ..scene import window_factors
+
+            bands = int(round(np.sqrt(n)))
+            b = b * np.repeat(window_factors(bands, env["window"]), 2 * np.arange(bands) + 1)
     else:
         b = np.zeros(t.shape[:-1] + (n,))
         b[..., 0] = np.sqrt(4 * np.pi)
