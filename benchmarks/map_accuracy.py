@@ -151,15 +151,16 @@ def main(argv=None):
         return convergence(args)
     prep_t, t_rows, t_maps, truth_s = truth(args.scene, args.quick)
     records = []
-    for rays in ((2,) if args.quick else (1, 2)):
+    want = set(args.only or ("direct", "scene", "satf")) - ({"satf"} if args.no_satf else set())
+    for rays in ((2,) if args.quick else (1, 2)) if "direct" in want else ():
         pr = prepare(_scene(args.scene, method="direct", rays=rays))
         ms, maps = frame_ms(pr)
         rows, _ = _rows(pr, pr.scene.view, pr.scene.lights)
         records.append({"method": "direct", "knobs": f"rays={rays}", "frame_ms": ms, "bake_s": 0.0, "bytes": 0,
                         **errors_of(maps, t_maps, rows, t_rows)})
         print(records[-1], flush=True)
-    knobs = [dict(views=64, terms=4, shading_pixels=8, precision="float16")]
-    if not args.quick:
+    knobs = [dict(views=64, terms=4, shading_pixels=8, precision="float16")] if "scene" in want else []
+    if not args.quick and knobs:
         knobs += [dict(views=32, terms=4, shading_pixels=8, precision="float16"),
                   dict(views=128, terms=4, shading_pixels=8, precision="float16"),
                   dict(views=64, terms=2, shading_pixels=8, precision="float16"),
@@ -177,7 +178,7 @@ def main(argv=None):
             records.append({"method": "scene", "knobs": ", ".join(f"{a}={b}" for a, b in k.items()), "frame_ms": ms,
                             "bake_s": bake_s, "bytes": rep["bytes"], **errors_of(maps, t_maps, rows, t_rows)})
             print(records[-1], flush=True)
-        if not args.no_satf:
+        if "satf" in want:
             sc = _scene(args.scene, method="satf")
             p = plan(sc, Path(tmp) / "cache")
             step = p.step("hrir_db")
