@@ -39,7 +39,8 @@ def ls_cmd(root, as_json):
 @click.option("--all", "everything", is_flag=True, help="Remove every cached asset.")
 @click.option("--dry-run", is_flag=True, help="Only show what would be removed.")
 def prune_cmd(root, kinds, days, everything, dry_run):
-    """Remove cached assets; always removes temporaries left by killed bakes (older than an hour)."""
+    """Remove cached assets; always removes what killed bakes left: temporaries and parts folders (OUT.parts/ of
+    an asset that is gone) older than an hour, and lock files nobody holds."""
     gone = prune(root, kinds=kinds or None, older_than_days=days, everything=everything, dry_run=dry_run)
     for p in gone:
         click.echo(("would remove " if dry_run else "removed ") + str(p))
