@@ -148,6 +148,54 @@ def shadow_methods(prep, args, runs: int = 10) -> list[dict]:
     return rows
 
 
+def map_methods(args, runs: int = 2) -> list[dict]:
+    """Frame time per ``[render] method`` on the model (issue 12): ``direct`` traces every sector each
+    frame; ``scene`` fetches from a scene table of the model's real shape (its live sectors, the
+    default layout) whose *contents* are synthetic (a paper-scale bake takes hours on this CPU: the
+    fetch's cost does not depend on the values); bytes are the kind's uncompressed estimate."""
+    from hairlut.scene import scene_maps_recipe
+    from hairlut.scenemaps import BAKER, SceneMaps
+
+    from hairlut.geometry import ClusterGeometry, build_sectors
+
+    base = model(args.clusters, args.s_t, args.s_u, args.res, args.strands)
+    rows, live = [], None
+    for method in args.methods:
+        sc = resolve_scene({**base, "render": {**base["render"], "method": method}})
+        maps = None
+        if method == "scene":
+            recipe = scene_maps_recipe(sc)
+            t, P = recipe["table"], recipe["hrir"]["trace"]["pixels"]
+            rng = np.random.default_rng(0)
+            if live is None:  # direct not run: every sector live (an upper bound of the fetch's work)
+                live = np.ones(sum(build_sectors(ClusterGeometry(spec), st, np.zeros(st.n_strands, np.int64)).n_sectors
+                                   for spec, st in scene_clusters(sc)), bool)
+            n = int(live.sum())
+            row = np.full(live.size, -1, np.int32)
+            row[live] = np.arange(n, dtype=np.int32)
+            maps = SceneMaps(rng.random((n, t["views"] // 2, P)).astype(t["dtype"]),
+                             (0.1 * rng.random((n, t["views"], t["shading_pixels"], 2 * t["terms"] + 1))).astype(t["dtype"]),
+                             row, recipe)
+        t0 = time.perf_counter()
+        prep = prepare(sc, maps=maps)
+        t_prep = time.perf_counter() - t0
+        if method == "direct":
+            d = prep.maps.density
+            live = d.reshape(len(d), -1).max(axis=1) > 0
+        render(prep)  # warm-up: compiles
+        frames = [timed(lambda: render(prep)) for _ in range(runs)]
+        sec = np.array([f[0] for f in frames])
+        best = frames[int(np.argmin(sec))][1]
+        extra = {}
+        if method == "scene":
+            nbytes, secs = BAKER.estimate(recipe, sectors=live.size, live=int(live.sum()))
+            extra = {"table_bytes_estimate": nbytes, "bake_s_estimate": secs}
+        rows.append({"method": method, "sectors": int(live.size), "live": int(live.sum()), "prepare_s": t_prep,
+                     "ms": 1e3 * sec.min(), "maps": 1e3 * best.stats["seconds"]["maps"], **extra})
+        print(rows[-1], flush=True)
+    return rows
+
+
 def timed(fn):
     start = time.perf_counter()
     out = fn()
@@ -173,9 +221,19 @@ def main(argv=None) -> None:
     ap.add_argument("--res", type=int, default=64, help="texels per layer side")
     ap.add_argument("--strands", type=int, default=400, help="strands per cluster")
     ap.add_argument("--quick", action="store_true", help="2 clusters, s_t = 16 (a smoke run)")
+    ap.add_argument("--map-methods", action="store_true",
+                    help="only the frame time per [render] method (direct, scene) on the model")
+    ap.add_argument("--methods", nargs="+", default=["direct", "scene"], choices=["direct", "scene"],
+                    help="with --map-methods: which (scene alone counts every sector live)")
     args = ap.parse_args(argv)
     if args.quick:
         args.clusters, args.s_t, args.res, args.strands = 2, 16, 32, 100
+    if args.map_methods:
+        rows = map_methods(args)
+        print(table(rows, [("method", "[render] method", "s"), ("sectors", "sectors", "d"), ("live", "live", "d"),
+                           ("prepare_s", "prepare s", ".1f"), ("ms", "frame ms", ".1f"), ("maps", "maps ms", ".1f")]))
+        save("online_frame_map_methods", {"device": str(jax.devices()[0]), "args": vars(args), "rows": rows})
+        return
     with tempfile.TemporaryDirectory() as tmp:
         db_path = Path(args.db) if args.db else _small_db(Path(tmp), args.quick)
         from hairlut.hrir import load_hrir_db

@@ -119,11 +119,11 @@ def radiance_error(terms: np.ndarray, bands: int, window: str = "none") -> tuple
 
 
 def choose_bands(terms: np.ndarray, tolerance: float, window: str = "none", least: int = 3) -> tuple[int, float, float]:
-    """The smallest B ≥ ``least`` with :func:`radiance_error` ≤ ``tolerance`` (or all the bands), its
-    error and clamped share."""
+    """The smallest B ≥ ``least`` with :func:`radiance_error` ≤ ``tolerance`` (or all the bands, when
+    none is: a window's blur can keep the error above a tight tolerance), its error and clamped share."""
     top = terms.shape[0]
     for b in range(max(1, least), top + 1):
         err, clamped = radiance_error(terms, b, window)
         if err <= tolerance:
             return b, err, clamped
-    return top, 0.0, radiance_error(terms, top, window)[1]
+    return (top, *radiance_error(terms, top, window))
