@@ -190,6 +190,9 @@ def check_sh(r: dict, limit: int | None = None) -> None:
     key = "bands.light_specular" if k["specular"] and b["light_specular"] >= b["light_diffuse"] else "bands.light_diffuse"
     check(key, b[key.split(".")[1]], product((li + T - 1) ** 2, li**2, T**2, 8 * 2),
           f"the float64 Gaunt tensor ({li} light bands, {T} transmittance bands)", limit)
+    nodes = 6 * math.sqrt(k["p"]) + li + T  # the specular kernel's quadrature grows with √p (p = 1e12: 6e6 nodes)
+    if k["specular"]:
+        check("kernel.p", k["p"], product(nodes, nodes, 8), f"the specular kernel's quadrature (~{nodes:.3g}² nodes)", limit)
     n = dense["t_resolution"]
     if n:
         per_t = (b["light_diffuse"] ** 2 if k["diffuse"] else 0) + \

@@ -122,6 +122,12 @@ def _compact(text: str) -> tuple[SHTables, dict]:
     import json
 
     tables, info = bake_compact(json.loads(text))
+    for name, arr in (("kernel/diffuse_k", tables.kd_l), ("kernel/specular_k", tables.ks_cheb), ("gaunt", tables.gaunt)):
+        if arr is not None and not np.all(np.isfinite(arr)):  # finite or refused: never write NaN/Inf
+            r = tables.recipe
+            raise errors.NonFiniteError(f"sh_tables: {name} is not finite for kernel.p={r['kernel']['p']}, "
+                                        f"bands.light_specular={r['bands']['light_specular']}, "
+                                        f"bands.transmittance={r['bands']['transmittance']}")
     info["theta_v_nodes"] = lobatto_nodes(info["chebyshev_nodes"])
     if tables.has_specular:
         info["truncation_error"] = truncation_error(tables, np.linspace(0.0, np.pi, 65))
