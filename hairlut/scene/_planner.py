@@ -178,8 +178,9 @@ def environment_bands(scene) -> dict:
         return None
     kd = m["kd"] * float(np.mean(m["hair_color"])) if fx["diffuse"] else 0.0
     ks = m["ks_I"] * fx["primary"] + m["ks_II"] * fx["secondary"]
-    key = (env["map"], env["layout"], env["up"], env["intensity"], env["bands"], env["tolerance"], env["window"],
-           kd, ks, m["p_I"], str(scene.source))
+    stat = Path(env["map"]).stat() if env["map"] != "sky" and Path(env["map"]).is_file() else None
+    key = (env["map"], stat and (stat.st_size, stat.st_mtime_ns), env["layout"], env["up"], env["intensity"],
+           env["bands"], env["tolerance"], env["window"], kd, ks, m["p_I"])
     if key not in _BANDS:
         light = _reference_light(scene)
         terms = band_radiance(light.coeffs, kd, ks, m["p_I"], tangents=1024, theta_v=17)
