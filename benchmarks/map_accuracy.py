@@ -142,6 +142,7 @@ def main(argv=None):
     ap.add_argument("--json", type=Path)
     ap.add_argument("--quick", action="store_true", help="fewer knobs; a 2-ray truth")
     ap.add_argument("--no-satf", action="store_true", help="skip the SATF rows (their database bake)")
+    ap.add_argument("--default-only", action="store_true", help="the scene method at its default knobs only")
     ap.add_argument("--convergence", action="store_true",
                     help="only check the truth: level 1 against one more refinement (8 rays, 4× grid, 4× steps)")
     ap.add_argument("--only", choices=("direct", "scene", "satf"), action="append",
@@ -160,7 +161,7 @@ def main(argv=None):
                         **errors_of(maps, t_maps, rows, t_rows)})
         print(records[-1], flush=True)
     knobs = [dict(views=64, terms=4, shading_pixels=8, precision="float16")] if "scene" in want else []
-    if not args.quick and knobs:
+    if not (args.quick or args.default_only) and knobs:
         knobs += [dict(views=32, terms=4, shading_pixels=8, precision="float16"),
                   dict(views=128, terms=4, shading_pixels=8, precision="float16"),
                   dict(views=64, terms=2, shading_pixels=8, precision="float16"),
