@@ -16,7 +16,11 @@ from click.testing import CliRunner
 
 from hairlut.assets import read_table, write_exr
 from hairlut.assets.h5 import disk_name
+from hairlut import registry
 from hairlut.assets.kinds import SCHEMA
+from hairlut.scene import resolve_scene, scene_maps_recipe
+
+from ._synth_fixtures import scene as base_scene
 
 SMALL_HRIR = {"sectors": {"count": 4, "grid": [6, 6]}, "angles": {"views": 4, "lights": 3}, "trace": {"pixels": 6, "steps": 8}}
 
@@ -43,11 +47,31 @@ def assets(tmp_path_factory):
     recipe = d / "sh.toml"
     recipe.write_text("[kernel]\np = 8.0\n[dense]\nt_resolution = 2\ntheta_v_steps = 3\n")
     _cli("bake", "sh", "--recipe", recipe, "--out", d / "sh.h5", "--set", "bands.transmittance=2", "--light", d / "sky.exr")
+    _cli("bake", "sh", "--recipe", recipe, "--out", d / "shp.h5", "--set", "bands.transmittance=2", "--light",
+         d / "sky.exr", "--shard", "0/2", "--block", "8")
+    sc = resolve_scene(_tiny_scene())
+    registry.bake("scene_maps", scene_maps_recipe(sc), d / "maps.h5", scene=sc)
     return {"hrir_db": d / "db.h5", "hrir_db_float16": d / "db16.h5", "hrir_shard": d / "shard.h5",
-            "sh_light": d / "light.h5", "sh_tables": d / "sh.h5"}
+            "sh_light": d / "light.h5", "sh_tables": d / "sh.h5", "sh_shard": d / "shp.h5", "scene_maps": d / "maps.h5"}
 
 
-KINDS = ["hrir_db", "hrir_db_float16", "hrir_shard", "sh_light", "sh_tables"]
+def _tiny_scene() -> dict:
+    s = base_scene()
+    s["strands"] = {**s["strands"], "count": 20}
+    s["render"] = {**s["render"], "method": "scene", "views": 8, "terms": 1, "shading_pixels": 8}
+    s["tables"] = {"hrir": {"sectors": {"grid": [8, 8]}, "trace": {"pixels": 8, "steps": 12}}}
+    return s
+
+
+KINDS = ["hrir_db", "hrir_db_float16", "hrir_shard", "sh_light", "sh_tables", "sh_shard", "scene_maps"]
+
+
+def test_every_kind_hairlut_bakes_is_covered():
+    """A new table kind (or its shard kind) must join this file's cases."""
+    written = set()
+    for baker in (registry.get(k) for k in registry.kinds()):
+        written |= {baker.kind} | ({baker.shard_kind} if baker.shard_kind else set())
+    assert written <= {_kind(k) for k in KINDS}
 
 
 def _kind(case: str) -> str:
@@ -77,7 +101,7 @@ def test_open_dataset_names_dims_and_shows_axes_as_coordinates(assets, kind):
         if kind.endswith("_float16"):
             assert ds["alpha"].dtype == np.float16 and ds["reflectance"].dtype == np.float16
         root = [n for n in t.variables if "/" not in n]
-        assert root and set(ds.data_vars) == set(root)
+        assert t.variables and set(ds.data_vars) == set(root)  # a shard may hold its tables in groups only
         for name in root:
             var = t.variables[name]
             assert ds[name].dims == var.dims
