@@ -55,7 +55,8 @@ def demo_cmd(out_dir, scenes, cache_root, no_progress, as_json):
                 click.echo(f"  {s['action']:<5} {s['name']:<13} {s['reason']}")
         for name, a in r["assets"].items():
             click.echo(f"  {a['status']} {name} in {a['seconds']:.1f} s: {a['path']}")
-        click.echo("  accuracy: " + ", ".join(f"{k} {v:.2g}" for k, v in r["accuracy"].items()))
+        if r["accuracy"]:
+            click.echo("  accuracy: " + ", ".join(f"{k} {v:.2g}" for k, v in r["accuracy"].items()))
         click.echo("  times: " + ", ".join(f"{k} {v:.1f} s" for k, v in r["seconds"].items()))
         click.echo(f"  preview: {r['files']['preview']}")
         cam = r.get("camera")

@@ -69,7 +69,7 @@ def run_scene(scene_path, out_dir, cache_root=None, progress=None) -> dict:
     files = write_outputs(result, out_dir)
     t4 = time.perf_counter()
     camera = None
-    if p.scene.groom_path is not None:  # a real groom: the layered model beside its strand reference (issue 13)
+    if p.scene.groom_path is not None:  # a real groom: the layered model beside its strand reference
         from .render import layered_vs_reference
 
         camera = layered_vs_reference(p.scene, Path(out_dir) / "camera", db=assets.get("hrir_db", {}).get("path"),

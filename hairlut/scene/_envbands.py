@@ -1,4 +1,4 @@
-"""How many SH bands an environment light needs: chosen from the radiance error it makes (issue 12 item 4).
+"""How many SH bands an environment light needs: chosen from the radiance error it makes.
 
 The hair's environment radiance without occlusion is xing eq 2 with b = (√4π, 0, …):
 

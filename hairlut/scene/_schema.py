@@ -65,7 +65,7 @@ SHADOW_KEYS = {"smap": (), "none": (), "light_oriented": ("resolution", "kappa",
                "opacity_maps": ("resolution", "slices", "kappa")}
 
 
-#: ``[render] method``: how the online re- and α-maps are made (issue 12).
+#: ``[render] method``: how the online re- and α-maps are made.
 MAP_METHODS = ("auto", "direct", "scene", "satf")
 #: The ``[render]`` knobs each map method reads (``auto`` accepts them all: the planner picks the method).
 MAP_KEYS = {"direct": ("rays",), "scene": ("rays", "views", "terms", "shading_pixels", "precision"), "satf": ()}

@@ -1,4 +1,4 @@
-"""The ``scene_maps`` table kind: one static groom's own sector projections, baked once (issue 12).
+"""The ``scene_maps`` table kind: one static groom's own sector projections, baked once.
 
 Each non-empty sector of a scene (its own clusters and strands, in ``hairlut.synth.prepare``'s order)
 is traced on a grid of V view angles × L light angles with the HRIR tracer (satf §5.1, eqs 4–5) and

@@ -1,4 +1,4 @@
-"""Reading a scene table online: every sector's α and re rows at its exact θv and θl (issue 12's ``scene``).
+"""Reading a scene table online: every sector's α and re rows at its exact θv and θl (the ``scene`` map method).
 
 For sector s with table row r (−1: empty, α = re = 0) and view θv: f = θv V / 2π, views
 i₀ = ⌊f⌋ mod V and i₁ = i₀ + 1 mod V, weight w = f − ⌊f⌋ (periodic linear interpolation, as an SATF

@@ -61,7 +61,7 @@ def describe(report: dict) -> list[str]:
 BAKER = Baker(
     kind=KIND,
     command="scene",
-    description="per-groom sector projections: alpha on a view grid, re/alpha Fourier terms (issue 12)",
+    description="per-groom sector projections: alpha on a view grid, re/alpha Fourier terms",
     required=("alpha", "ratio", "row"),
     schema=SCHEMA,
     resolve_recipe=resolve_recipe,
@@ -72,7 +72,7 @@ BAKER = Baker(
     options=(Option("scene", "path", None, "The scene (TOML) whose groom the table is baked for.", load=_load_scene),),
     keyed=("scene",),
     unit="sectors",
-    help="""Per-groom scene table: each sector's own projections (issue 12's scene map method).
+    help="""Per-groom scene table: each sector's own projections (the `scene` map method).
 
     Traces every non-empty sector of the scene's groom on a grid of views and lights once;
     online, each sector's alpha and re rows are read at its exact angles.  Usually baked by

@@ -1,6 +1,6 @@
 """Direct sector maps: every sector's α and re at its own exact in-plane view and light angles.
 
-The ``direct`` map method (issue 12): instead of looking an HRIR up in a random database on
+The ``direct`` map method: instead of looking an HRIR up in a random database on
 an angle grid (satf §6.2), each frame traces every sector of the scene at the θv and θl it
 actually sees (Params(b), satf §6.2.1), from its own density grid.  The result is the same
 physical quantity the HRIR database stores (satf §5.1, eqs 4–5), computed with exactly the

@@ -1,4 +1,4 @@
-"""Where a frame's per-sector rows come from: the map methods ``direct`` and ``scene`` (issue 12).
+"""Where a frame's per-sector rows come from: the map methods ``direct`` and ``scene``.
 
 ``satf`` (the paper's lookup, ``_frame.frame_maps``) fetches database rows at Params(b).  The
 other two give every sector its own row, then run the same eq 7 sweep (``_frame.sweep_sectors``,

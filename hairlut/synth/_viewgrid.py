@@ -1,6 +1,6 @@
 """Sectors traced on a full circle of view angles, each sample computed once (the scene table's bake).
 
-The ``scene_maps`` bake (issue 12) needs every non-empty sector's α and premultiplied re on V
+The ``scene_maps`` bake needs every non-empty sector's α and premultiplied re on V
 views θv,i = 2πi/V × L lights (satf eqs 4–5), exactly what ``hairlut.hrir.trace_sectors``
 computes with the tracer's conventions (``_direct``'s module docstring).  This kernel computes the
 same arrays with less work, using two facts of the planar geometry:
