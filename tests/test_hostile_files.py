@@ -118,8 +118,10 @@ def _outcomes_of_flips(path, readers, step, offsets=None):
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="needs fork")
 @pytest.mark.parametrize("which, step", [
     ("table", 211), ("sh", 97), ("hrir", 397),
-    pytest.param("table", 11, marks=pytest.mark.slow), pytest.param("sh", 13, marks=pytest.mark.slow),
-    pytest.param("hrir", 41, marks=pytest.mark.slow),
+    # denser sweeps, in CI: every 5th, 3rd and 3rd offset of the full sweeps (steps 11, 13, 41) once measured
+    # offline with 0 untyped outcomes; the full sweeps take ~20 minutes on 2 cores
+    pytest.param("table", 55, marks=pytest.mark.slow), pytest.param("sh", 39, marks=pytest.mark.slow),
+    pytest.param("hrir", 123, marks=pytest.mark.slow),
 ])
 def test_flipped_metadata_bits_give_typed_errors(tmp_path, which, step, sh_file, hrir_file):
     """Every flip that HDF5 survives gives ok or a hairlut error: no KeyError, OSError, ValueError ... tracebacks.
