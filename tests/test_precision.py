@@ -219,7 +219,7 @@ KERNELS = {
     + [(False, lambda: _direct_args("march", shade=False))],
     "hairlut.synth._viewgrid:view_grid_kernel": [
         (False, lambda s=s: ((A(4, 8, 8), A(4, 11), A(2), A(3), A(4)),
-                             dict(n_pix=8, n_steps=16, rays=1, shadow=s, smooth=True, block=2, budget=64)))
+                             dict(n_pix=8, n_steps=16, rays=1, shadow=s, smooth=True, block=2)))
         for s in (False, True)],
     "hairlut.synth._frame:params_kernel": [
         (False, lambda: ((_map_index(), A(3), A(2, 3), A()), dict(n_v=8, n_l=8)))],
