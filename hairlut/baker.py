@@ -73,9 +73,10 @@ class Option:
 class Units:
     """How a kind's bake splits along one axis of units (see :mod:`hairlut.sharding`).
 
-    ``count(recipe)`` units in all; ``bake_part(recipe, start, stop, total, path, **inputs)`` bakes units
-    [start, stop) into a ``shard_kind`` file at ``path`` (atomically) whose per-unit tables have ``axis``
-    as their first dimension, in the final storage dtype, and whose root attributes ``<axis>_start``,
+    ``count(recipe, **inputs)`` units in all (a keyed input, such as a scene, may fix the count);
+    ``bake_part(recipe, start, stop, total, path, **inputs)`` bakes units [start, stop) into a ``shard_kind``
+    file at ``path`` (atomically) whose per-unit tables have ``axis`` as their first dimension, in the final
+    storage dtype, and whose root attributes ``<axis>_start``,
     ``<axis>_stop`` and ``<axis>_total`` say which units it holds; ``join(recipe, parts, out)`` writes
     consecutive parts as one ``shard_kind`` file; ``assemble(recipe, parts, out, **inputs)`` writes the
     self-contained asset from parts covering every unit; ``whole(recipe, parts, **inputs)`` returns
@@ -87,7 +88,7 @@ class Units:
     """
 
     axis: str
-    count: Callable[[dict], int]
+    count: Callable[..., int]
     bake_part: Callable
     join: Callable
     assemble: Callable

@@ -112,7 +112,7 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
         raise errors.ValidationError("merge", merge, f"one of {', '.join(MERGES)}")
     if shard is not None and merge == "virtual":
         raise errors.ValidationError("merge", merge, "a --shard file is a copy; `hairlut merge` joins shards")
-    total = units.count(recipe)
+    total = units.count(recipe, **inputs)
     if total < 1:
         raise errors.ValidationError(units.axis, total, f"this {baker.kind} recipe has no {units.axis} axis to split")
     share = parse_shard(shard) if shard is not None else ((proc.index, proc.count) if proc.count > 1 else None)

@@ -212,16 +212,40 @@ def test_concurrent_bakes_of_one_output_wait_and_stray_temporaries_go(tmp_path):
 # ----------------------------------------------------------------------------- every kind on the one shard path
 
 SH = {"kernel": {"p": 16.0}, "dense": {"t_resolution": 4, "theta_v_steps": 5}}  # 96 tangents
-SPLIT = {"hrir_db": (SMALL, {"block": 4}), "sh_tables": (SH, {"block": 40, "light": "sky"})}
 
 
-def test_every_kind_that_splits_bakes_the_same_data_sharded_virtual_and_whole(tmp_path):
+def tiny_scene():
+    """A two-cluster procedural groom (76 non-empty sectors of 80) on a tiny trace: a scene_maps bake of seconds."""
+    from hairlut.scene import resolve_scene
+
+    from ._synth_fixtures import scene
+
+    s = scene()
+    s["strands"] = {**s["strands"], "count": 20}
+    s["render"] = {**s["render"], "method": "scene", "views": 8, "terms": 1, "shading_pixels": 8}
+    s["tables"] = {"hrir": {"sectors": {"grid": [8, 8]}, "trace": {"pixels": 8, "steps": 12}}}
+    return resolve_scene(s)
+
+
+def split_cases() -> dict:
+    """kind → (recipe, options, a recipe change that gives parts of the same shapes and another recipe hash)."""
+    from hairlut.scene import scene_maps_recipe
+
+    sc = tiny_scene()
+    return {"hrir_db": (SMALL, {"block": 4}, {"phong": {"shininess": 5.0}}),
+            "sh_tables": (SH, {"block": 40, "light": "sky"}, {"kernel": {"p": 17.0}}),
+            "scene_maps": (scene_maps_recipe(sc), {"block": 24, "scene": sc}, {"table": {"lights": 17}})}
+
+
+def test_every_kind_bakes_the_same_data_sharded_virtual_and_whole(tmp_path):
+    """Every kind in the registry is on the one shard path: a kind that cannot shard fails here."""
     from hairlut import registry
 
-    kinds = [k for k in registry.kinds() if registry.get(k).units is not None]
-    assert set(SPLIT) <= set(kinds)
-    for kind in kinds:
-        recipe, options = SPLIT[kind]
+    cases = split_cases()
+    assert set(cases) == set(registry.kinds())
+    for kind in registry.kinds():
+        assert registry.get(kind).units is not None and registry.get(kind).can_shard, f"{kind} cannot shard"
+        recipe, options, _ = cases[kind]
         whole = registry.bake(kind, recipe, tmp_path / f"{kind}.h5", options=options)
         assert whole["computed"] == whole["total_units"] > options["block"] and not parts_dir(whole["out"]).exists()
         virtual = registry.bake(kind, recipe, tmp_path / f"{kind}-v.h5", options=options, merge="virtual")

@@ -51,8 +51,10 @@ def assets(tmp_path_factory):
          d / "sky.exr", "--shard", "0/2", "--block", "8")
     sc = resolve_scene(_tiny_scene())
     registry.bake("scene_maps", scene_maps_recipe(sc), d / "maps.h5", scene=sc)
+    registry.bake("scene_maps", scene_maps_recipe(sc), d / "mapsp.h5", scene=sc, shard="1/2", options={"block": 16})
     return {"hrir_db": d / "db.h5", "hrir_db_float16": d / "db16.h5", "hrir_shard": d / "shard.h5",
-            "sh_light": d / "light.h5", "sh_tables": d / "sh.h5", "sh_shard": d / "shp.h5", "scene_maps": d / "maps.h5"}
+            "sh_light": d / "light.h5", "sh_tables": d / "sh.h5", "sh_shard": d / "shp.h5", "scene_maps": d / "maps.h5",
+            "scene_shard": d / "mapsp.h5"}
 
 
 def _tiny_scene() -> dict:
@@ -63,7 +65,7 @@ def _tiny_scene() -> dict:
     return s
 
 
-KINDS = ["hrir_db", "hrir_db_float16", "hrir_shard", "sh_light", "sh_tables", "sh_shard", "scene_maps"]
+KINDS = ["hrir_db", "hrir_db_float16", "hrir_shard", "sh_light", "sh_tables", "sh_shard", "scene_maps", "scene_shard"]
 
 
 def test_every_kind_hairlut_bakes_is_covered():

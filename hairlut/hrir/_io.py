@@ -32,8 +32,10 @@ from pathlib import Path
 import numpy as np
 
 from .. import errors
-from ..assets import Axis, Variable, read_table, write_exr, write_table
-from ..assets.h5 import HDF5_SIGNATURE, check_file
+from ..assets import Axis, Variable, open_table, read_table, write_exr, write_table
+from ..assets.h5 import HDF5_SIGNATURE, check_file, data_fault
+from ..assets.layout import layout
+from ..assets.trust import finite_fault
 from ..parts import check_virtual
 from ..geometry import angle_grid as angles
 from ..geometry.features import FeatureStats, feature_names, sector_features
@@ -183,16 +185,37 @@ def assemble(path, recipe: dict, data: dict, epoch: int | None = None) -> Path:
 
 
 def index_parts(recipe: dict, parts) -> tuple[list[Axis], list[Variable], dict]:
-    """What a virtual ``hrir_db`` stores besides the per-sector tables, from its parts' density and geometry."""
+    """What a virtual ``hrir_db`` stores besides the per-sector tables, from its parts' density and geometry.
+
+    Each part is opened lazily (:func:`hairlut.assets.open_table`: its root and objects validated) and only its
+    density, geometry columns and storage-error attributes are read, never the α and reflectance tables (the
+    bulk of a part), so writing a virtual asset costs the feature index alone, not the database's size."""
     small = []
     for p in parts:
-        t = read_table(p, kind=SHARD_KIND)
-        small.append({"density": t["density"], "geometry": np.stack([t[f"geometry/{c}"] for c in GEOM], axis=1),
-                      "errors": {k: float(t.attrs[f"storage_max_abs_error_{k}"]) for k in ("alpha", "reflectance")}})
+        with open_table(p, SHARD_KIND, required=("density",)) as f:
+            tables = layout(f)[1]
+            try:
+                small.append({"density": _read(p, tables["density"]),
+                              "geometry": np.stack([_read(p, tables[f"geometry/{c}"]) for c in GEOM], axis=1),
+                              "errors": {k: float(f.attrs[f"storage_max_abs_error_{k}"]) for k in ("alpha", "reflectance")}})
+            except KeyError as exc:
+                raise errors.MissingDatasetError(p, f"shard lacks {exc}") from None
     data = {"density": np.concatenate([d["density"] for d in small]),
             "geometry": np.concatenate([d["geometry"] for d in small]),
             "errors": {k: max(d["errors"][k] for d in small) for k in ("alpha", "reflectance")}}
     return _index(recipe, data, len(data["density"]))
+
+
+def _read(path, ds) -> np.ndarray:
+    """A dataset's values, finite (a checksum or data fault names the file and dataset)."""
+    try:
+        values = ds[()]
+    except OSError as exc:
+        raise data_fault(path, ds, exc) from None
+    bad = finite_fault(values)
+    if bad:
+        raise errors.CorruptAssetError(path, f"table {ds.name!r} holds non-finite values ({bad})")
+    return values
 
 
 @dataclass(frozen=True, eq=False)

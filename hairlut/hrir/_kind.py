@@ -37,7 +37,7 @@ def _bake(recipe, out, *, progress=None, shard=None, block=None, keep_parts=Fals
                 keep_parts=keep_parts, distributed=distributed, merge=merge)
 
 
-def _count(recipe):
+def _count(recipe, **_):
     return resolve_recipe(recipe)["sectors"]["count"]
 
 

@@ -16,25 +16,24 @@ the samples and light lookups of views θ and θ + π shared (about 1.5× faster
   turned by kθv, so the coefficients are exact for any L ≥ 2K + 1 up to the aliasing of terms > K);
 * **row** (N_scene,): the table row of each of the scene's sectors, −1 for an empty one.
 
+The bake itself runs on the one shard path (``_parts``: table rows as units, resumable parts,
+``--shard``, ``--distributed``, virtual or copied assets).
+
 **Read.**  :func:`load_scene_maps` validates the file and returns a :class:`SceneMaps`.
 """
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .. import errors
-from ..assets import Axis, Variable, read_table, recipe_hash, write_table
-from ..baker import no_shard
+from ..assets import read_table
+from ..parts import check_virtual
 from ._kind import KIND
-from ._recipe import geometry_key, hrir_recipe, resolve_recipe
-
-#: Sectors traced per call of the tracer (memory: V · L · P floats each).
-CHUNK = 64
+from ._recipe import hrir_recipe
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,60 +99,9 @@ def compress(alpha, re, views: int, terms: int, bins: int) -> tuple[np.ndarray, 
     return a[:, :half], coef, mirror
 
 
-def bake(recipe, out, *, progress=None, shard=None, scene=None) -> dict:
-    """Trace and write the scene table of ``scene`` (its geometry key must be the recipe's)."""
-    from ..synth import trace_view_grid
-
-    no_shard(KIND, shard)
-    if scene is None:
-        raise errors.ValidationError("scene", None, "a scene_maps table is one scene's: give the scene "
-                                     "(hairlut bake scene --scene SCENE.toml, or hairlut bake --scene SCENE.toml)")
-    r = resolve_recipe(recipe, scene=scene) if not recipe.get("geometry", {}).get("sha256") else resolve_recipe(recipe)
-    key = geometry_key(scene)
-    if r["geometry"]["sha256"] != key:
-        raise errors.ValidationError("geometry.sha256", r["geometry"]["sha256"], f"the recipe is for another groom "
-                                     f"(this scene's geometry key is {key[:12]}…)")
-    t0 = time.perf_counter()
-    full, t = hrir_recipe(r), r["table"]
-    V, L, K, Q = t["views"], t["lights"], t["terms"], t["shading_pixels"]
-    P = full["trace"]["pixels"]
-    density, geometry = scene_inputs(scene, r)
-    N = len(density)
-    live = np.flatnonzero(density.reshape(N, -1).max(axis=1, initial=0.0) > 0) if N else np.zeros(0, np.int64)
-    views, lights = 2 * np.pi * np.arange(V) / V, 2 * np.pi * np.arange(L) / L
-    dtype = np.dtype(t["dtype"])
-    alpha = np.zeros((live.size, V // 2, P), dtype)
-    ratio = np.zeros((live.size, V, Q, 2 * K + 1), dtype)
-    mirror = 0.0
-    for start in range(0, live.size, CHUNK):
-        idx = live[start:start + CHUNK]
-        a, re = trace_view_grid(density[idx], geometry[idx], full, views=V, lights=L)
-        ah, coef, m = compress(a, re, V, K, Q)
-        alpha[start:start + idx.size], ratio[start:start + idx.size] = ah, coef
-        mirror = max(mirror, m)
-        if progress:
-            progress(start + idx.size, live.size)
-    row = np.full(N, -1, np.int32)
-    row[live] = np.arange(live.size, dtype=np.int32)
-    axes = [Axis("sector", np.arange(live.size), "1", "non-empty sector (table row)"),
-            Axis("view_half", views[:V // 2], "rad", "view azimuth θv (half circle; α(θ+π, p) = α(θ, P−1−p))", 2 * np.pi),
-            Axis("view", views, "rad", "view azimuth θv", 2 * np.pi),
-            Axis("pixel", np.arange(P), "1", "pixel along the image line"),
-            Axis("bin", np.arange(Q), "1", f"bin of {P // Q} pixels"),
-            Axis("term", np.arange(2 * K + 1), "1", "c0, a1, b1, …: ρ(Δ) = c0 + Σ a_k cos kΔ + b_k sin kΔ, Δ = θl − θv"),
-            Axis("scene_sector", np.arange(N), "1", "sector of the scene (prepare's order)")]
-    variables = [Variable("alpha", alpha, ("sector", "view_half", "pixel"), "1", "opacity (satf eq 4)"),
-                 Variable("ratio", ratio, ("sector", "view", "bin", "term"), "1", "re/α Fourier terms in θl − θv"),
-                 Variable("row", row, ("scene_sector",), "1", "table row of each scene sector (−1: empty)")]
-    path = write_table(out, KIND, r, axes, variables,
-                       attrs={"mirror_error": mirror, "sectors": N, "live": int(live.size)})
-    return {"out": str(path), "kind": KIND, "recipe": r, "recipe_hash": recipe_hash(r),
-            "bytes": Path(path).stat().st_size, "seconds": time.perf_counter() - t0, "sectors": N,
-            "live": int(live.size), "mirror_error": mirror}
-
-
 def load_scene_maps(path) -> SceneMaps:
-    """The validated ``scene_maps`` table at ``path``."""
+    """The validated ``scene_maps`` table at ``path`` (a virtual one with its parts)."""
+    check_virtual(path)
     t = read_table(path, kind=KIND, required=("alpha", "ratio", "row"))
     alpha, ratio, row = t["alpha"], t["ratio"], np.asarray(t["row"], np.int64)
     n = len(alpha)

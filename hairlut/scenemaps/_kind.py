@@ -7,10 +7,13 @@ command line ``--scene`` is the scene's TOML file.
 
 from __future__ import annotations
 
-from ..baker import Baker, Option
+from ..baker import Baker, Option, Units
 from ._recipe import SCHEMA, hrir_recipe, resolve_recipe
 
 KIND = "scene_maps"
+SHARD_KIND = "scene_shard"
+#: Table rows (non-empty sectors) per resumable part (``OUT.parts/``).
+BLOCK = 64
 #: Throughput of the bake's tracer (``hairlut.synth.trace_view_grid``: sector · view · light · pixel · step · ray
 #: per CPU second, self-shadowed), measured on 32 Sintel sectors at 64 views × 16 lights × 64 px × 64 steps ×
 #: 2 rays: 9.7e7 (``trace_sectors``, which the bake used before: 5.4e7; the estimate had assumed 1.47e8).
@@ -38,10 +41,21 @@ def _load_scene(value, recipe, options):
     return as_scene(value)
 
 
-def _bake(recipe, out, *, progress=None, shard=None, scene=None):
-    from ._bake import bake
+def _bake(recipe, out, *, progress=None, shard=None, scene=None, block=None, keep_parts=False, distributed=False,
+          merge=None):
+    from ._parts import bake
 
-    return bake(recipe, out, progress=progress, shard=shard, scene=scene)
+    return bake(recipe, out, progress=progress, shard=shard, scene=scene, block=BLOCK if block is None else block,
+                keep_parts=keep_parts, distributed=distributed, merge=merge)
+
+
+def _part(name):
+    """``_parts.<name>``, imported on first call (this module stays light)."""
+    def call(*args, **kwargs):
+        from . import _parts
+
+        return getattr(_parts, name)(*args, **kwargs)
+    return call
 
 
 def _load(path):
@@ -52,10 +66,12 @@ def _load(path):
 
 def describe(report: dict) -> list[str]:
     t = report["recipe"]["table"]
-    return [f"wrote {report['out']} ({report['bytes'] / 2**20:.1f} MiB) in {report['seconds']:.1f} s",
-            f"  {report['live']} of {report['sectors']} sectors traced on {t['views']} views × {t['lights']} lights; "
-            f"{2 * t['terms'] + 1} ratio terms × {t['shading_pixels']} bins ({t['dtype']}); "
-            f"mirror symmetry holds to {report['mirror_error']:.1e}"]
+    lo, hi = report["row_range"]
+    rows = f"rows {lo}..{hi - 1} of {report['live']}, " if report["kind"] == SHARD_KIND else ""
+    return [f"wrote {report['out']} ({report['kind']}, {rows}{report['bytes'] / 2**20:.1f} MiB) in {report['seconds']:.1f} s",
+            f"  {report['live']} of {report['sectors']} sectors are table rows: traced {report['computed']}, resumed "
+            f"{report['resumed']}, on {t['views']} views × {t['lights']} lights; {2 * t['terms'] + 1} ratio terms × "
+            f"{t['shading_pixels']} bins ({t['dtype']}); mirror symmetry holds to {report['mirror_error']:.1e}"]
 
 
 BAKER = Baker(
@@ -69,18 +85,30 @@ BAKER = Baker(
     load=_load,
     estimate=estimate,
     describe=describe,
-    options=(Option("scene", "path", None, "The scene (TOML) whose groom the table is baked for.", load=_load_scene),),
+    options=(Option("scene", "path", None, "The scene (TOML) whose groom the table is baked for.", load=_load_scene),
+             Option("block", int, BLOCK, "Table rows (non-empty sectors) per resumable part (OUT.parts/); does not "
+                    "change the result.", minimum=1),
+             Option("keep_parts", bool, False, "Keep OUT.parts/ after the final file is written.")),
     keyed=("scene",),
     unit="sectors",
+    shard_kind=SHARD_KIND,
+    shard_required=("alpha", "ratio", "scene_index"),
+    units=Units("sector", _part("count"), _part("bake_part"), _part("join"), _part("assemble"), _part("whole"),
+                block=BLOCK, check=_part("check")),
     help="""Per-groom scene table: each sector's own projections (the `scene` map method).
 
     Traces every non-empty sector of the scene's groom on a grid of views and lights once;
     online, each sector's alpha and re rows are read at its exact angles.  Usually baked by
     the planner (hairlut bake --scene SCENE.toml) when the scene's render.method resolves to scene.
+    Splits over its table rows like the HRIR database over sectors: resumable blocks in
+    OUT.parts/, --shard K/N and `hairlut merge`, --distributed processes (process 0 writes
+    OUT as HDF5 virtual datasets over OUT.parts/; --merge copy: one file).
 
     \b
     Examples:
       hairlut bake scene --scene tables/scenes/sintel-groom.toml
       hairlut bake scene --scene tables/scenes/sintel-groom.toml --set table.views=128
+      hairlut bake scene --scene tables/scenes/sintel-groom.toml --out s0.h5 --shard 0/2   # and 1/2; then
+      hairlut merge s0.h5 s1.h5 --out sintel-maps.h5
     """,
 )

@@ -52,7 +52,7 @@ def _bake(recipe, out, *, progress=None, shard=None, light=None, textures=None, 
                 block=BLOCK if block is None else block, keep_parts=keep_parts, distributed=distributed, merge=merge)
 
 
-def _count(recipe):
+def _count(recipe, **_):
     n = resolve_recipe(recipe)["dense"]["t_resolution"]
     return 6 * n * n
 

@@ -1,0 +1,179 @@
+"""The scene table on the one shard path (:mod:`hairlut.sharding`): its table rows are the units.
+
+A unit is one non-empty sector of the scene (one table row, in ``prepare``'s order).  A part
+(``scene_shard``) holds rows [start, stop): their ``alpha`` and ``ratio`` (the storage dtype),
+``scene_index`` (the scene sector each row traces, the inverse of the asset's ``row``), and the
+root attributes ``sector_start``/``sector_stop``/``sector_total``, ``sectors`` (the scene's sector
+count) and ``mirror_error`` (the part's largest mirror-symmetry violation).  So the whole asset is
+built from its parts alone (no scene needed: ``hairlut merge`` joins ``--shard`` files), and a row's
+numbers depend on its own sector alone: a sharded, resumed, distributed or virtual bake holds the
+same data as a one-shot bake.
+
+The scene's sector inputs (:func:`hairlut.scenemaps.scene_inputs`) are built once per process and
+recipe (:func:`scene_rows`) and shared by its blocks.  Tracing (``hairlut.synth.trace_view_grid``)
+runs on the process's default device; across processes, ``--distributed`` shares the rows.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import errors
+from ..assets import Axis, Variable, open_table, read_table, recipe_hash, write_table
+from ..assets.layout import layout
+from ._bake import compress, scene_inputs
+from ._kind import BAKER, KIND, SHARD_KIND
+from ._recipe import geometry_key, hrir_recipe, resolve_recipe
+
+_ROWS: dict[str, tuple] = {}  # one entry: recipe hash → (density, geometry, scene index, sector count) of the rows
+
+
+def scene_rows(recipe: dict, scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """(density (n, …), geometry (n, 11), scene index (n,), N) of the scene's n non-empty sectors (its table
+    rows) of N.
+
+    Built once per recipe hash (which holds the groom's geometry key) and process."""
+    if scene is None:
+        raise errors.ValidationError("scene", None, "a scene_maps table is one scene's: give the scene "
+                                     "(hairlut bake scene --scene SCENE.toml, or hairlut bake --scene SCENE.toml)")
+    key = recipe_hash(recipe)
+    if key not in _ROWS:
+        density, geometry = scene_inputs(scene, recipe)
+        n = len(density)
+        live = np.flatnonzero(density.reshape(n, -1).max(axis=1, initial=0.0) > 0) if n else np.zeros(0, np.int64)
+        _ROWS.clear()
+        _ROWS[key] = (density[live], geometry[live], live, n)
+    return _ROWS[key]
+
+
+def count(recipe: dict, scene=None, **_) -> int:
+    return len(scene_rows(recipe, scene)[2])
+
+
+def _axes(recipe: dict, rows: int, start: int = 0, sectors: int | None = None) -> list[Axis]:
+    t, P = recipe["table"], hrir_recipe(recipe)["trace"]["pixels"]
+    V, Q, K = t["views"], t["shading_pixels"], t["terms"]
+    views = 2 * np.pi * np.arange(V) / V
+    axes = [Axis("sector", np.arange(start, start + rows), "1", "non-empty sector (table row)"),
+            Axis("view_half", views[:V // 2], "rad", "view azimuth θv (half circle; α(θ+π, p) = α(θ, P−1−p))", 2 * np.pi),
+            Axis("view", views, "rad", "view azimuth θv", 2 * np.pi),
+            Axis("pixel", np.arange(P), "1", "pixel along the image line"),
+            Axis("bin", np.arange(Q), "1", f"bin of {P // Q} pixels"),
+            Axis("term", np.arange(2 * K + 1), "1", "c0, a1, b1, …: ρ(Δ) = c0 + Σ a_k cos kΔ + b_k sin kΔ, Δ = θl − θv")]
+    if sectors is not None:
+        axes.append(Axis("scene_sector", np.arange(sectors), "1", "sector of the scene (prepare's order)"))
+    return axes
+
+
+def _per_row(alpha, ratio, index) -> list[Variable]:
+    return [Variable("alpha", alpha, ("sector", "view_half", "pixel"), "1", "opacity (satf eq 4)"),
+            Variable("ratio", ratio, ("sector", "view", "bin", "term"), "1", "re/α Fourier terms in θl − θv"),
+            Variable("scene_index", np.asarray(index, np.int32), ("sector",), "1",
+                     "scene sector of each table row (the inverse of row)")]
+
+
+def _write_part(path, recipe: dict, alpha, ratio, index, start: int, total: int, sectors: int, mirror: float) -> Path:
+    return write_table(path, SHARD_KIND, recipe, _axes(recipe, len(alpha), start), _per_row(alpha, ratio, index),
+                       attrs={"sector_start": np.int64(start), "sector_stop": np.int64(start + len(alpha)),
+                              "sector_total": np.int64(total), "sectors": np.int64(sectors),
+                              "mirror_error": float(mirror)})
+
+
+def bake_part(recipe: dict, start: int, stop: int, total: int, path, scene=None, **_) -> Path:
+    """Trace table rows [start, stop) of the scene and write them as the ``scene_shard`` part ``path``."""
+    from ..synth import trace_view_grid
+
+    density, geometry, live, sectors = scene_rows(recipe, scene)
+    t = recipe["table"]
+    a, re = trace_view_grid(density[start:stop], geometry[start:stop], hrir_recipe(recipe), views=t["views"],
+                            lights=t["lights"])
+    half, coef, mirror = compress(a, re, t["views"], t["terms"], t["shading_pixels"])
+    dtype = np.dtype(t["dtype"])
+    return _write_part(path, recipe, half.astype(dtype), coef.astype(dtype), live[start:stop], start, total, sectors,
+                       mirror)
+
+
+def _read(path) -> dict:
+    """Everything a part holds: its tables and the attributes join/assemble/whole need."""
+    t = read_table(path, kind=SHARD_KIND, required=("alpha", "ratio", "scene_index"))
+    try:
+        head = {k: int(t.attrs[k]) for k in ("sector_start", "sector_stop", "sector_total", "sectors")}
+        head["mirror_error"] = float(t.attrs["mirror_error"])
+    except KeyError as exc:
+        raise errors.MissingDatasetError(path, f"scene_shard lacks root attribute {exc}") from None
+    n = head["sector_stop"] - head["sector_start"]
+    if not len(t["alpha"]) == len(t["ratio"]) == len(t["scene_index"]) == n:
+        raise errors.CorruptAssetError(path, f"row range {head['sector_start']}..{head['sector_stop']} does not match "
+                                       f"the tables ({len(t['alpha'])} rows)")
+    return {"alpha": t["alpha"], "ratio": t["ratio"], "scene_index": t["scene_index"], **head}
+
+
+def check(recipe: dict, path) -> None:
+    """Raise unless ``path`` holds everything a part must (a part of an older format is baked again)."""
+    _read(path)
+
+
+def join(recipe: dict, parts, out) -> Path:
+    """Consecutive parts as one ``scene_shard`` file (``--shard K/N``)."""
+    read = [_read(p) for p in parts]
+    cat = {k: np.concatenate([r[k] for r in read]) for k in ("alpha", "ratio", "scene_index")}
+    return _write_part(out, recipe, cat["alpha"], cat["ratio"], cat["scene_index"], read[0]["sector_start"],
+                       read[0]["sector_total"], read[0]["sectors"], max(r["mirror_error"] for r in read))
+
+
+def whole(recipe: dict, parts, **_) -> tuple[list[Axis], list[Variable], dict]:
+    """What a ``scene_maps`` asset stores besides its per-row tables: the axes, ``row`` and the root
+    attributes, from the parts' row indices and attributes alone (nothing else of a part is read)."""
+    index, mirror, sectors = [], 0.0, None
+    for p in parts:
+        with open_table(p, SHARD_KIND, required=("scene_index",)) as f:
+            index.append(np.asarray(layout(f)[1]["scene_index"][()], np.int64))
+            mirror = max(mirror, float(f.attrs["mirror_error"]))
+            sectors = int(f.attrs["sectors"])
+    index = np.concatenate(index)
+    if len(np.unique(index)) != len(index) or index.min(initial=0) < 0 or index.max(initial=-1) >= sectors:
+        raise errors.CorruptAssetError(parts[0], f"the parts' scene_index rows are not distinct sectors of {sectors}")
+    row = np.full(sectors, -1, np.int32)
+    row[index] = np.arange(len(index), dtype=np.int32)
+    variables = [Variable("row", row, ("scene_sector",), "1", "table row of each scene sector (−1: empty)")]
+    return (_axes(recipe, len(index), sectors=sectors), variables,
+            {"mirror_error": mirror, "sectors": sectors, "live": len(index)})
+
+
+def assemble(recipe: dict, parts, out, **_) -> Path:
+    """Parts covering every row as one self-contained ``scene_maps`` asset."""
+    read = [_read(p) for p in parts]
+    axes, variables, attrs = whole(recipe, parts)
+    per_row = _per_row(*(np.concatenate([r[k] for r in read]) for k in ("alpha", "ratio", "scene_index")))
+    return write_table(out, KIND, recipe, axes, per_row + variables, attrs=attrs)
+
+
+def bake(recipe, out, *, progress=None, shard=None, scene=None, block=None, keep_parts=False, distributed=False,
+         merge=None) -> dict:
+    """Trace and write the scene table of ``scene`` (its geometry key must be the recipe's) on the shard path:
+    resumable blocks of ``block`` rows in ``<out>.parts/``, ``shard`` 'K/N', ``distributed`` processes, the final
+    asset copied (``merge='copy'``) or virtual over the parts (see :mod:`hairlut.sharding`)."""
+    from ..sharding import run
+
+    if scene is None:
+        scene_rows(recipe, None)  # the error that asks for the scene
+    r = resolve_recipe(recipe, scene=scene) if not recipe.get("geometry", {}).get("sha256") else resolve_recipe(recipe)
+    key = geometry_key(scene)
+    if r["geometry"]["sha256"] != key:
+        raise errors.ValidationError("geometry.sha256", r["geometry"]["sha256"], f"the recipe is for another groom "
+                                     f"(this scene's geometry key is {key[:12]}…)")
+    t0 = time.perf_counter()
+    if count(r, scene) == 0:
+        raise errors.ValidationError("scene", str(getattr(scene, "path", "") or "scene"), "its groom has no non-empty "
+                                     "sector: there is nothing to tabulate")
+    rep = run(BAKER, r, out, progress=progress, shard=shard, block=block, keep_parts=keep_parts, distributed=distributed,
+              merge=merge, scene=scene)
+    with open_table(rep["out"]) as f:
+        attrs = {k: f.attrs[k] for k in ("sectors", "mirror_error") if k in f.attrs}
+    rep.update(recipe=r, seconds=time.perf_counter() - t0, sectors=int(attrs.get("sectors", 0)),
+               live=rep["total_units"], rows=rep["units"], row_range=rep["unit_range"],
+               mirror_error=float(attrs.get("mirror_error", 0.0)))
+    return rep
