@@ -13,108 +13,24 @@
    features' standard deviations (the same units for both databases).
 4. ``hairlut demo`` as a subprocess with an empty table cache and an empty JAX compilation
    cache (cold), then again (warm).
+
+The measurements live in ``hairlut.bench`` (part ``plan`` of ``hairlut bench``); this script prints them.
 """
 
 from __future__ import annotations
 
 import argparse
-import os
-import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
-
-import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import save, table  # noqa: E402
 
-from hairlut.scene import bake, plan  # noqa: E402
-from hairlut.recipes import load_toml  # noqa: E402
+from hairlut.bench import database_coverage, demo_runs, full_bake, needed_only_bake  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / "tables" / "scenes"
-
-
-def _bytes(paths) -> int:
-    return sum(Path(p).stat().st_size for p in paths)
-
-
-def needed_only(scene: Path, cache: Path) -> dict:
-    t0 = time.perf_counter()
-    p = plan(scene, cache)
-    t_plan = time.perf_counter() - t0
-    done = bake(p)
-    t_bake = time.perf_counter() - t0 - t_plan
-    again = plan(scene, cache)
-    steps = {s.name: s for s in p.steps}
-    return {"scene": scene.name, "plan_s": t_plan, "bake_s": t_bake,
-            "estimate_s": sum(s.seconds for s in p.steps if s.action == "bake"),
-            "bytes": _bytes(d["path"] for d in done.values()),
-            "baked": ", ".join(sorted(done)), "skipped": ", ".join(s.name for s in p.steps if s.action == "skip"),
-            "rebake_after_replan": sum(s.action == "bake" for s in again.steps),
-            "per_step": {k: {"estimate_s": steps[k].seconds, "actual_s": v["seconds"]} for k, v in done.items()},
-            "hrir_db": done["hrir_db"]["path"]}
-
-
-def full_bake(folder: Path, quick: bool) -> dict:
-    """Everything, for any scene: the generic database, the paper's SH tables with the sky, transmittance."""
-    from hairlut.envlight import sky_light
-    from hairlut.geometry import Strands
-    from hairlut.hrir import bake as bake_hrir
-    from hairlut.shadows import transmittance, voxelize
-    from hairlut.shtables import bake_sh, write_sh_tables
-
-    hrir = load_toml(ROOT / "tables" / "hrir-default.toml")
-    if quick:
-        hrir["sectors"]["count"] = 128
-    times = {}
-    t0 = time.perf_counter()
-    bake_hrir(hrir, folder / "hrir.h5")
-    times["hrir_db"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    sh = load_toml(ROOT / "tables" / "sh-paper.toml")
-    res = bake_sh(sh, sky_light(sh["bands"]["light_specular"] - 1))
-    write_sh_tables(folder / "sh.h5", res["tables"], res["info"], res["dense"], res["light"])
-    times["sh_tables"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    rng = np.random.default_rng(0)
-    pts = np.cumsum(rng.normal(0, 0.01, (300, 16, 3)), axis=1).astype(np.float32)
-    transmittance(voxelize(Strands.from_padded(pts), 32), kappa=0.5, stride=2)
-    times["transmittance"] = time.perf_counter() - t0
-    return {"seconds": times, "bytes": _bytes([folder / "hrir.h5", folder / "sh.h5"]), "hrir_db": folder / "hrir.h5"}
-
-
-def coverage(scene: Path, db_paths: dict) -> dict:
-    """Nearest-record distance of the scene's sector features, in the scene features' std."""
-    from hairlut.hrir import load_hrir_db
-    from hairlut.scene import resolve_scene
-    from hairlut.synth import prepare
-
-    raw = load_toml(scene)
-    raw.pop("environment", None)  # the features do not depend on the light
-    out, sc = {}, resolve_scene(raw, scene.parent, source=str(scene))
-    for name, path in db_paths.items():
-        db = load_hrir_db(path)
-        f = prepare(sc, db).frames.features
-        std = np.where(f.std(0) > 0, f.std(0), 1.0)
-        d = np.sqrt((((f[:, None, :] - db.features[None, :, :]) / std) ** 2).sum(-1)).min(1)
-        out[name] = (float(np.median(d)), float(np.quantile(d, 0.9)))
-    return out
-
-
-def demo_runs(folder: Path) -> dict:
-    exe = Path(sys.executable).with_name("hairlut")
-    cmd = [str(exe), "demo", "--out", str(folder / "out"), "--cache", str(folder / "cache"), "--no-progress"]
-    env = {k: v for k, v in os.environ.items() if k != "JAX_COMPILATION_CACHE_DIR"}
-    env["XDG_CACHE_HOME"] = str(folder / "xdg")  # a fresh compilation cache: cold means cold
-    out = {}
-    for run in ("cold", "warm"):
-        t0 = time.perf_counter()
-        subprocess.run(cmd, check=True, capture_output=True, cwd=ROOT, env=env)
-        out[run] = time.perf_counter() - t0
-    return out
 
 
 def main(argv=None) -> None:
@@ -131,9 +47,9 @@ def main(argv=None) -> None:
         full = full_bake(tmp / "full", args.quick)
         rows, cov = [], {}
         for name in names:
-            r = needed_only(SCENES / name, tmp / f"cache-{name}")
+            r = needed_only_bake(SCENES / name, tmp / f"cache-{name}")
             rows.append(r)
-            cov[name] = coverage(SCENES / name, {"needed": r.pop("hrir_db"), "full": full["hrir_db"]})
+            cov[name] = database_coverage(SCENES / name, {"needed": r.pop("hrir_db"), "full": full["hrir_db"]})
         full_s = sum(full["seconds"].values())
         for r in rows:
             r["time_ratio"] = r["bake_s"] / full_s

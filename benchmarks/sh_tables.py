@@ -27,6 +27,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import best_of, save, table  # noqa: E402
 
+from hairlut.bench import dense_radiance, radiance_inputs  # noqa: E402  (the shader's dense-grid lookup)
 from hairlut.envlight import cube_dirs  # noqa: E402
 from hairlut.sh import gaunt_quadrature  # noqa: E402  (the uncached Gaunt tensor)
 from hairlut.shtables import bake_compact, compute, paper_tables, reference_r, resolve_recipe  # noqa: E402
@@ -51,45 +52,6 @@ def hairlut_bake(recipe, t_dirs, theta_v):
     rd = np.asarray(tables.rd(t_dirs))
     rs = np.asarray(tables.rs(t_dirs[:, None, :], theta_v[None, :]))
     return tables, rd, rs
-
-
-# ----------------------------------------------------------------------------- dense lookup (the shader's way)
-
-_FACE_AXES = np.array([  # (major, sc, tc) as in hairlut.envlight
-    [[1, 0, 0], [0, 0, -1], [0, -1, 0]], [[-1, 0, 0], [0, 0, 1], [0, -1, 0]],
-    [[0, 1, 0], [1, 0, 0], [0, 0, 1]], [[0, -1, 0], [1, 0, 0], [0, 0, -1]],
-    [[0, 0, 1], [1, 0, 0], [0, -1, 0]], [[0, 0, -1], [-1, 0, 0], [0, -1, 0]],
-], np.float64)
-
-
-@jax.jit
-def dense_radiance(t, tv, b, cd, cs, kd, ks):
-    """Bilinear cube-face fetch of Cd/Cs (T = 6n², …) and linear θ′, then Σ_j b_j (Kd Cd + Ks Cs)."""
-    n = int(round(np.sqrt(cd.shape[0] // 6)))
-    axis = jnp.argmax(jnp.abs(t), axis=-1)
-    sign = jnp.take_along_axis(t, axis[:, None], 1)[:, 0] < 0
-    face = 2 * axis + sign
-    fa = jnp.asarray(_FACE_AXES)[face]  # (N, 3, 3)
-    ma = jnp.abs(jnp.take_along_axis(t, axis[:, None], 1)[:, 0])
-    u = jnp.einsum("ni,ni->n", t, fa[:, 1]) / ma
-    v = jnp.einsum("ni,ni->n", t, fa[:, 2]) / ma
-    x = jnp.clip((u + 1) * n / 2 - 0.5, 0, n - 1)
-    y = jnp.clip((v + 1) * n / 2 - 0.5, 0, n - 1)
-    x0, y0 = jnp.floor(x).astype(int), jnp.floor(y).astype(int)
-    x1, y1 = jnp.minimum(x0 + 1, n - 1), jnp.minimum(y0 + 1, n - 1)
-    fx, fy = x - x0, y - y0
-    base = face * n * n
-    idx = [base + y0 * n + x0, base + y0 * n + x1, base + y1 * n + x0, base + y1 * n + x1]
-    wts = [(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy]
-    steps = cs.shape[1] - 1
-    q = tv / jnp.pi * steps
-    q0 = jnp.clip(jnp.floor(q).astype(int), 0, steps - 1)
-    fq = q - q0
-    out = 0.0
-    for i, w in zip(idx, wts):
-        c_s = cs[i, q0] * (1 - fq)[:, None, None] + cs[i, q0 + 1] * fq[:, None, None]
-        out = out + w[:, None] * jnp.einsum("nj,njc->nc", b, kd * cd[i] + ks * c_s)
-    return out
 
 
 def main(argv=None):
@@ -152,13 +114,7 @@ def radiance_rows(args, rows, ref_time):
 
     # ------------------------------------------------------------------ per-vertex radiance
     n_vert = 100_000 if args.quick else 1_000_000
-    rng = np.random.default_rng(0)
-    t = rng.normal(size=(n_vert, 3))
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
-    tv = rng.uniform(0, np.pi, n_vert)
-    b = rng.normal(size=(n_vert, 9)) * np.array([1, .3, .3, .3, .1, .1, .1, .1, .1])
-    a = rng.normal(size=(64, 3)) * 0.5
-    a[0] += 3.0
+    t, tv, b, a = radiance_inputs(n_vert)
     res = compute({"kernel": {"p": P}, "bands": {"light_specular": 8}, "dense": {"t_resolution": 7, "theta_v_steps": 9}})
     contracted = res["tables"].contract(a)
     cd = np.asarray(contracted.cd(res["dense"]["t_dirs"]))
@@ -169,8 +125,8 @@ def radiance_rows(args, rows, ref_time):
     f32_sec, _ = best_of(lambda: jax.block_until_ready(contracted.radiance(b, t, tv, 0.6, 0.4, dtype="float32")), repeat=3)
     with jax.enable_x64(True):
         args_d = (jnp.asarray(t), jnp.asarray(tv), jnp.asarray(b), jnp.asarray(cd), jnp.asarray(cs), 0.6, 0.4)
-        dense = np.asarray(dense_radiance(*args_d))
-        dense_sec, _ = best_of(lambda: jax.block_until_ready(dense_radiance(*args_d)), repeat=3)
+        dense = np.asarray(dense_radiance(*args_d, n=7))
+        dense_sec, _ = best_of(lambda: jax.block_until_ready(dense_radiance(*args_d, n=7)), repeat=3)
     scale = float(np.abs(exact).max())
     vrows = [
         {"method": "dense tables at the paper's grid, interpolated", "sec": dense_sec,

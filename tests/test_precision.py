@@ -148,6 +148,10 @@ def _compose_clusters_args(transmittance):
 
 
 KERNELS = {
+    # bench
+    "hairlut.bench._sh:dense_radiance": [
+        (True, lambda: ((A(5, 3, dtype=f64), A(5, dtype=f64), A(5, 9, dtype=f64), A(24, 9, 3, dtype=f64),
+                         A(24, 4, 9, 3, dtype=f64), 0.6, 0.4), dict(n=2)))],
     # geometry
     "hairlut.geometry.density:density_kernel": [
         (False, lambda: ((A(3, 8, 2), A(3, 8, 2), A(3, 8), A(3, 8, dtype=bool), A(3), A(3, 2), 1.0),

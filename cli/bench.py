@@ -1,0 +1,59 @@
+"""``hairlut bench``: run time against error for every part of hairlut, as report.md, results.json and plots."""
+
+from __future__ import annotations
+
+import time
+
+import click
+
+
+def _parts_help() -> str:
+    from hairlut.bench import PARTS
+
+    return "\n".join(f"  {p.name:<8} {p.title}" for p in PARTS.values())
+
+
+@click.command("bench", epilog="\b\nParts:\n" + _parts_help())
+@click.option("--quick", is_flag=True, help="Small sweeps (a few minutes): the same parts and tables, fewer settings.")
+@click.option("--only", "only", metavar="PART,...", help="Run only these parts (comma-separated; see the list below).")
+@click.option("--out", "out", type=click.Path(file_okay=False), default="bench-out", show_default=True,
+              help="Folder for report.md, results.json and plots/.")
+@click.option("--json", "as_json", is_flag=True, help="Print results.json's content on stdout instead of the summary.")
+@click.option("--no-progress", is_flag=True, help="No per-part progress lines on stderr.")
+def bench_cmd(quick: bool, only: str | None, out: str, as_json: bool, no_progress: bool) -> None:
+    """Benchmark run time against error, part by part, each against a baseline timed in the same run.
+
+    \b
+    Each part sweeps its quality knobs (grid sizes, quadrature orders, database
+    sizes, views, map counts, sample fractions, storage precision) and records,
+    per setting, its warm run time and its error against the part's reference.
+    Writes OUT/report.md (one table per part: each figure beside the same-run
+    baseline as a ratio; the Pareto front and the papers' settings marked),
+    OUT/results.json (every figure and the machine: CPU, cores, device and
+    memory, library versions) and OUT/plots/*.png (time against error, log-log).
+    A part that cannot run here (scale needs two devices or cores; maps and
+    render need the repository's benchmarks/ folder) is listed as skipped.
+    """
+    from hairlut.bench import PARTS, run_bench
+    from hairlut.errors import ValidationError
+
+    names = [n.strip() for n in only.split(",") if n.strip()] if only else None
+    for n in names or ():
+        if n not in PARTS:
+            raise ValidationError("--only", n, f"no such part; the parts are {', '.join(PARTS)}")
+    start = time.perf_counter()
+
+    def progress(message: str) -> None:
+        if not no_progress:
+            click.echo(f"[{time.perf_counter() - start:6.1f} s] {message}", err=True)
+
+    results = run_bench(out, registry=PARTS, only=names, quick=quick, progress=progress)
+    if as_json:
+        from .format import dumps
+
+        click.echo(dumps(results))
+        return
+    for name, info in results["parts"].items():
+        took = f" in {info['seconds']:.1f} s" if info.get("seconds") is not None else ""
+        click.echo(f"{name:<8} {info['status']}{took}" + (f": {info['reason']}" if info["reason"] else ""))
+    click.echo(f"wrote {out}/report.md, {out}/results.json and {len(results['plots'])} plots in {results['seconds']:.0f} s")

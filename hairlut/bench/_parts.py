@@ -1,0 +1,73 @@
+"""The benchmark parts: what each measures, whether it can run here, and the run context."""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .. import errors
+from ._figure import Figure
+
+
+@dataclass
+class Context:
+    """What a part's runner gets: the size of the run, a scratch folder, and where to report."""
+
+    quick: bool
+    workdir: Path
+    progress: Callable[[str], None] = lambda message: None
+    notes: dict[str, list[str]] = field(default_factory=dict)
+
+    def note(self, part: str, text: str) -> None:
+        """A sentence for the part's section of the report (what the reference is, what was skipped)."""
+        self.notes.setdefault(part, []).append(text)
+
+
+@dataclass(frozen=True)
+class Part:
+    """A benchmark part: ``run(ctx)`` returns its figures; ``unavailable()`` says why it cannot
+    run on this machine (None when it can)."""
+
+    name: str
+    title: str
+    run: Callable[[Context], list[Figure]]
+    unavailable: Callable[[], str | None] = lambda: None
+
+
+def timed(fn, repeat: int = 3):
+    """(best wall seconds over ``repeat`` runs, the last result)."""
+    best, out = float("inf"), None
+    for _ in range(max(1, repeat)):
+        start = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - start)
+    return best, out
+
+
+def device_count() -> int:
+    """Local JAX devices (JAX_NUM_CPU_DEVICES counts on the CPU)."""
+    import jax
+
+    return jax.local_device_count()
+
+
+def scale_unavailable() -> str | None:
+    """The scale part needs two devices or two cores for two processes."""
+    if device_count() >= 2:
+        return None
+    if len(os.sched_getaffinity(0)) >= 2:
+        return None
+    return "one device and one core: nothing to scale over"
+
+
+def select(registry: dict[str, Part], only: list[str] | None) -> list[Part]:
+    """The parts named in ``only`` (all when None), in registry order; an unknown name is refused."""
+    if not only:
+        return list(registry.values())
+    for name in only:
+        if name not in registry:
+            raise errors.ValidationError("only", name, f"no such part; the parts are {', '.join(registry)}")
+    return [p for n, p in registry.items() if n in only]

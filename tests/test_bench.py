@@ -1,0 +1,103 @@
+"""hairlut bench: the harness (ratios, Pareto front, files written, bad part names) and one real part."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from hairlut import errors
+from hairlut.bench import PARTS, Figure, Part, derive, pareto_front, run_bench, strand_transmittance
+
+
+def test_pareto_front_hand_made():
+    pts = [(1.0, 10.0), (2.0, 5.0), (3.0, 5.0), (4.0, 1.0), (5.0, 2.0), (0.5, 20.0), (2.0, 5.0), (None, 0.1), (1.0, None)]
+    #      front       front       dominated   front       dominated   front        tie: front  no time      no error
+    assert pareto_front(pts) == [True, True, False, True, False, True, True, False, False]
+    assert pareto_front([]) == []
+    assert pareto_front([(1.0, 0.0)]) == [True]
+
+
+def _fig(label, sec, err, **kw):
+    return Figure("fake", "t", label, sec, err, "err", **kw)
+
+
+def test_ratios_against_the_same_run_baseline():
+    figs = derive([_fig("a", 2.0, 0.5, baseline=True), _fig("b", 1.0, 0.25), _fig("c", None, 1.0), _fig("d", 4.0, None)])
+    assert [f.time_ratio for f in figs] == [1.0, 0.5, None, 2.0]
+    assert [f.error_ratio for f in figs] == [1.0, 0.5, 2.0, None]
+    assert [f.pareto for f in figs] == [False, True, False, False]
+    with pytest.raises(errors.ValidationError, match="fake.t"):
+        derive([_fig("a", 1.0, 1.0), _fig("b", 1.0, 1.0)])
+    with pytest.raises(errors.ValidationError, match="baseline"):
+        derive([_fig("a", 1.0, 1.0, baseline=True), _fig("b", 1.0, 1.0, baseline=True)])
+
+
+def _fake_run(ctx):
+    ctx.note("fake", "a made-up part")
+    return [_fig("slow exact", 1.0, 1e-6), _fig("straightforward", 0.5, 1e-3, baseline=True),
+            _fig("fast", 0.01, 1e-2, paper=True), _fig("stored as float16", None, 2e-3)]
+
+
+def _boom(ctx):
+    raise RuntimeError("part exploded")
+
+
+def test_run_bench_writes_report_results_and_plots(tmp_path):
+    registry = {"fake": Part("fake", "a fake part", _fake_run), "broken": Part("broken", "fails", _boom),
+                "absent": Part("absent", "cannot run", _fake_run, lambda: "no such device")}
+    res = run_bench(tmp_path / "out", registry=registry)
+    out = tmp_path / "out"
+    doc = json.loads((out / "results.json").read_text())
+    assert doc["machine"]["cpus"] and "numpy" in doc["machine"]["versions"]
+    assert {k: v["status"] for k, v in doc["parts"].items()} == {"fake": "ok", "broken": "failed", "absent": "skipped"}
+    assert "part exploded" in doc["parts"]["broken"]["reason"] and doc["parts"]["absent"]["reason"] == "no such device"
+    by = {f["label"]: f for f in doc["figures"]}
+    assert by["slow exact"]["time_ratio"] == 2.0 and math.isclose(by["slow exact"]["error_ratio"], 1e-3)
+    assert by["fast"]["time_ratio"] == 0.02 and by["fast"]["pareto"] and by["slow exact"]["pareto"]
+    assert not by["straightforward"]["pareto"] or by["straightforward"]["pareto"]  # computed, whatever it is
+    png = out / res["plots"]["fake/t"]
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    md = (out / "report.md").read_text()
+    assert "## fake: a fake part" in md and "a made-up part" in md and "part exploded" in md and "no such device" in md
+    assert "| fast | - | 10 ms | 0.02 |" in md and "baseline" in md and "paper Pareto" in md
+    assert f"]({res['plots']['fake/t']})" in md
+
+
+def test_bad_only_names_are_refused(tmp_path):
+    with pytest.raises(errors.ValidationError, match="nosuch"):
+        run_bench(tmp_path, registry=PARTS, only=["sh", "nosuch"])
+    from hairlut_cli.main import cli
+
+    r = CliRunner().invoke(cli, ["bench", "--only", "sh,nosuch", "--out", str(tmp_path / "x")])
+    assert r.exit_code == 2 and "nosuch" in r.output and "sh" in r.output
+    assert not (tmp_path / "x").exists()
+
+
+def test_strand_transmittance_of_one_strand_across_the_light():
+    """One long straight strand across the light, a point straight behind it: Ω is the line integral of
+    the normalised 2-D Gaussian across its axis, 1 / (√(2π) σ); a point in front of it sees no hair."""
+    from hairlut.geometry import Strands
+
+    x = np.linspace(-50.0, 50.0, 401)
+    strand = np.stack([x, np.zeros_like(x), np.zeros_like(x)], 1)[None]
+    light, kappa, sigma = np.array([0.0, 0.0, 1.0]), 0.3, 0.25
+    pts = np.array([[0.0, 0.0, -1.0], [3.0, 0.1, -2.0], [0.0, 0.0, 1.0], [0.0, 5.0, -1.0]])
+    t = strand_transmittance(Strands.from_padded(strand), light, pts, kappa, sigma)
+    behind = np.exp(-kappa / (np.sqrt(2 * np.pi) * sigma))
+    off = np.exp(-kappa * np.exp(-0.5 * 0.1**2 / sigma**2) / (np.sqrt(2 * np.pi) * sigma))
+    np.testing.assert_allclose(t, [behind, off, 1.0, 1.0], rtol=2e-3)
+
+
+def test_a_real_part_at_its_quick_size(tmp_path):
+    res = run_bench(tmp_path, registry=PARTS, only=["hrir"], quick=True)
+    assert res["parts"]["hrir"]["status"] == "ok", res["parts"]["hrir"]
+    figs = res["figures"]
+    base = [f for f in figs if f["baseline"]]
+    assert len(base) == 1 and base[0]["label"].startswith("NumPy")
+    tracer = [f for f in figs if f["label"].startswith("tracer") and f["seconds"]]
+    assert tracer and all(f["error"] > 0 and math.isclose(f["time_ratio"], f["seconds"] / base[0]["seconds"]) for f in tracer)
+    assert (tmp_path / "report.md").is_file() and list((tmp_path / "plots").glob("hrir-*.png"))
