@@ -59,7 +59,7 @@ def cli(verbose: int, quiet: bool) -> None:
 
 def _register() -> None:
     from . import bake, cache, demo, hrir, inspect, plan, sh, strands, synth
-    from . import bench, render
+    from . import bench, render, stress
 
     cli.add_command(bake.bake_group)  # its KIND sub-commands come from hairlut.registry
     cli.add_command(bake.merge_cmd)
@@ -73,6 +73,7 @@ def _register() -> None:
     cli.add_command(plan.plan_cmd)
     cli.add_command(render.render_cmd)
     cli.add_command(render.compare_cmd)
+    cli.add_command(stress.stress_cmd)
     cli.add_command(bench.bench_cmd)
 
 
