@@ -21,8 +21,10 @@ import click
 @click.option("--bound", default=0.01, show_default=True, type=float,
               help="Reference: stop when one more level changes RGB and α RMSE by less than this.")
 @click.option("--max-level", default=3, show_default=True, type=int, help="Reference: the finest level tried.")
+@click.option("--verify", is_flag=True,
+              help="Reference: once converged, render one more level and store whether the bound still holds.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bound, max_level, as_json):
+def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bound, max_level, verify, as_json):
     """Render SCENE through its [camera] into an EXR (R, G, B, A premultiplied, Z; the camera's
     4 x 4 world-to-clip matrix, resolution and projection in the hairlut:camera header, JSON).
 
@@ -44,7 +46,7 @@ def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bo
 
     sc = load_scene(scene)
     if reference:
-        frame = render_reference(sc, bound=bound, max_level=max_level)
+        frame = render_reference(sc, bound=bound, max_level=max_level, verify=verify)
     else:
         maps_path = None
         if db_path is None or (sh_path is None and sc.environment is not None):
@@ -68,6 +70,11 @@ def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bo
                    f"{frame.info['seconds']['frame']:.1f} s, level {last['level']} ({last['samples_per_pixel']} spp, "
                    f"{last['steps_per_crossing']} steps), converged={frame.info['converged']} "
                    + (f"(change RGB {ch['rgb_rmse']:.2g}, alpha {ch['alpha_rmse']:.2g}; bound {bound:g})" if ch else ""))
+        ver = frame.info.get("verified")
+        if ver:
+            vc = ver["change_from_returned"]
+            click.echo(f"  one more level ({ver['level']}): change RGB {vc['rgb_rmse']:.2g}, alpha {vc['alpha_rmse']:.2g}: "
+                       f"the bound {'holds' if ver['holds'] else 'does NOT hold'}")
     else:
         sec = frame.info["seconds"]
         click.echo(f"layered {cam.width} x {cam.height} ({cam.projection}), map method {frame.info['map_method']}: "

@@ -260,3 +260,25 @@ def test_pixel_centres_exactly_on_a_shared_edge_are_drawn_once():
     assert set(np.unique(rgba[..., 3])) == {np.float32(0), a}
     assert int((rgba[..., 3] == a).sum()) == 48 * 48
     assert np.all(rgba[8:56, 8:56, 3] == a)
+
+
+def test_oblique_path_and_lengthen_follow_beer_lambert():
+    """A ray at ψ to the cluster's axis crosses the in-plane density over 1/sin ψ times the path: α' = 1 − (1 − α)^(1/sin ψ),
+    the colour per unit α kept; side-on views are unchanged; a perspective ray is taken from the eye to the texel."""
+    from hairlut.render import lengthen, oblique_path
+
+    cam = camera()  # orthographic, looking down −z
+    psi = np.radians([90.0, 30.0, 0.0])
+    tangent = np.stack([np.zeros(3), np.sin(psi), np.cos(psi)], -1)  # at ψ to the view axis z
+    path = oblique_path(cam, tangent, np.zeros((3, 3)))
+    assert path[0] == pytest.approx(1.0) and path[1] == pytest.approx(2.0)
+    assert path[2] == pytest.approx(10.0)  # along the axis: capped, finite
+    persp = camera("perspective", eye=(0.0, 0.0, 5.0))
+    p = oblique_path(persp, np.array([[0.0, 1.0, 0.0]]), np.array([[0.0, 5.0, 0.0]]))  # the ray from the eye at 45°
+    assert p[0] == pytest.approx(np.sqrt(2.0))
+    rgba = np.array([[0.2, 0.1, 0.05, 0.4], [0.0, 0.0, 0.0, 0.0], [0.5, 0.5, 0.5, 1.0]], np.float32)
+    out = lengthen(rgba, np.array([2.0, 3.0, 2.0]))
+    assert out[0, 3] == pytest.approx(1 - 0.6 ** 2, abs=1e-6)
+    assert np.allclose(out[0, :3] / out[0, 3], rgba[0, :3] / rgba[0, 3], atol=1e-6)
+    assert np.all(out[1] == 0) and out[2, 3] == 1.0 and np.allclose(out[2, :3], 0.5)
+    assert np.allclose(lengthen(rgba, np.ones(3)), rgba, atol=1e-7)

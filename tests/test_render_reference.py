@@ -89,3 +89,56 @@ def test_segments_need_positive_extinction():
     pts = np.array([[0.0, 0, 0], [1.0, 0, 0]])
     with pytest.raises(errors.ValidationError, match="trace.extinction"):
         segments_of(Strands(pts, np.array([2]), thickness=np.full(2, 0.1)), 0.0)
+
+
+def test_cli_render_reference(tmp_path):
+    """`hairlut render --reference` on a tiny scene: an EXR with R, G, B, A and Z, the camera in ``hairlut:camera``
+    (its matrix projects a strand point onto a drawn pixel), converged, the bound and each level's change stored."""
+    import json
+
+    import OpenEXR
+    from click.testing import CliRunner
+
+    from hairlut.render import read_frame
+    from hairlut_cli.main import cli
+    from tests.test_render_layered import TINY
+
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(TINY.replace("resolution = [48, 40]", "resolution = [24, 20]").replace("radius = 0.006", "radius = 0.025")
+                     + '[shadows]\nmethod = "none"\n')
+    out = tmp_path / "ref.exr"
+    r = CliRunner().invoke(cli, ["render", str(scene), "--reference", "--bound", "0.05", "--max-level", "1",
+                                 "--out", str(out), "--json"])
+    assert r.exit_code == 0, r.output
+    rep = json.loads(r.output[r.output.index("{"):])
+    assert rep["method"] == "reference" and rep["converged"], rep["levels"] and rep["bound"] == 0.05
+    f = OpenEXR.File(str(out), separate_channels=True)
+    assert sorted(f.channels()) == ["A", "B", "G", "R", "Z"]
+    cam = json.loads(f.header()["hairlut:camera"])
+    assert cam["projection"] == "orthographic" and cam["resolution"] == [24, 20] and np.shape(cam["world_to_clip"]) == (4, 4)
+    fr = read_frame(out)
+    assert fr.info["bound"] == 0.05 and fr.info["levels"][-1]["change_from_previous"]["alpha_rmse"] < 0.05
+    a = fr.rgba[..., 3]
+    assert 0.02 < (a > 0.01).mean() < 0.95 and a.max() <= 1.0 + 1e-6
+    # the stored matrix puts the cluster's centre on a covered pixel
+    clip = np.asarray(cam["world_to_clip"]) @ np.array([0.03, 0.0, 0.05, 1.0])
+    x, y = (clip[0] / clip[3] + 1) / 2 * 24, (1 - clip[1] / clip[3]) / 2 * 20
+    assert a[int(y), int(x)] > 0.05
+
+
+@pytest.mark.slow
+def test_reference_bound_holds_one_level_finer(tmp_path):
+    """``verify``: the converged image against one more refinement changes by less than the bound too."""
+    from hairlut.render import render_reference
+    from hairlut.scene import resolve_scene
+    import tomllib
+
+    from tests.test_render_layered import TINY
+
+    cfg = tomllib.loads(TINY.replace("resolution = [48, 40]", "resolution = [24, 20]").replace("radius = 0.006", "radius = 0.025"))
+    cfg["shadows"] = {"method": "none"}
+    f = render_reference(resolve_scene(cfg, None), bound=0.05, max_level=1, verify=True)
+    assert f.info["converged"]
+    v = f.info["verified"]
+    assert v["level"] == f.info["levels"][-1]["level"] + 1 and v["holds"], v
+    assert max(v["change_from_returned"].values()) < 0.05

@@ -27,6 +27,8 @@ from ._raster import raster_kernel
 
 #: The longest mesh edge, in pixels, the host refines the layer meshes to.
 EDGE_PIXELS = 12.0
+#: The longest optical path, in units of the in-plane one, :func:`oblique_path` gives (ψ ≥ 5.7°).
+MAX_PATH = 10.0
 #: Tile sides are rounded up to a multiple of this (fewer compile shapes).
 TILE_STEP = 32
 MAX_SUBDIV = 32
@@ -104,6 +106,36 @@ def premultiplied(rgba: np.ndarray) -> np.ndarray:
     return np.concatenate([rgba[..., :3] * rgba[..., 3:], rgba[..., 3:]], -1)
 
 
+def oblique_path(cam, tangent, position) -> np.ndarray:
+    """1 / sin ψ per texel (…,), ψ the angle between the camera ray through the texel and the cluster's
+    axis (the layer's unit tangent ∂P/∂t), capped at :data:`MAX_PATH`.
+
+    The α-maps are in-plane opacities (satf §5.1, eq 4: rays in the cross-section, through the density the
+    strands make where they cross it).  A camera ray that meets the cluster's axis at ψ ≠ 90° crosses the
+    same cross-section density over a path longer by 1/sin ψ (the density is constant along the axis to first
+    order), so its optical depth is −ln(1 − α)/sin ψ."""
+    t = np.asarray(tangent, np.float64)
+    if cam.projection == "perspective":
+        d = cam.eye - np.asarray(position, np.float64)
+        d = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-300)
+    else:
+        d = np.broadcast_to(cam.back, t.shape)
+    s = np.linalg.norm(np.cross(d, t), axis=-1)
+    return 1.0 / np.maximum(s, 1.0 / MAX_PATH)
+
+
+def lengthen(rgba: np.ndarray, path: np.ndarray) -> np.ndarray:
+    """Premultiplied (…, 4) texels seen along a path ``path`` (…,) times the in-plane one: α' = 1 − (1 − α)^path
+    (Beer–Lambert), the colour scaled with α (the same shaded colour per unit opacity)."""
+    a = np.clip(rgba[..., 3].astype(np.float64), 0.0, 1.0)
+    a2 = -np.expm1(path * np.log1p(-np.minimum(a, 1.0 - 1e-7)))
+    a2 = np.where(a >= 1.0, 1.0, a2)
+    scale = np.where(a > 0, a2 / np.where(a > 0, a, 1.0), 0.0)
+    out = rgba.astype(np.float64) * scale[..., None]
+    out[..., 3] = a2
+    return out.astype(np.float32)
+
+
 def rasterise(cam, vertices, triangles, uv, textures, *, tile, origins, repeat: int = 0):
     """Run :func:`raster_kernel` on (C, K, V, 3) ``vertices`` and (C, K, n_t, n_u, 4) premultiplied ``textures``
     (``repeat`` more warm runs timed); returns (rgba, depth, seconds dict, candidate pixels per cluster).  The
@@ -136,12 +168,13 @@ def rasterise(cam, vertices, triangles, uv, textures, *, tile, origins, repeat: 
 
 
 def render_layered(scene, camera=None, *, db=None, sh=None, maps=None, prepared=None, repeat: int = 1,
-                   edge_pixels: float = EDGE_PIXELS) -> Frame:
+                   edge_pixels: float = EDGE_PIXELS, oblique: bool = True) -> Frame:
     """The layered model of ``scene`` through its camera (module docstring).  ``db``/``sh``/``maps``: the
     assets ``hairlut.synth.prepare`` reads (the scene's map method decides which); ``prepared``: a
     ``hairlut.synth.Prepared`` to reuse.  ``info["seconds"]``: ``maps`` and ``shade`` (the online module's
     frame), ``raster_first`` (the first kernel call, compile included) and ``raster`` (the best of
-    ``repeat`` warm calls: the frame time, maps excluded)."""
+    ``repeat`` warm calls: the frame time, maps excluded).  ``oblique``: each texel's α (and colour) lengthened
+    by :func:`oblique_path` for the camera ray's angle to the cluster's axis (off: the in-plane α as it is)."""
     from ..geometry import ClusterGeometry
     from ..scene import as_scene
     from ..synth import prepare, render
@@ -156,6 +189,9 @@ def render_layered(scene, camera=None, *, db=None, sh=None, maps=None, prepared=
     geometry = ClusterGeometry([pc.spec for pc in prep.clusters])
     meshes, tile, origins, subdiv = layout(cam, geometry, edge_pixels=edge_pixels)
     tex = np.stack([premultiplied(r.rgba) for r in result.clusters])
+    if oblique:
+        tex = lengthen(tex, oblique_path(cam, np.stack([pc.tangent for pc in prep.clusters]),
+                                         np.stack([pc.position for pc in prep.clusters])))
     t2 = time.perf_counter()
     rgba, depth, sec, cap = rasterise(cam, meshes.vertices, meshes.triangles, meshes.uv, tex, tile=tile,
                                       origins=origins, repeat=repeat)
@@ -163,7 +199,7 @@ def render_layered(scene, camera=None, *, db=None, sh=None, maps=None, prepared=
     info = {"method": "layered", "map_method": prep.method, "scene": sc.source,
             "clusters": len(prep.clusters), "layers": int(tex.shape[1]), "texels": list(tex.shape[2:4]),
             "subdivision": list(subdiv), "triangles": int(meshes.triangles.shape[0] * tex.shape[0] * tex.shape[1]),
-            "candidates_per_cluster": cap, "tile": list(tile), "environment": "included" if prep.environment is not None else "none in scene",
+            "candidates_per_cluster": cap, "tile": list(tile), "oblique": bool(oblique), "environment": "included" if prep.environment is not None else "none in scene",
             "seconds": {"prepare": t1 - t0, "maps": st.get("maps", 0.0), "shade": st.get("shade", 0.0),
                         "setup": t2 - t1, **sec}}
     return Frame(rgba, depth, cam, info)

@@ -71,10 +71,12 @@ def _change(a: np.ndarray, b: np.ndarray) -> dict:
 
 
 def render_reference(scene, camera=None, *, bound: float = BOUND, max_level: int = 3, min_level: int = 1,
-                     levels: list | None = None, strands=None) -> Frame:
+                     levels: list | None = None, strands=None, verify: bool = False) -> Frame:
     """The converged strand-level reference of ``scene`` (``_reference``): levels ``min_level − 1``, … until the
     change from the level before is below ``bound`` in both RGB and α RMSE (or ``max_level``).  With ``levels``
-    (e.g. [2]) exactly those levels are rendered and the last returned (no convergence claim)."""
+    (e.g. [2]) exactly those levels are rendered and the last returned (no convergence claim).  ``verify``: once
+    converged, one more level is rendered and its change from the returned image stored as ``info["verified"]``
+    (``holds``: below ``bound`` too); the returned image stays the converged one."""
     from ..scene import as_scene
 
     sc = as_scene(scene)
@@ -104,8 +106,15 @@ def render_reference(scene, camera=None, *, bound: float = BOUND, max_level: int
             converged = True
             break
         prev = img
+    verified = None
+    if verify and converged and levels is None:
+        tl = time.perf_counter()
+        finer = render_level(segs, cam, lit, sc.lights, level=history[-1]["level"] + 1, shadows=shadows)
+        ch = _change(finer, img)
+        verified = {"level": history[-1]["level"] + 1, "change_from_returned": ch, "holds": max(ch.values()) < bound,
+                    "seconds": time.perf_counter() - tl}
     info = {"method": "reference", "scene": sc.source, "bound": bound if levels is None else None,
-            "converged": converged, "levels": history, "segments": segs.n, "extinction_kappa": extinction(sc),
+            "converged": converged, "verified": verified, "levels": history, "segments": segs.n, "extinction_kappa": extinction(sc),
             "shadows": shadows, "environment": "not included",
             "seconds": {"setup": t1 - t0, "frame": time.perf_counter() - t1}}
     return Frame(img[..., :4], img[..., 4], cam, info)
