@@ -1,27 +1,30 @@
 """Scaling of a bake: 1 and 2 local devices, 1 and 2 jax.distributed processes (loopback), cores pinned.
 
-Each configuration runs `hairlut bake hrir` in fresh processes, each pinned to its own cores with
-``os.sched_setaffinity`` (set in the child before JAX starts, with JAX_NUM_CPU_DEVICES):
+Each configuration runs `hairlut bake hrir` in fresh processes, each pinned to its cores with
+``taskset -c`` (``os.sched_setaffinity`` where taskset is missing), JAX_NUM_CPU_DEVICES set:
 
-* ``plain 1 dev``      one process, one device, core {0}: the baseline;
-* ``plain 2 dev``      one process, two devices, cores {0, 1};
-* ``dist 2 × 1``       two jax.distributed processes on loopback, one device each, cores {0} and {1}
-                       (``--merge virtual``, then ``--merge copy``).
+* ``plain 1 dev``        one process, one device, core 0: the baseline;
+* ``dist 1 x 1``         the same bake through ``--distributed`` (one process, ``--merge virtual``), core 0:
+                         what the distributed path costs on the same core;
+* ``plain 2 dev``        one process, two devices, cores 0 and 1;
+* ``dist 2 x 1 virtual`` two jax.distributed processes on loopback, one device each, ``taskset -c 0`` and
+                         ``-c 1``; ``dist 2 x 1 copy`` the same with ``--merge copy``.
 
-Reported per configuration (best of ``--repeat`` runs, the machine being shared): the bake's
-own seconds (the slowest process's report: Python imports excluded; compilation, tracing, the
-barriers and writing included), the steady throughput (sectors per second of every process's
-blocks after its first, which compiles the kernels, summed over processes; ``x base`` is its
-ratio to the baseline's), the wall time of the whole command, throughput against the same-run baseline
-(``x base``), the distributed path's cost in steady throughput against a plain two-device bake on the same
-two cores (``vs plain``),
-the time the leader took to write the final asset (``assemble``: virtual datasets over the
-parts, or a copy), bytes per sector, each process's own peak resident memory (``os.wait4``) and
-block-loop seconds; then virtual against copy assembly timed in-process on the same parts.
-Then the projected time of the production database (65,536 sectors, 64 × 64 angles, 64 px)
-from the measured one-core throughput.
+The configurations run interleaved, ``--repeat`` rounds (the machine is shared: a round sees one
+load for all of them).  Per configuration: the steady throughput (sectors per second of every
+process's blocks after its first, which compiles the kernels, summed over processes) as best of the
+rounds and median; the bake's own seconds (the slowest process's report: imports excluded); the
+leader's time to write the final asset; bytes per sector; each process's peak memory (``os.wait4``).
+Ratios are of the best rates; ``range`` is the spread of the same ratio taken round by round.
 
-    .venv/bin/python benchmarks/scaling.py [--sectors 64] [--repeat 1] [--json benchmarks/results/scaling.json]
+Then the time to assemble the final asset, virtual datasets against a copy, from the same parts, at
+a few database sizes and part counts (parts baked with a 2-step trace: assembly reads and writes
+bytes, whatever their values).  Then the projected time of the production database (65,536 sectors,
+64 × 64 angles, 64 px, float16: 34 GB) on 8 devices, from the measured one-core throughput, and,
+labelled as such, from the one GPU figure measured elsewhere (issue 15: 94 sectors/s on one H200 at
+an older commit, default recipe, host-bound).
+
+    .venv/bin/python benchmarks/scaling.py [--sectors 64] [--repeat 3] [--sizes 256,1024]
 """
 
 from __future__ import annotations
@@ -29,19 +32,32 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import socket
+import statistics
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+from _common import save, table
+
 CODE = "import sys; from hairlut_cli.main import cli; cli(sys.argv[1:])"
-#: name, devices per process, the cores of each process, merge
-CONFIGS = [("plain 1 dev", 1, [{0}], None), ("plain 2 dev", 2, [{0, 1}], None),
-           ("dist 2 x 1 virtual", 1, [{0}, {1}], "virtual"), ("dist 2 x 1 copy", 1, [{0}, {1}], "copy")]
+#: name, devices per process, the cores of each process, --distributed, merge
+CONFIGS = [("plain 1 dev", 1, [{0}], False, None), ("dist 1 x 1", 1, [{0}], True, "virtual"),
+           ("plain 2 dev", 2, [{0, 1}], False, None), ("dist 2 x 1 virtual", 1, [{0}, {1}], True, "virtual"),
+           ("dist 2 x 1 copy", 1, [{0}, {1}], True, "copy")]
+#: (config, baseline): the distributed path against a plain bake on the same cores
+SAME_CORES = [("dist 1 x 1", "plain 1 dev"), ("dist 2 x 1 virtual", "plain 2 dev"), ("dist 2 x 1 copy", "plain 2 dev")]
 BLOCK = 4
-PRODUCTION = {"sectors": 65_536, "views": 64, "lights": 64, "pixels": 64}
+TRACE = {"angles": {"views": 16, "lights": 16}, "trace": {"pixels": 32, "steps": 32}, "sectors": {"grid": [16, 16]}}
+PRODUCTION = {"sectors": {"count": 65_536}, "angles": {"views": 64, "lights": 64}, "trace": {"pixels": 64},
+              "storage": {"dtype": "float16"}}
+#: issue 15: `hairlut bake hrir` of the default recipe on one H200, 94 sectors/s while tracing (host-bound, older commit)
+H200_DEFAULT_RATE = 94.0
+DEFAULT = {"sectors": {"count": 512}, "angles": {"views": 32, "lights": 32}, "trace": {"pixels": 64, "steps": 64}}
+GPUS = 8
 
 
 def _port() -> int:
@@ -50,23 +66,34 @@ def _port() -> int:
         return s.getsockname()[1]
 
 
-def _pinned(cores: set[int]):
-    def pin():
-        os.sched_setaffinity(0, cores)
-    return pin
+def _pinned(cmd: list[str], cores: set[int]):
+    """(command, preexec): ``taskset -c CORES cmd``, or sched_setaffinity in the child where taskset is missing."""
+    if shutil.which("taskset"):
+        return ["taskset", "-c", ",".join(map(str, sorted(cores))), *cmd], None
+    return cmd, lambda: os.sched_setaffinity(0, cores)
 
 
-def _run(recipe: Path, out: Path, devices: int, cores: list[set[int]], merge: str | None) -> dict:
+def _toml(recipe: dict) -> str:
+    lines = []
+    for section, body in recipe.items():
+        lines.append(f"[{section}]")
+        lines += [f"{k} = {json.dumps(v)}" for k, v in body.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _run(recipe: Path, out: Path, devices: int, cores: list[set[int]], distributed: bool, merge: str | None) -> dict:
     env = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_NUM_CPU_DEVICES": str(devices)}
     base = [sys.executable, "-c", CODE, "bake", "hrir", "--recipe", str(recipe), "--out", str(out), "--no-progress", "--json",
             "--block", str(BLOCK)]
-    port = _port()
-    n = len(cores)
-    cmds = [base] if n == 1 else [base + ["--distributed", "--coordinator", f"127.0.0.1:{port}", "--num-processes", str(n),
-                                          "--process-id", str(k), "--merge", merge] for k in range(n)]
+    port, n = _port(), len(cores)
+    cmds = [base + (["--distributed", "--coordinator", f"127.0.0.1:{port}", "--num-processes", str(n), "--process-id", str(k),
+                     "--merge", merge] if distributed else []) for k in range(n)]
     t0 = time.perf_counter()
-    procs = [subprocess.Popen(c, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
-                              preexec_fn=_pinned(cs)) for c, cs in zip(cmds, cores)]
+    procs = []
+    for c, cs in zip(cmds, cores):
+        cmd, pre = _pinned(c, cs)
+        procs.append(subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                                      preexec_fn=pre))
     outs, peaks = [], []
     for p in procs:
         outs.append(p.stdout.read())
@@ -80,92 +107,167 @@ def _run(recipe: Path, out: Path, devices: int, cores: list[set[int]], merge: st
     lead = reports[0]
     return {"bake_s": max(r["seconds"] for r in reports), "wall_s": wall, "assemble_s": lead.get("assemble_s"),
             "blocks_s": [r["blocks_s"] for r in reports],
-            # steady throughput: every process's blocks after its first (which compiles the kernels)
             "steady_rate": sum((r["computed"] - BLOCK) / sum(r["block_seconds"][1:]) for r in reports),
             "peak_rss_mib": max(peaks), "bytes": lead["bytes"], "sectors": sum(r["sectors"] for r in reports)}
 
 
-def _assembly(out: Path, repeat: int = 3) -> dict:
-    """Seconds to write the final asset from the parts of the virtual bake ``out``: virtual datasets, or a copy."""
+def _assemble_times(recipe: dict, paths: list[Path], scratch: Path, repeat: int) -> dict:
+    """Best seconds to write the final asset from ``paths``: virtual datasets (the leader's whole step), and a copy."""
     from hairlut import registry
-    from hairlut.parts import parts_dir, write_virtual
+    from hairlut.parts import write_virtual
     from hairlut.sharding import header
 
     baker = registry.get("hrir_db")
-    items = sorted((header(p, baker), p) for p in parts_dir(out).glob("part-*.h5"))
-    recipe, spans = items[0][0][4], [(p, h[0], h[1]) for h, p in items]
-    paths = [p for p, _, _ in spans]
+    spans = [(p, *header(p, baker)[:2]) for p in paths]
     times = {"virtual": [], "copy": []}
     for i in range(repeat):
         t0 = time.perf_counter()
         axes, variables, attrs = baker.units.whole(recipe, paths)
-        write_virtual(out.with_name(f"asm-v{i}.h5"), baker.kind, recipe, baker.units.axis, spans, axes, variables, attrs)
+        v = write_virtual(scratch / f"v{i}.h5", baker.kind, recipe, baker.units.axis, spans, axes, variables, attrs)
         times["virtual"].append(time.perf_counter() - t0)
         t0 = time.perf_counter()
-        baker.units.assemble(recipe, paths, out.with_name(f"asm-c{i}.h5"))
+        c = baker.units.assemble(recipe, paths, scratch / f"c{i}.h5")
         times["copy"].append(time.perf_counter() - t0)
-    return {"parts": len(paths), "part_bytes": sum(p.stat().st_size for p in paths),
-            "virtual_s": min(times["virtual"]), "copy_s": min(times["copy"]),
-            "virtual_bytes": out.with_name("asm-v0.h5").stat().st_size, "copy_bytes": out.with_name("asm-c0.h5").stat().st_size}
+    out = {"virtual_s": min(times["virtual"]), "copy_s": min(times["copy"]), "virtual_bytes": Path(v).stat().st_size,
+           "copy_bytes": Path(c).stat().st_size}
+    for p in scratch.glob("[vc][0-9]*.h5"):
+        p.unlink()
+    return out
+
+
+def _assembly(sizes: list[int], grouping: list[int], tmp: Path, repeat: int) -> list[dict]:
+    """Virtual against copy assembly: each size baked once in blocks of ``grouping[0]``, then joined into coarser parts."""
+    from hairlut import registry
+    from hairlut.hrir import bake, resolve_recipe
+    from hairlut.parts import parts_dir
+
+    baker = registry.get("hrir_db")
+    rows = []
+    for n in sizes:
+        given = {**TRACE, "sectors": {**TRACE["sectors"], "count": n}, "trace": {**TRACE["trace"], "steps": 2}}
+        recipe = resolve_recipe(given)
+        out = tmp / f"asm{n}.h5"
+        bake(given, out, block=grouping[0], keep_parts=True)
+        fine = sorted(parts_dir(out).glob("part-*.h5"))
+        for g in grouping:
+            if g == grouping[0]:
+                parts = fine
+            else:
+                step = g // grouping[0]
+                folder = tmp / f"asm{n}-{g}"
+                folder.mkdir()
+                parts = [baker.units.join(recipe, fine[i:i + step], folder / f"part-{i:09d}.h5")
+                         for i in range(0, len(fine), step)]
+            t = _assemble_times(recipe, [Path(p) for p in parts], tmp, repeat)
+            rows.append({"sectors": n, "parts": len(parts), "part_bytes": sum(Path(p).stat().st_size for p in parts), **t,
+                         "copy_x_virtual": t["copy_s"] / t["virtual_s"]})
+    return rows
+
+
+def _work(recipe: dict) -> float:
+    """Tracing work of a bake: sector · view · light · pixel · step · ray (what hrir_db's estimate counts)."""
+    from hairlut.hrir import resolve_recipe
+
+    r = resolve_recipe(recipe, budget=False)
+    t = r["trace"]
+    return float(r["sectors"]["count"] * r["angles"]["views"] * r["angles"]["lights"] * t["pixels"] * t["steps"]
+                 * t["rays_per_pixel"])
+
+
+def _spread(rounds: list[dict], name: str, base: str, key=lambda r: r["steady_rate"]) -> list[float]:
+    """The ratio name/base taken round by round: (min, max)."""
+    ratios = [key(r[name]) / key(r[base]) for r in rounds]
+    return [min(ratios), max(ratios)]
 
 
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sectors", type=int, default=64)
-    ap.add_argument("--repeat", type=int, default=1)
-    ap.add_argument("--json", default="benchmarks/results/scaling.json")
+    ap.add_argument("--repeat", type=int, default=3, help="interleaved rounds of every configuration")
+    ap.add_argument("--sizes", default="256,1024", help="database sizes (sectors) of the assembly timing")
+    ap.add_argument("--grouping", default="4,16,64", help="sectors per part of the assembly timing (multiples of the first)")
+    ap.add_argument("--name", default="scaling", help="results/<name>.json")
     a = ap.parse_args(argv)
     if len(os.sched_getaffinity(0)) < 2:
         raise SystemExit("needs two cores")
-    trace = {"views": 16, "lights": 16, "pixels": 32, "steps": 32}
-    rows = []
+    load_before = os.getloadavg()
+    rounds = []
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         recipe = tmp / "r.toml"
-        recipe.write_text(f"[sectors]\ncount = {a.sectors}\ngrid = [16, 16]\n[angles]\nviews = {trace['views']}\n"
-                          f"lights = {trace['lights']}\n[trace]\npixels = {trace['pixels']}\nsteps = {trace['steps']}\n")
-        parts_of = None
-        for name, devices, cores, merge in CONFIGS:
-            runs = [_run(recipe, tmp / f"{name.replace(' ', '_')}-{i}.h5", devices, cores, merge)
-                    for i in range(a.repeat)]
-            best = min(runs, key=lambda r: r["bake_s"])
-            rows.append({"config": name, "devices": devices, "processes": len(cores),
-                         "cores": [sorted(c) for c in cores], "merge": merge or "copy", **best,
-                         "bake_s_all": [r["bake_s"] for r in runs]})
-            if merge == "virtual":
-                parts_of = tmp / f"{name.replace(' ', '_')}-{a.repeat - 1}.h5"  # its parts stay beside it
-        asm_doc = _assembly(parts_of)
-    for r in rows:
-        r["x_base"] = r["steady_rate"] / rows[0]["steady_rate"]
-        r["vs_plain_same_cores"] = rows[1]["steady_rate"] / r["steady_rate"] - 1 if r["processes"] > 1 else None
-        r["bytes_per_sector"] = r["bytes"] / r["sectors"] if r["merge"] == "copy" else None
-    print(f"{a.sectors} sectors, {trace['views']}x{trace['lights']} angles, {trace['pixels']} px, {trace['steps']} steps; "
-          f"best of {a.repeat}")
-    print(f"{'config':<19} {'cores':>9} {'bake s':>7} {'wall s':>7} {'sect/s':>6} {'x base':>6} {'vs plain':>8} {'assemble s':>10} "
-          f"{'B/sector':>8} {'peak MiB':>8}")
-    for r in rows:
-        vs = f"{100 * r['vs_plain_same_cores']:+.0f}%" if r["vs_plain_same_cores"] is not None else "-"
-        asm = f"{r['assemble_s']:.3f}" if r["assemble_s"] is not None else "-"
-        bps = f"{r['bytes_per_sector']:.0f}" if r["bytes_per_sector"] else "-"
-        print(f"{r['config']:<19} {'+'.join(''.join(map(str, c)) for c in r['cores']):>9} {r['bake_s']:>7.2f} "
-              f"{r['wall_s']:>7.2f} {r['steady_rate']:>6.2f} {r['x_base']:>6.2f} {vs:>8} {asm:>10} {bps:>8} {r['peak_rss_mib']:>8.0f}")
-    for r in rows:
-        print(f"  {r['config']:<19} block loop of each process {', '.join(f'{b:.2f}' for b in r['blocks_s'])} s")
-    asm = asm_doc
-    print(f"assembly from the same {asm['parts']} parts ({asm['part_bytes'] / 2**20:.2f} MiB), best of 3, in-process: "
-          f"virtual {asm['virtual_s']:.3f} s ({asm['virtual_bytes'] / 2**10:.0f} KiB written), copy {asm['copy_s']:.3f} s "
-          f"({asm['copy_bytes'] / 2**10:.0f} KiB); copy/virtual {asm['copy_s'] / asm['virtual_s']:.1f}")
-    # projection: tracing work scales with sectors x views x lights x pixels x steps (same rays, grid)
-    work = lambda s, v, l, p, st: s * v * l * p * st  # noqa: E731
-    rate = work(rows[0]["steady_rate"], trace["views"], trace["lights"], trace["pixels"], trace["steps"])
-    prod = work(PRODUCTION["sectors"], PRODUCTION["views"], PRODUCTION["lights"], PRODUCTION["pixels"], trace["steps"])
-    hours = prod / rate / 3600
-    print(f"production database ({PRODUCTION['sectors']} sectors, 64x64 angles, 64 px, {trace['steps']} steps) at the "
-          f"measured one-core rate: {hours:.0f} core-hours; on 8 such devices {hours / 8:.1f} h (no GPU was measured)")
-    doc = {"sectors": a.sectors, "trace": trace, "cores": len(os.sched_getaffinity(0)), "load": os.getloadavg(),
-           "rows": rows, "assembly": asm, "one_core_rate": rate, "production_core_hours": hours}
-    Path(a.json).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.json).write_text(json.dumps(doc, indent=2))
+        recipe.write_text(_toml({**TRACE, "sectors": {**TRACE["sectors"], "count": a.sectors}}))
+        for i in range(a.repeat):
+            got = {}
+            for name, devices, cores, dist, merge in CONFIGS:
+                got[name] = _run(recipe, tmp / f"{name.replace(' ', '_')}-{i}.h5", devices, cores, dist, merge)
+                print(f"round {i + 1}/{a.repeat} {name}: {got[name]['steady_rate']:.2f} sectors/s, "
+                      f"bake {got[name]['bake_s']:.1f} s", file=sys.stderr)
+            rounds.append(got)
+        sizes = [int(s) for s in a.sizes.split(",") if s]
+        grouping = [int(g) for g in a.grouping.split(",") if g]
+        asm = _assembly(sizes, grouping, tmp, repeat=2)
+    base = "plain 1 dev"
+    rows = []
+    for name, devices, cores, dist, merge in CONFIGS:
+        runs = [r[name] for r in rounds]
+        best = max(runs, key=lambda r: r["steady_rate"])
+        rows.append({"config": name, "devices": devices, "processes": len(cores), "cores": "+".join(
+            ",".join(map(str, sorted(c))) for c in cores), "merge": merge or "copy",
+            "rate_best": best["steady_rate"], "rate_median": statistics.median(r["steady_rate"] for r in runs),
+            "x_base": best["steady_rate"] / max(r[base]["steady_rate"] for r in rounds),
+            "x_base_range": _spread(rounds, name, base), "bake_s": min(r["bake_s"] for r in runs),
+            "wall_s": min(r["wall_s"] for r in runs), "assemble_s": min((r["assemble_s"] for r in runs if r["assemble_s"]
+                                                                        is not None), default=None),
+            "bytes_per_sector": best["bytes"] / best["sectors"], "peak_rss_mib": max(r["peak_rss_mib"] for r in runs),
+            "rates": [r["steady_rate"] for r in runs]})
+    by = {r["config"]: r for r in rows}
+    costs = []
+    for name, ref in SAME_CORES:
+        rate = by[ref]["rate_best"] / by[name]["rate_best"] - 1
+        lo, hi = _spread(rounds, ref, name)
+        bake = by[name]["bake_s"] / by[ref]["bake_s"] - 1
+        costs.append({"config": name, "against": ref, "rate_cost": rate, "rate_cost_range": [lo - 1, hi - 1],
+                      "bake_s_cost": bake})
+    print(f"{a.sectors} sectors, {TRACE['angles']['views']}x{TRACE['angles']['lights']} angles, {TRACE['trace']['pixels']} px, "
+          f"{TRACE['trace']['steps']} steps, blocks of {BLOCK}; {a.repeat} interleaved rounds; load average before "
+          f"{load_before[0]:.1f} on {os.cpu_count()} cores (a shared machine)\n")
+    print(table(rows, [("config", "config", ""), ("cores", "cores", ""), ("rate_best", "sectors/s best", ".2f"),
+                       ("rate_median", "median", ".2f"), ("x_base", "x 1 core", ".2f"), ("bake_s", "bake s", ".1f"),
+                       ("assemble_s", "assemble s", ".3f"), ("bytes_per_sector", "B/sector", ".0f"),
+                       ("peak_rss_mib", "peak MiB", ".0f")]))
+    print()
+    for r in rows[1:]:
+        lo, hi = r["x_base_range"]
+        print(f"  {r['config']:<19} x 1 core {r['x_base']:.2f} (round by round {lo:.2f}..{hi:.2f})")
+    for c in costs:
+        lo, hi = c["rate_cost_range"]
+        print(f"  {c['config']:<19} against {c['against']} on the same cores: throughput cost {100 * c['rate_cost']:+.0f}% "
+              f"(round by round {100 * lo:+.0f}..{100 * hi:+.0f}%), whole-bake seconds {100 * c['bake_s_cost']:+.0f}%")
+    print("\nassembling the final asset from the same parts (best of 2, in-process):\n")
+    print(table(asm, [("sectors", "sectors", ""), ("parts", "parts", ""), ("part_bytes", "part bytes", ",.0f"),
+                      ("virtual_s", "virtual s", ".3f"), ("virtual_bytes", "virtual bytes", ",.0f"),
+                      ("copy_s", "copy s", ".3f"), ("copy_bytes", "copy bytes", ",.0f"), ("copy_x_virtual", "copy/virtual", ".1f")]))
+    bench = {**TRACE, "sectors": {**TRACE["sectors"], "count": a.sectors}}
+    per_sector = _work(bench) / a.sectors
+    core_rate = by[base]["rate_best"] * per_sector  # work per second, one core
+    prod_work = _work(PRODUCTION)
+    os.environ.setdefault("HAIRLUT_MEMORY_LIMIT", "1024T")  # the estimate only: no process holds the whole database
+    from hairlut import registry
+
+    prod_bytes, _ = registry.get("hrir_db").estimate(PRODUCTION)
+    h200_rate = H200_DEFAULT_RATE * _work(DEFAULT) / DEFAULT["sectors"]["count"]  # work per second
+    projection = {"bytes": prod_bytes, "work": prod_work, "one_core_s": prod_work / core_rate,
+                  "cpu_cores_8_s": prod_work / core_rate / GPUS, "h200_x8_s": prod_work / h200_rate / GPUS}
+    print(f"\nproduction database: 65,536 sectors, 64 x 64 angles, 64 px, 64 steps, float16: {prod_bytes / 1e9:.1f} GB; "
+          f"one of its sectors is {prod_work / 65_536 / per_sector:.0f}x the tracing work of a benchmark sector")
+    print(f"  from the measured one-core CPU rate: {projection['one_core_s'] / 3600:.0f} core-hours; 8 such devices "
+          f"{projection['cpu_cores_8_s'] / 3600:.1f} h (linear scaling assumed)")
+    print(f"  projection from issue 15's H200 figure (94 sectors/s, default recipe, host-bound, older commit; not measured "
+          f"here): 8 H200 {projection['h200_x8_s'] / 60:.1f} min. A GPU measurement of this commit is needed.")
+    doc = {"sectors": a.sectors, "recipe": bench, "block": BLOCK, "rounds": a.repeat, "load_before": load_before,
+           "load_after": os.getloadavg(), "rows": rows, "same_cores": costs, "assembly": asm, "projection": projection,
+           "h200_default_rate_issue15": H200_DEFAULT_RATE}
+    save(a.name, doc)
     return doc
 
 

@@ -20,6 +20,10 @@ micro-chunk is fixed.  The round-robin dispatch costs one Python call per chunk,
 against a sector's trace; it keeps the determinism rule (DESIGN.md: bitwise-identical assets
 however many devices shared the bake).
 
+:func:`map_chunks` does the same for host-driven work (a function that calls jitted kernels itself,
+such as the scene table's view-grid tracer): fixed micro-chunks dealt round-robin, one host thread per
+device with that device as JAX's default.
+
 :func:`initialize` joins JAX's distributed runtime (``jax.distributed.initialize``): with
 no arguments where JAX detects the cluster itself (SLURM, Open MPI, …), or with an explicit
 coordinator ``HOST:PORT``, process count and process id.  Processes talk only through
@@ -108,6 +112,32 @@ def local_devices() -> list:
     import jax
 
     return list(jax.local_devices())
+
+
+def map_chunks(fn, n: int, *, micro: int, devices: int | None = None) -> list:
+    """``[fn(start, stop) for each micro-chunk of range(n)]``, chunk c run with local device c mod D as JAX's default.
+
+    For host-driven work (a function that calls jitted kernels and returns NumPy): one host thread per device
+    (``jax.default_device`` is per thread; XLA releases the GIL while it computes), chunks of fixed size
+    ``micro`` dealt round-robin, results in chunk order.  A chunk's numbers are the same whatever the device
+    count when ``fn``'s are independent of the device, as they are on identical devices."""
+    import jax
+
+    chunks = [(s, min(s + micro, n)) for s in range(0, n, micro)]
+    devs = local_devices()
+    devs = devs if devices is None else devs[:max(1, min(int(devices), len(devs)))]
+    if len(devs) == 1 or len(chunks) == 1:
+        return [fn(s, e) for s, e in chunks]
+
+    def work(d: int) -> list:
+        with jax.default_device(devs[d]):
+            return [(c, fn(*chunks[c])) for c in range(d, len(chunks), len(devs))]
+
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(len(devs)) as pool:
+        done = [r for rs in pool.map(work, range(len(devs))) for r in rs]
+    return [r for _, r in sorted(done, key=lambda x: x[0])]
 
 
 @functools.lru_cache(maxsize=64)

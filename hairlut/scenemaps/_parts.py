@@ -10,8 +10,9 @@ numbers depend on its own sector alone: a sharded, resumed, distributed or virtu
 same data as a one-shot bake.
 
 The scene's sector inputs (:func:`hairlut.scenemaps.scene_inputs`) are built once per process and
-recipe (:func:`scene_rows`) and shared by its blocks.  Tracing (``hairlut.synth.trace_view_grid``)
-runs on the process's default device; across processes, ``--distributed`` shares the rows.
+recipe (:func:`scene_rows`) and shared by its blocks.  Within a block, rows are traced
+(``hairlut.synth.trace_view_grid``) :data:`MICRO` at a time on every local device
+(:func:`hairlut.distributed.map_chunks`); across processes, ``--distributed`` shares the blocks.
 """
 
 from __future__ import annotations
@@ -22,12 +23,15 @@ from pathlib import Path
 import numpy as np
 
 from .. import errors
+from ..distributed import map_chunks
 from ..assets import Axis, Variable, open_table, read_table, recipe_hash, write_table
 from ..assets.layout import layout
 from ._bake import compress, scene_inputs
 from ._kind import BAKER, KIND, SHARD_KIND
 from ._recipe import geometry_key, hrir_recipe, resolve_recipe
 
+#: Rows per call of the tracer, dealt round-robin to the local devices (a row's numbers do not depend on it).
+MICRO = 16
 _ROWS: dict[str, tuple] = {}  # one entry: recipe hash → (density, geometry, scene index, sector count) of the rows
 
 
@@ -87,13 +91,18 @@ def bake_part(recipe: dict, start: int, stop: int, total: int, path, scene=None,
     from ..synth import trace_view_grid
 
     density, geometry, live, sectors = scene_rows(recipe, scene)
-    t = recipe["table"]
-    a, re = trace_view_grid(density[start:stop], geometry[start:stop], hrir_recipe(recipe), views=t["views"],
-                            lights=t["lights"])
-    half, coef, mirror = compress(a, re, t["views"], t["terms"], t["shading_pixels"])
+    t, full = recipe["table"], hrir_recipe(recipe)
     dtype = np.dtype(t["dtype"])
-    return _write_part(path, recipe, half.astype(dtype), coef.astype(dtype), live[start:stop], start, total, sectors,
-                       mirror)
+
+    def rows(s, e):  # rows [start + s, start + e): traced, compressed, cast
+        a, re = trace_view_grid(density[start + s:start + e], geometry[start + s:start + e], full, views=t["views"],
+                                lights=t["lights"])
+        half, coef, mirror = compress(a, re, t["views"], t["terms"], t["shading_pixels"])
+        return half.astype(dtype), coef.astype(dtype), mirror
+
+    done = map_chunks(rows, stop - start, micro=MICRO)  # every local device
+    return _write_part(path, recipe, np.concatenate([d[0] for d in done]), np.concatenate([d[1] for d in done]),
+                       live[start:stop], start, total, sectors, max(d[2] for d in done))
 
 
 def _read(path) -> dict:
