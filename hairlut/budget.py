@@ -122,13 +122,16 @@ TEXEL_LIGHT_BYTES = 32  # per texel, layer, cluster and light: transmittance and
 MAX_EXPONENT = 1e6  # material.p_I / p_II: the float32 shading's exponent range
 MAX_LIGHTS = 256  # direct lights: each one's maps are computed and written separately (synth time grows with it)
 PIXEL_BYTES = 64  # per preview pixel: RGBA float32 and its tone-mapped copies
+SECTOR_BYTES = 1024  # per sector: its table row, frames, index and the float64 edge points of its extent
 
 
-def check_scene(cfg: dict, n_clusters: int, n_layers: int, n_lights: int, limit: int | None = None) -> None:
-    """Refuse a scene whose strands, maps or preview would not fit (keys ``strands.count``,
-    ``render.resolution``, ``lights.directions``, ``render.preview_size``), or whose exponents
-    ``material.p_I``/``p_II`` the float32 shading cannot raise to, or with more than
-    :data:`MAX_LIGHTS` direct lights."""
+def check_scene(cfg: dict, n_clusters: int, n_layers: int, n_lights: int, limit: int | None = None,
+                structure: tuple[str, int, int] | None = None) -> None:
+    """Refuse a scene whose strands, sectors, maps or preview would not fit (keys ``strands.count``,
+    ``<where>.s_t``/``s_u``, ``render.resolution``, ``lights.directions``, ``render.preview_size``), or whose
+    exponents ``material.p_I``/``p_II`` the float32 shading cannot raise to, or with more than
+    :data:`MAX_LIGHTS` direct lights.  ``structure``: (where the cluster keys live, s_t, s_u), e.g.
+    ``("clusters[0]", 8, 16)`` or ``("groom", 8, 16)``."""
     for key in ("p_I", "p_II"):  # float32 shading: cos^p of a huge p overflows on the way (p_I = 1e300)
         p = cfg["material"][key]
         if not p <= MAX_EXPONENT:
@@ -141,6 +144,13 @@ def check_scene(cfg: dict, n_clusters: int, n_layers: int, n_lights: int, limit:
     n = cfg["strands"]["count"]
     check("strands.count", n, product(n, max(n_clusters, 1), STRAND_BYTES), f"{n} strands in each of {n_clusters} clusters",
           limit)
+    if structure is not None:
+        from .geometry.cluster_defaults import STRUCTURE_DEFAULTS
+
+        where, s_t, s_u = structure
+        key, value = driver((f"{where}.s_t", s_t, STRUCTURE_DEFAULTS["s_t"]), (f"{where}.s_u", s_u, STRUCTURE_DEFAULTS["s_u"]))
+        check(key, value, product(max(n_clusters, 1), s_t + 1, max(n_layers, 1), s_u, SECTOR_BYTES),
+              f"the sectors of {n_clusters} clusters × {s_t + 1} rings × {n_layers} layers × {s_u} columns", limit)
     n_u, n_t = cfg["render"]["resolution"]
     texels = product(n_u, n_t, max(n_layers, 1), max(n_clusters, 1))
     check("render.resolution", cfg["render"]["resolution"], texels * TEXEL_BYTES,

@@ -9,7 +9,9 @@ inside itself.  Readers (:func:`hairlut.assets.open_table`, ``read_table``,
   an object reached twice (a hard-link cycle);
 * **external raw storage** (``ds.external``: the bytes live in another file);
 * **virtual datasets** whose sources are not the asset's own parts: see
-  :func:`allowed_virtual_sources` (the one exception, used by sharded bakes);
+  :func:`allowed_virtual_sources` (the one exception, used by sharded bakes); also an own
+  part that the environment variable ``HDF5_VDS_PREFIX`` would redirect to another file
+  (HDF5 looks for a relative source under that prefix before the asset's folder);
 * **datasets that do not hold numbers** (strings, compounds, references, opaque,
   variable-length, complex);
 * **declared storage that is not there**: a chunked dataset with unallocated chunks
@@ -42,6 +44,8 @@ MAX_OBJECTS = 100_000
 #: Kinds of NumPy dtype a table may hold: bool, signed and unsigned integers, floats.
 NUMERIC_KINDS = frozenset("biuf")
 PARTS_SUFFIX = ".parts"
+#: HDF5's environment variable that redirects the relative sources of virtual datasets.
+VDS_PREFIX_ENV = "HDF5_VDS_PREFIX"
 
 _H5_FAULTS = (KeyError, OSError, ValueError, RuntimeError, AttributeError, TypeError, IndexError, UnicodeError,
               MemoryError, OverflowError)
@@ -158,6 +162,26 @@ def allowed_virtual_sources(path, recipe_hash: str) -> list[Path]:
     return found
 
 
+def redirected_source(asset, where: str) -> Path | None:
+    """The file HDF5 would open for virtual source ``where`` of ``asset`` under ``$HDF5_VDS_PREFIX``
+    (None: the variable does not redirect it, and HDF5 reads the file beside the asset).
+
+    HDF5 opens an absolute source name as given; a relative one it looks for first under each
+    ``:``-separated entry of the variable (``${ORIGIN}`` standing for the asset's folder), then
+    beside the asset, then in the working directory.  A prefix entry under which the name exists
+    is taken as the file HDF5 opens."""
+    prefix = os.environ.get(VDS_PREFIX_ENV, "")
+    if not prefix or prefix == "." or os.path.isabs(where):
+        return None
+    origin = os.path.dirname(os.path.abspath(asset))
+    for entry in prefix.split(":"):
+        if entry.startswith("${ORIGIN}"):
+            entry = origin + entry[len("${ORIGIN}"):]
+        if entry and os.path.lexists(os.path.join(entry, where)):
+            return Path(entry) / where
+    return None
+
+
 def _check_virtual(path: Path, name: str, ds: h5py.Dataset, recipe_hash: str) -> None:
     for src in ds.virtual_sources():
         where = src.file_name
@@ -169,6 +193,12 @@ def _check_virtual(path: Path, name: str, ds: h5py.Dataset, recipe_hash: str) ->
             raise errors.ForeignReferenceError(
                 path, f"dataset {name!r} is virtual with source {where}:{src.dset_name}, which {fault}; "
                       "only the asset's own parts (<asset>.parts/, same recipe hash) may be sources")
+        other = redirected_source(path, where)
+        if other is not None and os.path.realpath(other) != os.path.realpath(candidate):
+            raise errors.ForeignReferenceError(
+                path, f"dataset {name!r} is virtual with source {where}:{src.dset_name}, which "
+                      f"{VDS_PREFIX_ENV}={os.environ.get(VDS_PREFIX_ENV)!r} redirects to {other}; hairlut reads a virtual "
+                      f"asset's parts only from beside it: unset {VDS_PREFIX_ENV}")
         with guard(candidate), h5py.File(candidate, "r") as g:
             link = g.get(src.dset_name, getlink=True)
             obj = g.get(src.dset_name) if isinstance(link, h5py.HardLink) else None

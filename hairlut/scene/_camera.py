@@ -31,6 +31,7 @@ import numpy as np
 
 from .. import errors
 from ..recipes import Field
+from ..validate import direction
 
 PROJECTIONS = ("orthographic", "perspective")
 #: Frame bytes per pixel and sample a render holds at once (RGBA, depth, the per-sample and tile buffers).
@@ -110,8 +111,7 @@ def check_memory(resolution, samples: int = 1, key: str = "camera.resolution") -
 
 
 def _unit(x) -> np.ndarray:
-    v = np.asarray(x, np.float64)
-    return v / np.linalg.norm(v)
+    return direction(x, "camera")  # normalised without overflow (view = [1e300, 1e300, 1e300])
 
 
 def check_camera(cam: dict) -> None:
@@ -122,8 +122,10 @@ def check_camera(cam: dict) -> None:
         raise errors.ValidationError("camera.up", cam["up"], f"parallel to camera.view {cam['view']}: no way to tell up")
     check_memory(cam["resolution"])
     if cam["position"] != "auto" and cam["look_at"] != "auto":
-        d = np.asarray(cam["position"], np.float64) - np.asarray(cam["look_at"], np.float64)
-        n = np.linalg.norm(d)
+        p, q = np.asarray(cam["position"], np.float64), np.asarray(cam["look_at"], np.float64)
+        scale = max(float(np.abs(p).max()), float(np.abs(q).max()), 1e-300)
+        d = p / scale - q / scale  # scaled: no overflow for coordinates near the float64 limit
+        n = float(np.hypot(np.hypot(d[0], d[1]), d[2]))
         if n == 0 or float(d @ view) < n * (1.0 - 1e-6):
             raise errors.ValidationError("camera.position", cam["position"], "must lie on look_at + d·view with d > 0 "
                                          f"(look_at {cam['look_at']}, view {cam['view']})")

@@ -335,7 +335,9 @@ def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -
                 raise errors.ValidationError(f"clusters[{i}]", s.structure(), "layer count, s_t, s_v and s_u must "
                                              f"agree across clusters ({specs[0].structure()})")
     budget.check_scene(cfg, len(specs) if specs else cfg["groom"]["clusters"],
-                       specs[0].n_layers if specs else len(cfg["groom"]["layer_radii"]), len(lights))
+                       specs[0].n_layers if specs else len(cfg["groom"]["layer_radii"]), len(lights),
+                       structure=("clusters[0]", specs[0].s_t, specs[0].s_u) if specs else
+                       ("groom", cfg["groom"]["s_t"], cfg["groom"]["s_u"]))
     return Scene(cfg, specs, seeds, gpath, view, lights, np.asarray(cols, np.float64), source,
                  {**given, **({"clusters": clusters} if clusters is not None else {"groom": groom})})
 

@@ -86,7 +86,11 @@ def resolve_recipe(given: dict | None = None, light=None, *, budget: bool = True
         raise errors.ValidationError("kernel", r["kernel"], "bake at least one of diffuse and specular")
     r["kernel"]["p"] = float(r["kernel"]["p"])
     if r["bands"]["light_specular"] == "auto":
-        r["bands"]["light_specular"] = specular_band_rule(r["kernel"]["p"])
+        auto = specular_band_rule(r["kernel"]["p"]) if r["kernel"]["p"] <= 64.0**2 else None
+        if auto is None and r["kernel"]["specular"]:  # name the key the user set, not the derived band count
+            raise errors.ValidationError("kernel.p", r["kernel"]["p"], "bands.light_specular = 'auto' takes ceil(√p) + 1 "
+                                         "bands, at most 65: p ≤ 4096, or set bands.light_specular (≤ 65) yourself")
+        r["bands"]["light_specular"] = auto if auto is not None else 65
     for key, limit in (("light_diffuse", 33), ("light_specular", 65), ("transmittance", 33)):
         if r["bands"][key] > limit:
             raise errors.ValidationError(f"bands.{key}", r["bands"][key], f"at most {limit} bands")

@@ -28,9 +28,10 @@ class MapIndex:
     device arrays over the sectors (S; grid (C, s_t + 1, G, s_u)), HSVs (H; (C, s_t, G, s_u))
     and texels ((C, K, n_t, n_u); texel (i, j) of layer k lies in HSV row ``rows[i]``, column
     ``cols[j]``, track k).  Per sector: ``axes`` (2, S, 3), its +x and +y in 3-D; ``nbr``,
-    ``wgt`` (S, k), the SATF neighbours of its features (``hairlut.hrir.neighbours``).
-    Per HSV: ``dz2``, eq 6's feature term Σ Δz²; ``nbr_ave``, ``wgt_ave``, the neighbours of
-    its averaged features.  Per texel row: ``gamma`` (n_t,), γ along the HSV.  Per texel:
+    ``wgt`` (S, k), the SATF neighbours of its features (``hairlut.hrir.neighbours``; zero
+    weights for an empty sector, which holds no hair: α = re = 0).
+    Per HSV: ``dz2``, eq 6's feature term Σ Δz² (∞ when one of its sectors is empty: never
+    uniform); ``nbr_ave``, ``wgt_ave``, the neighbours of its averaged features.  Per texel row: ``gamma`` (n_t,), γ along the HSV.  Per texel:
     ``offset`` (2, 2, …) of :func:`texel_offsets`."""
 
     axes: jax.Array
@@ -60,11 +61,14 @@ def map_index(db, table, fr: SectorFrames, n_layers: int, resolution, k: int) ->
     def knn(f):
         return neighbours_kernel(jnp.asarray((f - mean) / std, jnp.float32), zdb, int(k))
 
+    occ = np.asarray(fr.occupied, bool)  # an empty sector holds no hair: zero weights give α = re = 0
     nbr, wgt = knn(fr.features)
     nbr_ave, wgt_ave = knn(0.5 * (fr.features[top] + fr.features[bot]))
+    wgt, wgt_ave = wgt * occ[:, None], wgt_ave * (occ[top] & occ[bot])[:, None]
     axes = np.stack([fr.ex[:, :1] * fr.reference + fr.ex[:, 1:] * fr.binormal,
                      fr.ey[:, :1] * fr.reference + fr.ey[:, 1:] * fr.binormal])
     dz2 = np.sum(((fr.features[top] - fr.features[bot]) / std) ** 2, -1)
+    dz2 = np.where(occ[top] == occ[bot], dz2, np.inf)  # a half-empty HSV is never uniform: eq 7 fades to its empty end
     rows, gamma, cols = _texel_cells(table.shape, resolution)
     f32 = partial(jnp.asarray, dtype=jnp.float32)
     return MapIndex(f32(axes), nbr, wgt, f32(dz2), nbr_ave, wgt_ave, f32(gamma),

@@ -60,7 +60,8 @@ class SectorFrames:
     """What does not change with the view or the lights, per sector (N): ``features`` (N, F),
     the 2-D normal-plane frame ``centre``, ``ex``, ``ey`` (N, 2) in (reference, binormal)
     coordinates, ``extent`` R (N,), ``half_axes`` (N, 2), ``twist`` (N,), outer radius
-    ``v_outer`` (N,), and the 3-D ``reference`` and ``binormal`` (N, 3) of its cross-section."""
+    ``v_outer`` (N,), the 3-D ``reference`` and ``binormal`` (N, 3) of its cross-section, and
+    ``occupied`` (N,): whether any strand crosses it (an empty sector holds no hair: α = re = 0)."""
 
     features: np.ndarray
     centre: np.ndarray
@@ -72,6 +73,7 @@ class SectorFrames:
     v_outer: np.ndarray
     reference: np.ndarray
     binormal: np.ndarray
+    occupied: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,7 +115,8 @@ def sector_frames(geometry, table, db) -> SectorFrames:
     edges = np.concatenate([_ellipse(ab[:, None], v0, ua), _ellipse(ab[:, None], v1, ua),
                             _ellipse(ab[:, None], va, u0), _ellipse(ab[:, None], va, u1)], axis=1)
     extent = np.linalg.norm(edges - centre[:, None], axis=-1).max(axis=1)
-    return SectorFrames(feats, centre, ex, ey, extent, ab, q, table.v_range[:, 1].copy(), reference, binormal)
+    return SectorFrames(feats, centre, ex, ey, extent, ab, q, table.v_range[:, 1].copy(), reference, binormal,
+                        splats.mask.any(axis=1))
 
 
 def sector_angles(fr: SectorFrames, view, lights) -> SectorParams:
@@ -279,7 +282,8 @@ def build_maps(db, table, sp: SectorParams, tx: Texels, k_threshold: float, k: i
     top, bot = table.hsv_sectors[:, 0], table.hsv_sectors[:, 1]
     dist = param_distance(db, sp.features[top], sp.theta_v[top], sp.theta_l[top],
                           sp.features[bot], sp.theta_v[bot], sp.theta_l[bot])
-    uniform = dist < k_threshold
+    occ = np.asarray(sp.occupied, bool)
+    uniform = (dist < k_threshold) & (occ[top] == occ[bot])  # a half-empty HSV sweeps its two ends (one of them 0)
     uh = np.flatnonzero(uniform)
     ave_f = 0.5 * (sp.features[top[uh]] + sp.features[bot[uh]])
     ave_v = sp.theta_v[top[uh]] + 0.5 * wrap(sp.theta_v[bot[uh]] - sp.theta_v[top[uh]])
@@ -293,6 +297,8 @@ def build_maps(db, table, sp: SectorParams, tx: Texels, k_threshold: float, k: i
     re1, re2 = np.zeros((H, Lt, P), np.float32), np.zeros((H, Lt, P), np.float32)
     a1, a2 = np.zeros((H, P), np.float32), np.zeros((H, P), np.float32)
     nu = np.flatnonzero(~uniform)
+    re_u, a_u = re_u * occ[top[uh], None, None], a_u * occ[top[uh], None]  # empty sectors hold no hair: 0
+    re_s, a_s = re_s * occ[need, None, None], a_s * occ[need, None]
     re1[uh], re2[uh], a1[uh], a2[uh] = re_u, re_u, a_u, a_u
     re1[nu], a1[nu] = re_s[slot[top[nu]]], a_s[slot[top[nu]]]
     re2[nu], a2[nu] = re_s[slot[bot[nu]]], a_s[slot[bot[nu]]]

