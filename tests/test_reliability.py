@@ -132,3 +132,51 @@ def test_empty_sectors_give_zero_alpha_on_the_frame_path_and_the_reference(db, t
     assert np.all(np.moveaxis(np.asarray(re), 2, -1)[empty_texels] == 0)
     full = occ[top][tx.hsv] & occ[bot][tx.hsv]
     assert np.asarray(alpha)[full].max() > 0  # the occupied ones are drawn
+
+
+# ----------------------------------------------------------------------------- items 12–13 on the SH shard path
+
+SH_DENSE = {"kernel": {"p": 16.0}, "dense": {"t_resolution": 4, "theta_v_steps": 5}}  # 96 tangents
+
+
+def _bright_sky(factor):
+    """The built-in sky with its coefficients scaled (an EnvLight given to the library directly; maps
+    above 1e30 are already refused when read)."""
+    from dataclasses import replace
+
+    from hairlut.envlight import sky_light
+
+    sky = sky_light(4)
+    return replace(sky, coeffs=sky.coeffs * factor)
+
+
+@pytest.mark.parametrize("shard", [None, "0/2"])
+def test_sh_bake_and_its_shards_refuse_products_that_overflow(tmp_path, shard):
+    """Cd/Cs in float32 from a light whose coefficients are finite in float64 (3e38 × the sky): the whole
+    bake and a shard of it refuse with NonFiniteError naming the light, and leave no file or part behind."""
+    from hairlut.shtables import bake
+
+    out = tmp_path / "sh.h5"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no 'overflow encountered in cast' on the way
+        with pytest.raises(errors.NonFiniteError, match=r"light/c[ds] is not finite in float32.*coefficients reach"):
+            bake(SH_DENSE, out, light=_bright_sky(3e38 / 1.0), block=40, shard=shard)
+    assert not any(p.suffix == ".h5" for p in tmp_path.rglob("*")), list(tmp_path.rglob("*"))
+    bake(SH_DENSE, out, light=_bright_sky(1e3), block=40, shard=shard)  # a bright but representable light bakes
+
+
+def test_sh_merge_refuses_a_part_holding_nan(tmp_path):
+    """``bake sh_tables --shard K/N`` then ``merge``: a shard whose Rs holds NaN is refused, naming the file."""
+    from hairlut import registry
+
+    shards = [registry.bake("sh_tables", SH_DENSE, tmp_path / f"s{k}.h5", shard=f"{k}/2", options={"block": 40})["out"]
+              for k in range(2)]
+    with h5py.File(shards[1], "r+") as f:
+        rs = f["dense/rs"][()]
+        rs[0, 0, 0, 0] = np.nan
+        f["dense/rs"][...] = rs
+    with pytest.raises(errors.CorruptAssetError, match=r"s1\.h5.*'dense/rs' holds non-finite values"):
+        registry.merge(shards, tmp_path / "merged.h5")
+    assert not (tmp_path / "merged.h5").exists()
+    res = CliRunner().invoke(cli, ["merge", "--out", str(tmp_path / "cli.h5"), *map(str, shards)])
+    assert res.exit_code == 2 and "non-finite" in res.output and len(res.output.strip().splitlines()) == 1, res.output

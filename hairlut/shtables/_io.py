@@ -94,24 +94,46 @@ def dense_axes(tables: SHTables, n: int, theta_v, start: int = 0) -> list[Axis]:
     return axes
 
 
+def _finite_in(name: str, values, dtype, drivers: str) -> np.ndarray:
+    """``values`` in the storage ``dtype``, finite or refused: NonFiniteError naming ``name`` and the
+    recipe keys or inputs that drive it (``drivers``) when a value is NaN/inf or does not fit ``dtype``."""
+    v = np.asarray(values)
+    dtype = np.dtype(dtype)
+    finite = np.isfinite(v)
+    top, cap = float(np.max(np.abs(v), where=finite, initial=0.0)), float(np.finfo(dtype).max)
+    if not finite.all() or top > cap:
+        bad = int(v.size - finite.sum())
+        why = f"{bad} NaN/inf values" if bad else f"|values| up to {top:.3g}, beyond {dtype.name}'s {cap:.3g}"
+        raise errors.NonFiniteError(f"sh_tables: {name} is not finite in {dtype.name} ({why}); {drivers}")
+    return v.astype(dtype)
+
+
 def dense_variables(tables: SHTables, dense: dict, light: dict | None = None) -> list[Variable]:
-    """The per-tangent tables (``t`` first): t_dirs, Rd, Rs in the recipe's dense storage, Cd, Cs (float32)."""
-    b = tables.bands
-    st = np.dtype(tables.recipe["dense"]["storage"])
+    """The per-tangent tables (``t`` first): t_dirs, Rd, Rs in the recipe's dense storage, Cd, Cs (float32),
+    each finite in its dtype or refused (:func:`_finite_in`) — the whole bake and every part of a sharded one."""
+    b, r = tables.bands, tables.recipe
+    st = np.dtype(r["dense"]["storage"])
     n = len(dense["t_dirs"])
+    keys = (f"the recipe drives it: kernel.p={r['kernel']['p']}, bands.light_diffuse={b.light_diffuse}, "
+            f"bands.light_specular={b.light_specular}, bands.transmittance={b.transmittance}, dense.storage={st.name}")
     variables = [Variable("dense/t_dirs", dense["t_dirs"], ("t", "xyz"), "1", "unit tangent directions")]
     if "rd" in dense:
-        variables.append(Variable("dense/rd", dense["rd"].astype(st), ("t", "light_d", "trans"), "sr", "Rd(i, j, t)",
-                                  chunks=(min(64, n), b.n_light_diffuse, b.n_trans)))
+        variables.append(Variable("dense/rd", _finite_in("dense/rd", dense["rd"], st, keys), ("t", "light_d", "trans"), "sr",
+                                  "Rd(i, j, t)", chunks=(min(64, n), b.n_light_diffuse, b.n_trans)))
     if "rs" in dense:
-        variables.append(Variable("dense/rs", dense["rs"].astype(st), ("t", "theta_v", "light_s", "trans"), "sr",
-                                  "Rs(i, j, t, theta')", chunks=(min(16, n), len(dense["theta_v"]), b.n_light_specular,
-                                                                 b.n_trans)))
+        variables.append(Variable("dense/rs", _finite_in("dense/rs", dense["rs"], st, keys), ("t", "theta_v", "light_s", "trans"),
+                                  "sr", "Rs(i, j, t, theta')", chunks=(min(16, n), len(dense["theta_v"]),
+                                                                       b.n_light_specular, b.n_trans)))
+    if light:
+        a = np.asarray(light["a"], np.float64)
+        lit = (f"the light drives it: its SH coefficients reach |a| = {float(np.max(np.abs(a), initial=0.0)):.3g} "
+               "(the environment map's values times environment.intensity)")
     if light and "cd" in light:
-        variables.append(Variable("light/cd", light["cd"].astype(np.float32), ("t", "trans", "channel"), "1", "Cd(j, t)"))
+        variables.append(Variable("light/cd", _finite_in("light/cd", light["cd"], np.float32, lit), ("t", "trans", "channel"),
+                                  "1", "Cd(j, t)"))
     if light and "cs" in light:
-        variables.append(Variable("light/cs", light["cs"].astype(np.float32), ("t", "theta_v", "trans", "channel"), "1",
-                                  "Cs(j, t, theta')"))
+        variables.append(Variable("light/cs", _finite_in("light/cs", light["cs"], np.float32, lit),
+                                  ("t", "theta_v", "trans", "channel"), "1", "Cs(j, t, theta')"))
     return variables
 
 
