@@ -245,15 +245,32 @@ def test_radiance_at_20_bands_matches_the_exact_form(rng):
     assert got == pytest.approx(ref, rel=1e-6, abs=1e-9)
 
 
-def test_radiance_at_40_bands_general_path(rng):
-    """40 light bands (lmax 41): the contraction path against Σ a_i b_j Rs(i, j) with the same tables."""
-    from hairlut.shtables import Bands, SHTables
+@pytest.mark.parametrize("bands, trans", [(40, 3), pytest.param(65, 1, marks=pytest.mark.slow)])  # 65: the most
+# light bands `bake sh` accepts (slow: radiance and rs each compile for ~20 s at lmax 64)
+def test_radiance_at_40_and_65_bands_general_path(rng, bands, trans):
+    """40 and 65 light bands: the contraction path against Σ a_i b_j Rs(i, j) with the same tables."""
+    from hairlut.shtables import Bands, SHTables, resolve_recipe
 
-    lmax = 40 + 3 - 2
-    g = rng.normal(size=((lmax + 1) ** 2, 1600, 9)) * 1e-2  # a stand-in Gaunt tensor: the test is the contraction
+    assert resolve_recipe({"bands": {"light_specular": bands}}, budget=False)["bands"]["light_specular"] == bands
+    lmax = bands + trans - 2
+    g = rng.normal(size=((lmax + 1) ** 2, bands**2, trans**2)) * 1e-2  # a stand-in Gaunt tensor: the test is the contraction
     cheb = rng.normal(size=(2, 8, lmax + 1)) * 1e-2
-    tables = SHTables(Bands(1, 40, 3), 1600.0, None, cheb, g)
+    tables = SHTables(Bands(1, bands, trans), float(bands**2), None, cheb, g)
     _check_radiance(tables, rng)
+
+
+@pytest.mark.slow
+def test_radiance_at_33_bands_against_the_brute_force_kernel(rng):
+    """33 light bands (p = 1024, the auto rule's count) from a real bake, against the brute-force quadrature of
+    the kernel (hairlut.shtables.reference_r, independent of the Gaunt tables); measured agreement 2.5e-13."""
+    from hairlut.shtables import bake_sh, reference_r
+
+    tables = bake_sh({"kernel": {"p": 1024.0, "diffuse": False}, "bands": {"transmittance": 2}})["tables"]
+    assert tables.bands.light_specular == 33
+    a, b, t, tv = _vertices(rng, 1, 33**2, 4)
+    ref = a @ reference_r(t[0], tv[0], 1024.0, 32, 1, specular=True, n_theta=1200) @ b[0]
+    got = float(np.asarray(tables.radiance(a, b[0], t[0], tv[0])))
+    assert got == pytest.approx(ref, rel=1e-8, abs=1e-10)
 
 
 @pytest.mark.slow
