@@ -8,8 +8,8 @@ Layouts (all read from one EXR file):
 ``latlong``  H × W (2:1).  Row r, column c ↦ θ = π(r+½)/H from +up, φ = 2π(c+½)/W
              from +x toward +y (z-up); ΔΩ = (2π/W)(cos θ_top − cos θ_bottom).
 ``cube``     six square faces.  Either a multi-part file with parts named
-             ``+x -x +y -y +z -z`` (or ``px nx py ny pz nz``), or one image of
-             n × 6n with the faces stacked in that order (OpenEXR's ENVMAP_CUBE),
+             ``+x -x +y -y +z -z`` (or ``px nx py ny pz nz``), or one image 6n high
+             and n wide with the faces stacked in that order (OpenEXR's ENVMAP_CUBE),
              a horizontal cross (4n × 3n) or a vertical cross (3n × 4n):
 
                      horizontal          vertical
