@@ -7,6 +7,10 @@ Per scene: the reference at each level of ``--levels`` (``hairlut.render.render_
 layered model (``render_layered``) for each ``[render] method`` that can run here: ``direct`` always; ``satf``
 when the scene's hrir_db is in the table cache; ``scene`` when its scene_maps table is.  ``frame_ms``: the
 layered rasteriser's warm time (maps excluded; ``maps_ms`` beside it) or the reference level's wall time.
+Two diagnostic rows separate the causes of a layered row's error: the reference of only the strand segments inside
+the sectors' volume (``hairlut.render.inside_clusters``: what the cluster fit leaves out) against the truth, and each
+layered row against that inside-only reference (what the layered model itself loses); ``direct`` also runs with the
+in-plane α as the maps give it (no 1/sin ψ lengthening).
 Also, with ``--paper``, the rasteriser alone on the paper-scale procedural model of benchmarks/online_frame.py
 (17 clusters × 3 layers, s_t = 64, s_u = 16) at 1024 × 1024: the issue's target is ≤ 100 ms on a 2-core CPU.
 Wall times on a shared machine vary with its load: ``cpu_ms`` (process time) is printed beside them.
@@ -28,8 +32,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import save, table  # noqa: E402
 
-from hairlut.render import compare, render_layered, render_reference  # noqa: E402
-from hairlut.scene import find_assets, load_scene, resolve_scene  # noqa: E402
+from hairlut.render import compare, inside_clusters, render_layered, render_reference  # noqa: E402
+from hairlut.scene import find_assets, load_scene, resolve_scene, scene_clusters  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = [ROOT / "tables" / "scenes" / "sintel-groom.toml", ROOT / "tables" / "scenes" / "ratboy-groom.toml"]
@@ -40,7 +44,7 @@ def with_config(sc, **sections):
     for sec, kv in sections.items():
         cfg.setdefault(sec, {}).update(kv)
     if sc.groom_path is not None:  # relative paths were resolved next to the scene file: keep them absolute
-        cfg["groom"]["path"] = str(sc.groom_path)
+        cfg["groom"]["path"] = str(Path(sc.groom_path).resolve())
     env = sc.config.get("environment") or {}
     if env.get("map") and "environment" in cfg:
         cfg["environment"]["map"] = env["map"]
@@ -89,19 +93,34 @@ def run_scene(path, levels, resolution):
         last = f.info["levels"][-1]
         rows.append(row(path, f"reference L{lv}", f.info["wall_ms"], f.info["cpu_ms"], figs,
                         spp=last.get("samples_per_pixel"), steps=last.get("steps_per_crossing")))
+    # what the cluster fit leaves out: the reference of only the strand segments inside the sectors' volume
+    t0 = time.perf_counter()
+    kept, fractions = inside_clusters(scene_clusters(sc))
+    inside = render_reference(sc, camera=truth.camera, levels=[max(levels)], strands=kept)
+    figs = compare(inside, truth)[0]
+    rows.append(row(path, f"reference L{max(levels)}, strands inside the sectors", 1e3 * (time.perf_counter() - t0), None,
+                    figs, length_fractions=fractions))
+    print(f"  strand length inside the sectors: {fractions['inside']:.1%} (beyond the trajectory's ends "
+          f"{fractions['before_start'] + fractions['after_end']:.1%}, core {fractions['core']:.1%}, outside the shell "
+          f"{fractions['outside']:.1%})")
     for method, kw in methods_here(sc).items():
-        try:
-            c0 = time.process_time()
-            f = render_layered(with_config(sc, render={"method": method}), camera=truth.camera, repeat=2, **kw)
-            cpu = time.process_time() - c0
-        except Exception as exc:  # noqa: BLE001 - report and go on with the other methods
-            print(f"  layered {method}: failed ({str(exc).splitlines()[0][:120]})")
-            continue
-        sec = f.info["seconds"]
-        rows.append(row(path, f"layered {method}", 1e3 * sec["raster"], None, compare(f, truth)[0],
-                        maps_ms=1e3 * sec["maps"], shade_ms=1e3 * sec["shade"], triangles=f.info["triangles"],
-                        total_cpu_s=cpu))
-        print(f"  layered {method}: raster {1e3 * sec['raster']:.0f} ms, maps {1e3 * sec['maps']:.0f} ms")
+        for oblique in (True, False) if method == "direct" else (True,):
+            name = f"layered {method}" + ("" if oblique else " (in-plane α)")
+            try:
+                c0 = time.process_time()
+                f = render_layered(with_config(sc, render={"method": method}), camera=truth.camera, repeat=2,
+                                   oblique=oblique, **kw)
+                cpu = time.process_time() - c0
+            except Exception as exc:  # noqa: BLE001 - report and go on with the other methods
+                print(f"  {name}: failed ({str(exc).splitlines()[0][:120]})")
+                continue
+            sec = f.info["seconds"]
+            rows.append(row(path, name, 1e3 * sec["raster"], None, compare(f, truth)[0],
+                            maps_ms=1e3 * sec["maps"], shade_ms=1e3 * sec["shade"], triangles=f.info["triangles"],
+                            total_cpu_s=cpu))
+            own = compare(f, inside)[0]  # against the strands the sectors hold: the layered model's own loss
+            rows.append(row(path, f"{name} vs inside-only reference", None, None, own))
+            print(f"  {name}: raster {1e3 * sec['raster']:.0f} ms, maps {1e3 * sec['maps']:.0f} ms")
     return rows
 
 
@@ -121,16 +140,17 @@ def paper_model(resolution: int):
     sec = f.info["seconds"]
     # CPU time of one warm kernel call
     from hairlut.geometry import ClusterGeometry
-    from hairlut.render import layout, premultiplied, rasterise
+    from hairlut.render import layer_textures, layout, rasterise
 
     meshes, tile, origins, _ = layout(f.camera, ClusterGeometry([pc.spec for pc in prep.clusters]))
-    tex = np.stack([premultiplied(r.rgba) for r in render(prep).clusters])
+    tex = layer_textures(render(prep))
     rasterise(f.camera, meshes.vertices, meshes.triangles, meshes.uv, tex, tile=tile, origins=origins)
     c0 = time.process_time()
     rasterise(f.camera, meshes.vertices, meshes.triangles, meshes.uv, tex, tile=tile, origins=origins)
     cpu = time.process_time() - c0  # includes the host's capacity estimate
     return {"scene": "paper-scale", "method": "layered direct", "frame_ms": 1e3 * sec["raster"], "cpu_ms": 1e3 * cpu,
             "maps_ms": 1e3 * sec["maps"], "triangles": f.info["triangles"], "target_ms": 100.0,
+            "ratio_to_target": sec["raster"] / 0.1,
             "resolution": resolution}
 
 
@@ -141,13 +161,24 @@ def main():
     ap.add_argument("--resolution", type=int, default=None, help="square frame side (default: the scene's camera)")
     ap.add_argument("--paper", action="store_true", help="also the paper-scale model at 1024 × 1024")
     ap.add_argument("--quick", action="store_true", help="256 × 256, levels 0 1")
+    ap.add_argument("--paper-only", action="store_true",
+                    help="only the paper-scale row, merged into the rows of results/render.json (replacing its old one)")
     a = ap.parse_args()
     if a.quick:
         a.resolution, a.levels = a.resolution or 256, [0, 1]
     rows = []
-    for s in a.scene or SCENES:
-        rows += run_scene(s, sorted(a.levels), a.resolution)
-    if a.paper:
+    if a.paper_only:
+        import json
+
+        from _common import RESULTS
+
+        old = json.loads((RESULTS / "render.json").read_text()) if (RESULTS / "render.json").exists() else {}
+        rows = [r for r in old.get("rows", []) if r.get("scene") != "paper-scale"]
+        a.levels, a.resolution = old.get("levels", a.levels), old.get("resolution", a.resolution)
+    else:
+        for s in a.scene or SCENES:
+            rows += run_scene(s, sorted(a.levels), a.resolution)
+    if a.paper or a.paper_only:
         rows.append(paper_model(1024))
     cols = [("scene", "scene", ""), ("method", "method", ""), ("frame_ms", "frame ms", ".0f"),
             ("cpu_ms", "cpu ms", ".0f"), ("maps_ms", "maps ms", ".0f"), ("flip_mean", "FLIP", ".3f"),

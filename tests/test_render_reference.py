@@ -142,3 +142,23 @@ def test_reference_bound_holds_one_level_finer(tmp_path):
     v = f.info["verified"]
     assert v["level"] == f.info["levels"][-1]["level"] + 1 and v["holds"], v
     assert max(v["change_from_returned"].values()) < 0.05
+
+
+def test_inside_clusters_splits_strand_length_by_where_the_sectors_see_it():
+    """A straight cluster along y from 0 to 1 (half-axes 0.2, core 0.25); three strands parallel to it from y = −0.5
+    to 1.5, at v = 0.5, 0 (the core) and 1.5 (outside the shell): a quarter of every strand lies before the start and
+    a quarter after the end, and of the middle halves only the one at v = 0.5 is kept."""
+    from hairlut.geometry import ClusterSpec
+    from hairlut.render import inside_clusters
+
+    spec = ClusterSpec(np.array([[0.0, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 1.0, 0.0]]), 0.2, 0.2, core_radius=0.25)
+    y = np.linspace(-0.5, 1.5, 81)
+    pts = [np.stack([np.full_like(y, x), y, np.zeros_like(y)], 1) for x in (0.1, 0.0, 0.3)]
+    strands = Strands(np.concatenate(pts).astype(np.float32), np.full(3, len(y)), thickness=np.full(3 * len(y), 0.01))
+    kept, frac = inside_clusters([(spec, strands)])
+    assert frac["before_start"] == pytest.approx(0.25, abs=0.01) and frac["after_end"] == pytest.approx(0.25, abs=0.01)
+    assert frac["inside"] == pytest.approx(1 / 6, abs=0.01)
+    assert frac["core"] == pytest.approx(1 / 6, abs=0.01) and frac["outside"] == pytest.approx(1 / 6, abs=0.01)
+    assert sum(frac.values()) == pytest.approx(1.0)
+    p = kept[0].points
+    assert np.all((p[:, 1] > -0.03) & (p[:, 1] < 1.03)) and np.allclose(p[:, 0], 0.1)

@@ -17,10 +17,10 @@ _LAZY = {
     "segment_lighting": "_render", "scene_strands": "_render",
     "reference_kernel": "_reference", "render_level": "_reference", "shadow_grid": "_reference",
     "shadow_kernel": "_reference",
-    "Segments": "_strands", "Z_CUT": "_strands", "crossings": "_strands", "segments_of": "_strands",
+    "Segments": "_strands", "Z_CUT": "_strands", "crossings": "_strands", "inside_clusters": "_strands", "segments_of": "_strands",
     "bin_boxes": "_tiles",
     "FAR": "_raster", "raster_kernel": "_raster", "sample_texture": "_raster",
-    "candidates": "_layered", "layout": "_layered", "lengthen": "_layered", "oblique_path": "_layered", "pairs_of": "_layered", "premultiplied": "_layered", "rasterise": "_layered", "render_layered": "_layered",
+    "candidates": "_layered", "layout": "_layered", "lengthen": "_layered", "oblique_path": "_layered", "pairs_of": "_layered", "layer_textures": "_layered", "rasterise": "_layered", "render_layered": "_layered",
     "layered_vs_reference": "_pair", "panels": "_pair",
     "compare": "_compare", "block_average": "_compare", "side_by_side": "_compare",
 }

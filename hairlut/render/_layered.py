@@ -100,10 +100,14 @@ def layout(cam, geometry, *, edge_pixels: float = EDGE_PIXELS):
     return meshes, (th, tw), origins, (t_sub, u_sub)
 
 
-def premultiplied(rgba: np.ndarray) -> np.ndarray:
-    """(…, 4) shaded RGB and α → premultiplied (RGB·α, α)."""
-    rgba = np.asarray(rgba, np.float32)
-    return np.concatenate([rgba[..., :3] * rgba[..., 3:], rgba[..., 3:]], -1)
+def layer_textures(result) -> np.ndarray:
+    """(C, K, n_t, n_u, 4) premultiplied RGBA layer textures of a ``hairlut.synth.SynthResult``.
+
+    Eq 13's shaded colour Ψ^lighting · re · τ is already α-premultiplied: re is the accumulated reflectance of
+    eq 5 (re_acc = Σ_k w_k re_k with w_k = α_k Π_{j<k}(1 − α_j)), which carries the layer's opacity (a thin
+    layer reflects little).  So RGB is taken as it is and composited with "over" for premultiplied colour
+    (``_raster``); multiplying it by α once more would count the layer's opacity twice (colour ∝ α²)."""
+    return np.stack([np.asarray(r.rgba, np.float32) for r in result.clusters])
 
 
 def oblique_path(cam, tangent, position) -> np.ndarray:
@@ -188,7 +192,7 @@ def render_layered(scene, camera=None, *, db=None, sh=None, maps=None, prepared=
     cam = scene_camera(sc) if camera is None else camera
     geometry = ClusterGeometry([pc.spec for pc in prep.clusters])
     meshes, tile, origins, subdiv = layout(cam, geometry, edge_pixels=edge_pixels)
-    tex = np.stack([premultiplied(r.rgba) for r in result.clusters])
+    tex = layer_textures(result)
     if oblique:
         tex = lengthen(tex, oblique_path(cam, np.stack([pc.tangent for pc in prep.clusters]),
                                          np.stack([pc.position for pc in prep.clusters])))
