@@ -49,13 +49,14 @@ def main(argv=None) -> None:
         for name in names:
             r = needed_only_bake(SCENES / name, tmp / f"cache-{name}")
             rows.append(r)
-            cov[name] = database_coverage(SCENES / name, {"needed": r.pop("hrir_db"), "full": full["hrir_db"]})
+            needed = r.pop("hrir_db")  # None when the scene's map method needs no database
+            cov[name] = database_coverage(SCENES / name, {"full": full["hrir_db"], **({"needed": needed} if needed else {})})
         full_s = sum(full["seconds"].values())
         for r in rows:
             r["time_ratio"] = r["bake_s"] / full_s
             r["bytes_ratio"] = r["bytes"] / full["bytes"]
             (r["nn_needed_med"], r["nn_needed_p90"]), (r["nn_full_med"], r["nn_full_p90"]) = \
-                cov[r["scene"]]["needed"], cov[r["scene"]]["full"]
+                cov[r["scene"]].get("needed", (None, None)), cov[r["scene"]]["full"]
         demo = None if args.skip_demo else demo_runs(tmp / "demo")
     print(f"full bake (any scene): {full_s:.1f} s (" + ", ".join(f"{k} {v:.1f} s" for k, v in full["seconds"].items())
           + f"), {full['bytes'] / 2**20:.1f} MiB\n")

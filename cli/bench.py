@@ -31,7 +31,7 @@ def bench_cmd(quick: bool, only: str | None, out: str, as_json: bool, no_progres
     baseline as a ratio; the Pareto front and the papers' settings marked),
     OUT/results.json (every figure and the machine: CPU, cores, device and
     memory, library versions) and OUT/plots/*.png (time against error, log-log).
-    A part that cannot run here (scale needs two devices or cores; maps and
+    A part that cannot run here (scale needs two cores; maps and
     render need the repository's benchmarks/ folder) is listed as skipped.
     """
     from hairlut.bench import PARTS, run_bench

@@ -47,7 +47,7 @@ def plot_table(rows: list[Figure], path: Path, title: str) -> Path | None:
         if chosen:
             ax.scatter([f.seconds for f in chosen], [f.error for f in chosen], zorder=5, **style)
     for f in pts:
-        ax.annotate(f.label if len(f.label) <= 28 else f.label[:26] + "…", (f.seconds, f.error), fontsize=6,
+        ax.annotate(f.label if len(f.label) <= 40 else f.label[:38] + "…", (f.seconds, f.error), fontsize=6,
                     xytext=(3, 3), textcoords="offset points")
     ax.set_xscale("log")
     ax.set_yscale("log")

@@ -24,7 +24,7 @@ def _cell(x: str) -> str:
 
 
 def _knobs(k: dict) -> str:
-    return ", ".join(f"{a}={b}" for a, b in k.items()) or "-"
+    return ", ".join(f"{a}={format(b, '.3g') if isinstance(b, float) else b}" for a, b in k.items() if b is not None) or "-"
 
 
 def _marks(f: Figure) -> str:
@@ -56,11 +56,13 @@ def headline(figures: list[Figure]) -> list[dict]:
 
 
 def headline_md(figures: list[Figure]) -> str:
-    rows = ["| part | table | baseline (time, error) | fastest at ≤ baseline error (× time) | most accurate (error, × time) |",
+    rows = ["| part | table | baseline (time, error) | fastest at ≤ baseline error (× time) "
+            "| most accurate (error, × time) |",
             "|---|---|---|---|---|"]
     for h in headline(figures):
         b, fa, be = h["baseline"], h["fastest"], h["best"]
-        cells = [h["part"], h["table"], f"{b.label} ({_seconds(b.seconds)}, {h['error_name']} {_num(b.error, '.3g')})",
+        shown = f", {h['error_name']} {_num(b.error, '.3g')}" if b.error is not None else ""
+        cells = [h["part"], h["table"], f"{b.label} ({_seconds(b.seconds)}{shown})",
                  f"{fa.label} ({_num(fa.time_ratio, '.3g')}×)" if fa else "-",
                  f"{be.label} ({_num(be.error, '.3g')}, {_num(be.time_ratio, '.3g')}×)" if be else "-"]
         rows.append("| " + " | ".join(_cell(c) for c in cells) + " |")

@@ -4,6 +4,7 @@ writes its records as JSON (for scripts that keep their own logic there)."""
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 import time
@@ -27,7 +28,7 @@ def run_script(name: str, args: list[str], out: Path, *, timeout: float, env: di
     last line of output."""
     script = BENCHMARKS / name
     own = BENCHMARKS / "results" / f"{script.stem}.json"
-    takes_json = "--json" in script.read_text()
+    takes_json = re.search(r"add_argument\(\s*[\"']--json[\"']", script.read_text()) is not None
     out.parent.mkdir(parents=True, exist_ok=True)
     cmd = [sys.executable, str(script), *args, *(["--json", str(out)] if takes_json else [])]
     start = time.time()

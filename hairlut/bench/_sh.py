@@ -72,8 +72,8 @@ def bake_figures(ctx: Context):
     from hairlut.shtables import bake_compact, paper_tables, reference_r, resolve_recipe
 
     t_all, _ = cube_dirs(7)
-    t_dirs = t_all[:: 49 if ctx.quick else 7]
-    theta_v = np.linspace(0, np.pi, 5 if ctx.quick else 9)
+    t_dirs = t_all[:: 98 if ctx.quick else 7]
+    theta_v = np.linspace(0, np.pi, 3 if ctx.quick else 9)
     ref_d = np.stack([reference_r(t, 0.0, P, 2, 2, specular=False) for t in t_dirs])
     ref_s = np.stack([[reference_r(t, tv, P, 7, 2) for tv in theta_v] for t in t_dirs])
     ctx.note(PART, f"bake reference: reference_r at {len(t_dirs)} of the paper's 294 tangents × {len(theta_v)} θ′ "
