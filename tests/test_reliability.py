@@ -180,3 +180,135 @@ def test_sh_merge_refuses_a_part_holding_nan(tmp_path):
     assert not (tmp_path / "merged.h5").exists()
     res = CliRunner().invoke(cli, ["merge", "--out", str(tmp_path / "cli.h5"), *map(str, shards)])
     assert res.exit_code == 2 and "non-finite" in res.output and len(res.output.strip().splitlines()) == 1, res.output
+
+
+# ----------------------------------------------------------------------------- item 15: the key the user set is named
+
+BAD_VALUES = [-1, 0, 1e300, -1e300, float("nan"), float("inf"), "zzz", [], [1e300, 1e300, 1e300], True, {}, [0, 0, 0],
+              [-1, -1], [10**9, 10**9], 10**12]
+
+
+def _named(fn, key):
+    """'ok' or 'named' when ``fn()`` passes or raises a hairlut error naming ``key``, else what it did."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # an overflow on the way is a fault too
+            fn()
+        return "ok"
+    except errors.ValidationError as exc:
+        return "named" if exc.field == key or exc.field.startswith((key + "[", key + ".")) else f"names {exc.field}: {exc}"
+    except errors.AssetNotFoundError as exc:  # environment.map = 'zzz': the file it resolves to is named
+        return "named" if "zzz" in str(exc) else repr(exc)
+    except Exception as exc:  # noqa: BLE001
+        return f"{type(exc).__name__}: {exc}"
+
+
+def test_every_bad_scene_key_is_named():
+    from hairlut.scene import resolve_scene
+    from hairlut.scene._schema import CLUSTER, SCHEMA
+
+    from hairlut.scene._camera import CAMERA
+
+    faults = {}
+    for section, fields in {**SCHEMA, "camera": CAMERA}.items():
+        for key in fields:
+            for value in BAD_VALUES + [[1e308, 1e308, 1e308]]:
+                s = scene()
+                s[section] = {**s.get(section, {}), key: value}
+                if section == "shadows" and key != "method":
+                    s[section]["method"] = "opacity_maps" if key == "slices" else "light_oriented"
+                if section == "camera" and key in ("position", "look_at"):
+                    s[section]["look_at" if key == "position" else "position"] = [-1e308, -1e308, -1e308]
+                res = _named(lambda s=s: resolve_scene(s), f"{section}.{key}")
+                if res not in ("ok", "named") and not res.startswith("names camera.position"):  # the pair's rule
+                    faults[f"{section}.{key}={value!r}"] = res
+    for key in CLUSTER:
+        for value in BAD_VALUES:
+            s = scene()
+            for c in s["clusters"]:  # every cluster, so that the structure check across clusters is not what fails
+                c[key] = value
+            res = _named(lambda s=s: resolve_scene(s), f"clusters[0].{key}")
+            if res not in ("ok", "named"):
+                faults[f"clusters[*].{key}={value!r}"] = res
+    assert not faults, faults
+
+
+def _dotted(schema, prefix=""):
+    for key, value in schema.items():
+        yield from _dotted(value, f"{prefix}{key}.") if isinstance(value, dict) else [prefix + key]
+
+
+def _nest(dotted, value):
+    out = node = {}
+    *head, last = dotted.split(".")
+    for key in head:
+        node[key] = node = {}
+    node[last] = value
+    return out
+
+
+@pytest.mark.parametrize("kind", ["hrir", "shtables", "scenemaps"])
+def test_every_bad_recipe_key_is_named(kind):
+    """Each recipe key with each bad value: accepted, or an error naming that key (kernel.p = 1e300 used to
+    name bands.light_specular, the band count the auto rule derives from it)."""
+    import importlib
+
+    mod = importlib.import_module(f"hairlut.{kind}")
+    faults = {}
+    for key in _dotted(mod.SCHEMA):
+        for value in BAD_VALUES + [[1e-300, 1e-300], 1e-300]:
+            res = _named(lambda: mod.resolve_recipe(_nest(key, value)), key)
+            if res not in ("ok", "named"):
+                faults[f"{key}={value!r}"] = res
+    assert not faults, faults
+
+
+def test_sh_exponent_beyond_the_band_rule_names_kernel_p():
+    from hairlut.shtables import resolve_recipe
+
+    with pytest.raises(errors.ValidationError, match=r"kernel\.p=1e\+300.*p ≤ 4096") as info:
+        resolve_recipe({"kernel": {"p": 1e300}})
+    assert info.value.field == "kernel.p"
+    assert resolve_recipe({"kernel": {"p": 4096.0}})["bands"]["light_specular"] == 65
+    assert resolve_recipe({"kernel": {"p": 1e6}, "bands": {"light_specular": 8}})["bands"]["light_specular"] == 8
+
+
+def test_cluster_sector_counts_are_budgeted_naming_the_key():
+    from hairlut.scene import resolve_scene
+
+    s = scene()
+    for c in s["clusters"]:
+        c["s_u"] = 10**9
+    with pytest.raises(errors.BudgetError, match=r"clusters\[0\]\.s_u=1000000000.*TiB.*sectors") as info:
+        resolve_scene(s)
+    assert info.value.field == "clusters[0].s_u"
+
+
+# ----------------------------------------------------------------------------- item 15: p_I = 1e300
+
+
+def test_huge_exponent_is_one_line_at_the_cli_without_an_overflow_warning(tmp_path):
+    from hairlut.scene import resolve_scene
+
+    from .test_plan import _write_toml
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(errors.ValidationError, match=r"material\.p_I=1e\+300: at most 1e\+06"):
+            resolve_scene(scene(p_I=1e300))
+    path = _write_toml(tmp_path / "scene.toml", scene(p_I=1e300))
+    for args in (["plan", str(path), "--cache", str(tmp_path / "c")], ["synth", str(path), "--out", str(tmp_path / "o")]):
+        res = CliRunner().invoke(cli, args)
+        lines = [ln for ln in res.output.splitlines() if ln.strip()]
+        assert res.exit_code == 2 and len(lines) == 1 and "material.p_I=1e+300" in lines[0], res.output
+        assert "Warning" not in res.output
+
+
+def test_the_largest_exponent_renders_finite_without_warnings(db):
+    from hairlut.synth import synthesize
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = synthesize(scene(p_I=1e6, p_II=1e6), db)
+    for c in res.clusters:
+        assert np.isfinite(c.final).all() and np.isfinite(c.lighting).all()
