@@ -312,3 +312,57 @@ def test_the_largest_exponent_renders_finite_without_warnings(db):
         res = synthesize(scene(p_I=1e6, p_II=1e6), db)
     for c in res.clusters:
         assert np.isfinite(c.final).all() and np.isfinite(c.lighting).all()
+
+
+# ----------------------------------------------------------------------------- items 8 and 10 at the command line
+
+TINY_HRIR = ["--set", "sectors.count=12", "--set", "sectors.grid=[8, 8]", "--set", "angles.views=4", "--set",
+             "angles.lights=3", "--set", "trace.pixels=8", "--set", "trace.steps=12", "--block", "2"]
+
+
+def _limit_file_size(nbytes):
+    import resource
+
+    def apply():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (nbytes, nbytes))
+    return apply
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind, args", [("hrir", TINY_HRIR), ("sh", ["--p", "9", "--set", "dense.t_resolution=8"])])
+def test_full_disk_during_a_cli_bake_is_one_line_and_exit_2(tmp_path, hairlut_exe, kind, args):
+    """`hairlut bake hrir` / `bake sh` with a file-size limit (EFBIG, what a full disk's ENOSPC gives): one line,
+    exit 2, no segfault, nothing under the final name."""
+    import signal
+    import subprocess
+
+    out = tmp_path / "X.h5"
+    res = subprocess.run([hairlut_exe, "bake", kind, *args, "--out", str(out)], capture_output=True, text=True,
+                         timeout=600, preexec_fn=_limit_file_size(24_000))
+    assert res.returncode == 2 and res.returncode != -signal.SIGSEGV, res.stderr[-3000:]
+    lines = [ln for ln in res.stderr.splitlines() if ln.startswith("hairlut: error:")]
+    assert len(lines) == 1 and "Traceback" not in res.stderr and "cannot write" in lines[0], res.stderr[-3000:]
+    assert not out.exists() and not list(tmp_path.glob("*.tmp"))
+
+
+@pytest.mark.slow
+def test_two_cli_bakes_of_one_output_started_1_5_s_apart(tmp_path, hairlut_exe):
+    """Item 10 as filed: the second `bake hrir --out X` starts 1.5 s after the first; both succeed (the second
+    waits on the output's lock, then reuses or resumes) and the file is the one-shot bake's."""
+    import subprocess
+    import time
+
+    out = tmp_path / "X.h5"
+    cmd = [hairlut_exe, "bake", "hrir", *TINY_HRIR, "--out", str(out), "--json"]
+    first = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(1.5)
+    second = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    outs = [p.communicate(timeout=600) for p in (first, second)]
+    assert [p.returncode for p in (first, second)] == [0, 0], [o[1][-2000:] for o in outs]
+    assert all("no such file" not in o[1].lower() for o in outs)
+    one = tmp_path / "one.h5"
+    assert subprocess.run([hairlut_exe, "bake", "hrir", *TINY_HRIR, "--out", str(one)], capture_output=True).returncode == 0
+    a, b = read_table(out), read_table(one)
+    for name in ("alpha", "reflectance", "density"):
+        np.testing.assert_array_equal(a[name], b[name])
+    assert not (tmp_path / "X.h5.parts").exists()
