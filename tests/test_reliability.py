@@ -366,3 +366,34 @@ def test_two_cli_bakes_of_one_output_started_1_5_s_apart(tmp_path, hairlut_exe):
     for name in ("alpha", "reflectance", "density"):
         np.testing.assert_array_equal(a[name], b[name])
     assert not (tmp_path / "X.h5.parts").exists()
+
+
+def test_sh_exponent_whose_quadrature_would_not_fit_is_budgeted():
+    from hairlut.shtables import resolve_recipe
+
+    with pytest.raises(errors.BudgetError, match=r"kernel\.p=1000000000000\.0.*TiB.*quadrature") as info:
+        resolve_recipe({"kernel": {"p": 1e12}, "bands": {"light_specular": 8}})
+    assert info.value.field == "kernel.p"
+
+
+def test_sh_compact_tables_that_are_not_finite_are_refused(tmp_path, monkeypatch):
+    """The compact tables (the unsharded bake and every shard start from them) are checked before anything is
+    written: a NaN in the Gaunt tensor (injected) is refused naming kernel.p and the band counts."""
+    import hairlut.shtables._bake as sh_bake
+    from hairlut.shtables import SHTables, bake
+
+    real = sh_bake.bake_compact
+
+    def poisoned(recipe):
+        tables, info = real(recipe)
+        gaunt = np.array(tables.gaunt)
+        gaunt[0, 0, 0] = np.nan
+        return SHTables(tables.bands, tables.p, tables.kd_l, tables.ks_cheb, gaunt, tables.recipe), info
+    monkeypatch.setattr(sh_bake, "bake_compact", poisoned)
+    sh_bake._compact.cache_clear()
+    try:
+        with pytest.raises(errors.NonFiniteError, match=r"gaunt is not finite for kernel\.p=5\.0, bands\.light_specular=4"):
+            bake({"kernel": {"p": 5.0}}, tmp_path / "sh.h5")
+    finally:
+        sh_bake._compact.cache_clear()
+    assert not list(tmp_path.iterdir())
