@@ -53,10 +53,11 @@ def _rows(prepared, view, lights):
     return (np.asarray(a), np.asarray(r)), (tv, tl, cs)
 
 
-def truth(scene_path: Path, quick: bool, level: int = 1):
+def truth(scene_path: Path, quick: bool, level: int = 1, cache: Path | None = None):
     """Converged rows and texel maps (module docstring) and the direct-prepared scene they index.
     ``level`` 1: 4 rays per pixel, 2× grid, 2× steps; level 2 (one more refinement, to check the
-    first is converged): 8 rays, 4× grid, 4× steps."""
+    first is converged): 8 rays, 4× grid, 4× steps.  ``cache``: an .npz that keeps the traced truth
+    for later runs (reused only when the scene file, the recipe and the refinement are the same)."""
     import jax.numpy as jnp
     from hairlut.scene import direct_recipe
     from hairlut.synth import direct_sector_maps, prepare, scene_sector_inputs, sweep_sectors
@@ -69,12 +70,24 @@ def truth(scene_path: Path, quick: bool, level: int = 1):
     parts = [scene_sector_inputs(pc.table, fine, extent=pc.frames.extent) for pc in prep.clusters]
     dens, geom = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
     tv, tl, cs = _angles(prep, sc)
+    key = {"recipe": fine, "rays": 2 if quick else 2 * m, "steps": m * rec["trace"]["steps"],
+           "groom": str(sc.groom_path), "scene": Path(scene_path).read_text()}
+    if cache is not None and cache.exists():
+        z = np.load(cache, allow_pickle=False)
+        if str(z["key"]) == json.dumps(key, sort_keys=True, default=str):
+            print(f"truth from {cache}", flush=True)
+            return prep, (z["a"], z["r"]), (z["re_t"], z["a_t"]), float(z["secs"])
     t0 = time.perf_counter()
     a, r = direct_sector_maps(dens, geom, np.asarray(tv, np.float64), np.asarray(tl, np.float64), fine,
                               rays=2 if quick else 2 * m, n_steps=m * rec["trace"]["steps"], shadow_lookup="grid")
     secs = time.perf_counter() - t0
-    re_t, a_t = sweep_sectors(prep.index, jnp.asarray(a), jnp.asarray(r), cs)
-    return prep, (a, r), (np.asarray(re_t), np.asarray(a_t)), secs
+    re_t, a_t = (np.asarray(x) for x in sweep_sectors(prep.index, jnp.asarray(a), jnp.asarray(r), cs))
+    if cache is not None:
+        cache.parent.mkdir(parents=True, exist_ok=True)
+        with open(cache.with_suffix(".tmp.npz"), "wb") as f:
+            np.savez(f, a=a, r=r, re_t=re_t, a_t=a_t, secs=secs, key=json.dumps(key, sort_keys=True, default=str))
+        cache.with_suffix(".tmp.npz").replace(cache)
+    return prep, (a, r), (re_t, a_t), secs
 
 
 def _angles(prep, sc, view=None, lights=None):
@@ -116,7 +129,7 @@ def frame_ms(prepared) -> tuple[float, tuple]:
 
 def convergence(args) -> dict:
     """The truth's own error: level 1 against level 2 (texel re, α and coverage rel-L2)."""
-    _, rows1, maps1, s1 = truth(args.scene, False, 1)
+    _, rows1, maps1, s1 = truth(args.scene, False, 1, cache=args.truth_cache)
     _, rows2, maps2, s2 = truth(args.scene, False, 2)
     rec = {"scene": str(args.scene), "level1_s": s1, "level2_s": s2,
            **{k: v for k, v in errors_of(maps1, maps2, rows1, rows2).items()}}
@@ -145,12 +158,14 @@ def main(argv=None):
     ap.add_argument("--default-only", action="store_true", help="the scene method at its default knobs only")
     ap.add_argument("--convergence", action="store_true",
                     help="only check the truth: level 1 against one more refinement (8 rays, 4× grid, 4× steps)")
+    ap.add_argument("--truth-cache", type=Path,
+                    help="keep the traced truth in this .npz and reuse it while the scene and recipe are unchanged")
     ap.add_argument("--only", choices=("direct", "scene", "satf"), action="append",
                     help="run only these methods (repeatable)")
     args = ap.parse_args(argv)
     if args.convergence:
         return convergence(args)
-    prep_t, t_rows, t_maps, truth_s = truth(args.scene, args.quick)
+    prep_t, t_rows, t_maps, truth_s = truth(args.scene, args.quick, cache=args.truth_cache)
     records = []
     want = set(args.only or ("direct", "scene", "satf")) - ({"satf"} if args.no_satf else set())
     for rays in ((2,) if args.quick else (1, 2)) if "direct" in want else ():
