@@ -22,7 +22,9 @@ One jitted kernel, :func:`raster_kernel`, no OpenGL, the same on CPU and GPU:
 6. **Eq 14 between a cluster's layers.**  Front faces outermost first, then back faces innermost first
    (the depth order of nested shells): Ψ = Σ_f Ψ_f α_f Π_{g before f} (1 − α_g), accumulated front to back;
    for the front faces this is eq 14 (Ψ_k α_k Π_{j>k} (1 − α_j)).
-7. **Between clusters**: per pixel the clusters sorted by their nearest depth, then front-to-back "over".
+7. **Between clusters**: front-to-back "over" in the order of each cluster's nearest depth per pixel, without a
+   sort: each cluster's RGBA is weighted by Π (1 − α_j) over the clusters j nearer at that pixel (ties: the
+   lower index first), read from their tiles (C² tile-sized passes, not C frame-sized buffers), and added in.
 
 The frame is premultiplied linear RGB, α and eye depth (``FAR`` where nothing was drawn).
 """
@@ -179,21 +181,28 @@ def raster_kernel(verts, tex, origins, pairs, uv, matrix, eye, back, *, size, ti
     one = partial(_cluster, pairs=pairs, uv=uv, matrix=matrix, eye=eye, back=back, size=size, tile=tile, cap=cap)
     rgba, near, need = jax.lax.map(lambda a: one(*a), (verts, tex, origins))  # (C, th, tw, 4), (C, th, tw)
     C = verts.shape[0]
-    gy = origins[:, 1, None, None] + jnp.arange(th)[None, :, None]
-    gx = origins[:, 0, None, None] + jnp.arange(tw)[None, None, :]
+    ys = jnp.arange(th, dtype=jnp.int32)[None, :, None]
+    xs = jnp.arange(tw, dtype=jnp.int32)[None, None, :]
+    ox, oy = origins[:, 0, None, None], origins[:, 1, None, None]  # (C, 1, 1)
+    ids = jnp.arange(C, dtype=jnp.int32)[:, None, None]
+    log_keep = jnp.log1p(-jnp.clip(rgba[..., 3], 0.0, 1.0 - 1e-7))  # (C, th, tw): ln(1 − α) of each cluster's tile
+
+    def front(acc, j):
+        """Add cluster j's ln(1 − α) to every cluster's pixels that j covers nearer (ties: the lower index)."""
+        yj, xj = oy + ys - origins[j, 1], ox + xs - origins[j, 0]  # every tile's pixels in tile j's coordinates
+        inside = (yj >= 0) & (yj < th) & (xj >= 0) & (xj < tw)
+        flat = jnp.clip(yj, 0, th - 1) * tw + jnp.clip(xj, 0, tw - 1)
+        zj = near[j].reshape(-1)[flat]
+        nearer = inside & ((zj < near) | ((zj == near) & (j < ids)))
+        return acc + jnp.where(nearer, log_keep[j].reshape(-1)[flat], 0.0), None
+
+    # "over" between clusters, front to back, without sorting: each cluster's RGBA times the transmittance of the
+    # clusters nearer at that pixel, Π (1 − α_j) (the same sum as the per-pixel depth-sorted composite)
+    log_t, _ = jax.lax.scan(front, jnp.zeros((C, th, tw), jnp.float32), jnp.arange(C, dtype=jnp.int32))
+    gy, gx = oy + ys, ox + xs
     inframe = (gx >= 0) & (gx < W) & (gy >= 0) & (gy < H)
-    gidx = jnp.where(inframe, gy * W + gx, W * H).reshape(C, -1)
-    cols = jnp.concatenate([near[..., None], rgba], -1).reshape(C, -1, 5)
-    empty = jnp.concatenate([jnp.full((1,), FAR, jnp.float32), jnp.zeros((4,), jnp.float32)])
-    buf = jnp.broadcast_to(empty, (C, W * H + 1, 5))
-    buf = jax.vmap(lambda b, i, v: b.at[i].set(v))(buf, gidx, cols)[:, :W * H]
-    keys = jax.lax.sort(tuple(buf[..., i] for i in range(5)), dimension=0, num_keys=1)  # per pixel, nearest first
-
-    def over(carry, f):
-        acc, trans = carry
-        z, r, g, b, a = f
-        return (acc + trans[:, None] * jnp.stack([r, g, b, a], -1), trans * (1.0 - a)), None
-
-    init = (jnp.zeros((W * H, 4), jnp.float32), jnp.ones((W * H,), jnp.float32))
-    (acc, _), _ = jax.lax.scan(over, init, keys)
-    return acc.reshape(H, W, 4), keys[0][0].reshape(H, W), jnp.max(need)
+    gidx = jnp.where(inframe, gy * W + gx, W * H).reshape(-1)
+    contrib = (rgba * jnp.exp(log_t)[..., None]).reshape(-1, 4)
+    acc = jnp.zeros((W * H + 1, 4), jnp.float32).at[gidx].add(contrib)[:W * H]
+    depth = jnp.full((W * H + 1,), FAR, jnp.float32).at[gidx].min(near.reshape(-1))[:W * H]
+    return acc.reshape(H, W, 4), depth.reshape(H, W), jnp.max(need)
