@@ -36,7 +36,7 @@ def _notes(r) -> str:
     if len(r.faults) > 3:
         parts.append(f"… {len(r.faults) - 3} more faults")
     parts += list(r.notes)
-    parts += [f"{k}: {v}" for k, v in r.counted.items() if k != "rejected"]
+    parts += [f"{k}: {v:.1e}" if isinstance(v, float) else f"{k}: {v}" for k, v in r.counted.items() if k != "rejected"]
     if r.counted.get("rejected"):
         parts.append(f"{r.counted['rejected']} bad inputs rejected")
     return "; ".join(parts).replace("|", "/")

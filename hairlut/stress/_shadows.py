@@ -4,9 +4,9 @@ single-voxel and one-strand grooms, and transmittances that underflow exp().
 Every method is run through its public entry point: ``light_oriented`` and ``opacity_maps``
 through :func:`hairlut.shadows.light_transmittance`, the voxel SH transmittance through
 :func:`hairlut.shadows.voxelize` + :func:`hairlut.shadows.transmittance` (T toward the light is
-Σ_j b_j Y_j(light); its SH ringing is counted, and the bound checked is the mean
-transmittance b_0/√(4π) ∈ [0, 1]), and the s-map through :func:`hairlut.synth.shadow_map`.
-The float64 reference is :func:`hairlut.shadows.ray_march` (a world-aligned density marched
+Σ_j b_j Y_j(light) at the strands' own vertices, where the method defines it; its SH ringing is
+counted, and the bound checked is the mean transmittance b_0/√(4π) ∈ [0, 1]), and the s-map
+through :func:`hairlut.synth.shadow_map`.  The float64 reference is :func:`hairlut.shadows.ray_march` (a world-aligned density marched
 toward the light) and, for the s-map, exp(−k Σ α) in NumPy.
 """
 
@@ -59,9 +59,10 @@ def tuft(n: int = 40, seed: int = 0):
     return _strands(pts, np.full(n, 6))
 
 
-def probes(strands) -> np.ndarray:
-    """Points 1.5 cells below the groom (shadowed), 1.5 cells above it (lit) over its footprint shrunk by 1.5
-    cells (away from the shadow's blurred edge), and 6 cells beside it (lit): inside every method's grid."""
+def probes(strands, vertices: bool = True) -> np.ndarray:
+    """Points 1.5 cells below and above every vertex (with ``vertices``), below and above the groom's
+    footprint shrunk by 1.5 cells (away from the shadow's blurred edge), and 6 cells beside it (lit):
+    inside every method's grid."""
     pts = strands.points
     lo, hi = pts.min(0), pts.max(0)
     cell = max(float((hi - lo).max()), 1e-9) / RESOLUTION
@@ -72,6 +73,8 @@ def probes(strands) -> np.ndarray:
     out = [np.stack([uu, vv, np.full_like(uu, z)], -1).reshape(-1, 3) for z in (lo[2] - 1.5 * cell, hi[2] + 1.5 * cell)]
     mid = 0.5 * (lo + hi)
     out.append(np.array([[mid[0], hi[1] + 6 * cell, mid[2]], [mid[0], lo[1] - 6 * cell, mid[2]]]))
+    if vertices:
+        out += [pts + [0.0, 0.0, -1.5 * cell], pts + [0.0, 0.0, 1.5 * cell]]
     return np.concatenate(out)
 
 
@@ -91,18 +94,18 @@ def _voxel_sh(strands, kappa, points):
     return b[:, 0] / math.sqrt(4 * np.pi), b @ np.asarray(real_sh(2, LIGHT[None]))[0]
 
 
-def _methods(tally, ctx, label, strands, kappa, tol_note=True):
+def _methods(tally, ctx, label, strands, kappa, vertices: bool = True):
     """Every strand-based method on ``strands`` at the probes: finite, T ∈ [0, 1], error vs the ray march."""
     from ..shadows import light_transmittance
 
-    pts = probes(strands)
+    pts = probes(strands, vertices)
     ref = np.asarray(ctx.reference(pts, LIGHT, kappa, strands), np.float64)
     tally.within(f"{label} reference T", ref, 0.0, 1.0)
     for method in ("light_oriented", "opacity_maps"):
         T = light_transmittance(strands, LIGHT, pts, method=method, resolution=RESOLUTION, kappa=kappa)[:, 0]
         tally.within(f"{label} {method} T", T, 0.0, 1.0)
         tally.compare(f"{label} {method}", T, ref, scale=1.0)
-    mean, toward = _voxel_sh(strands, kappa, pts)
+    mean, toward = _voxel_sh(strands, kappa, strands.points)  # defined at the hair's own vertices (xing §5)
     tally.within(f"{label} voxel SH mean T", mean, 0.0, 1.0, slack=1e-12)
     toward = tally.finite(f"{label} voxel SH T(light)", toward)
     ringing = int(((toward < 0) | (toward > 1)).sum())
@@ -135,14 +138,17 @@ def _one_strand(tally, ctx):
     ref = _methods(tally, ctx, "one strand", one_strand(), kappa=0.05)
     if ref.min() >= 1.0:
         tally.fault("one strand: the reference sees no shadow (the case is vacuous)")
-    tally.note(f"one straight strand, κ = 0.05, {RESOLUTION} cells; reference T min {ref.min():.3f}")
+    tally.note(f"one straight strand, κ = 0.05, {RESOLUTION} cells; reference T min {ref.min():.3f} (a one-cell "
+               "shadow: each method's grid places it differently)")
 
 
 def _single_voxel(tally, ctx):
-    _methods(tally, ctx, "single voxel", single_voxel(), kappa=1e-3)
     from ..shadows import light_transmittance
 
-    zero = _strands(np.zeros((2, 3)), [2])  # a zero-length strand: a point
+    ref = _methods(tally, ctx, "single voxel", single_voxel(), kappa=1e-3)
+
+    zero = _strands(np.zeros((2, 3)), [2])  # a zero-length strand: a point of hair in a single voxel
+    tally.rejects("voxel SH of a zero-length strand", lambda: _voxel_sh(zero, 1.0, np.zeros((1, 3))))
     pts = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0]])
     for method in ("light_oriented", "opacity_maps"):
         try:
@@ -151,7 +157,8 @@ def _single_voxel(tally, ctx):
             tally.count("rejected", 1)
         else:
             tally.within(f"zero-length strand {method}", T, 0.0, 1.0)
-    tally.note("a 1e-3 strand inside one cell, and a zero-length strand")
+    tally.note(f"a 1e-3 groom of three points (reference T min {ref.min():.3g}), and a zero-length strand "
+               "(one voxel, no length)")
 
 
 def _underflow(tally, ctx):
@@ -162,14 +169,15 @@ def _underflow(tally, ctx):
     kappas = UNDERFLOW_KAPPAS[:2] if ctx.quick else UNDERFLOW_KAPPAS
     g = tuft()
     for kappa in kappas:
-        _methods(tally, ctx, f"κ={kappa:g}", g, kappa)
-    alpha = np.ones((4, 3, 3), np.float32)
+        ref = _methods(tally, ctx, f"κ={kappa:g}", g, kappa, vertices=False)  # in the tuft, any blur is 0 or 1
+        if ref.min() > 0.0 or ref.max() < 1.0:
+            tally.fault(f"κ={kappa:g}: the reference does not reach both T = 0 and T = 1 (the case is vacuous)")
+    alpha = jnp.ones((4, 3, 3), jnp.float32)  # four opaque layers: Σ_{m>k} α_m = 3 − k
+    outer = np.arange(3, -1, -1, dtype=np.float64)[:, None, None] * np.ones((4, 3, 3))
     for k in (1e3, 1e6, 1e30):
-        for dtype in (jnp.float32,):
-            tau = tally.finite(f"s-map k={k:g}", shadow_map(jnp.asarray(alpha, dtype), k))
-            tally.within(f"s-map k={k:g}", tau, 0.0, 1.0)
-            outer = np.arange(3, -1, -1, dtype=np.float64)[:, None, None] * np.ones((4, 3, 3))
-            tally.compare(f"s-map k={k:g}", tau, np.exp(-k * outer), scale=1.0)
+        tau = tally.finite(f"s-map k={k:g}", shadow_map(alpha, k))
+        tally.within(f"s-map k={k:g}", tau, 0.0, 1.0)
+        tally.compare(f"s-map k={k:g}", tau, np.exp(-k * outer), scale=1.0)
     tally.note(f"a 40-strand tuft with κ ∈ {{{', '.join(f'{k:g}' for k in kappas)}}}; s-map with k_shadow up to 1e30")
 
 
@@ -178,7 +186,7 @@ CASES = (
          "exact: nothing blocks the light", _ray_march, _empty),
     Case("shadow.one_strand", "one strand: light-oriented, opacity maps, voxel SH vs the ray march", SHADOW_TOL,
          "half-cell grid offsets on a one-cell-wide shadow", _ray_march, _one_strand),
-    Case("shadow.single_voxel", "a groom inside one cell, and a zero-length strand", SHADOW_TOL,
+    Case("shadow.single_voxel", "a 1e-3 groom, and a zero-length strand (one voxel)", SHADOW_TOL,
          "half-cell grid offsets on a one-cell-wide shadow", _ray_march, _single_voxel),
     Case("shadow.underflow", "exp(−κτ) underflows (κ up to 1e30): T = 0 behind, 1 in front, no NaN",
          UNDERFLOW_TOL, "both sides saturate to 0 or 1; only rounding differs", _ray_march, _underflow),

@@ -6,7 +6,7 @@ through :meth:`Tally.within` (α and T in [0, 1], radiance ≥ 0), every compari
 float64 reference through :meth:`Tally.compare` (the worst error, in the case's own metric,
 against the case's stated tolerance), every bad input through :meth:`Tally.rejects` (a
 :class:`hairlut.errors.HairlutError`, not a NaN).  Counted-but-allowed effects (SH ringing)
-go through :meth:`Tally.count`.  :meth:`Tally.result` turns the record into a :class:`Result`.
+go through :meth:`Tally.count` and :meth:`Tally.peak`.  :meth:`Tally.result` turns the record into a :class:`Result`.
 """
 
 from __future__ import annotations
@@ -159,6 +159,10 @@ class Tally:
     def count(self, what: str, n: int) -> None:
         """Add ``n`` to a counted, allowed effect (SH ringing, rejected inputs, saturated α)."""
         self.counted[what] = self.counted.get(what, 0) + int(n)
+
+    def peak(self, what: str, value: float) -> None:
+        """Keep the largest ``value`` of an allowed effect (how far α rounded past 1)."""
+        self.counted[what] = max(float(value), self.counted.get(what, float(value)))
 
     def fault(self, message: str) -> None:
         self.faults.append(message)
