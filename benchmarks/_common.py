@@ -45,3 +45,12 @@ def save(name: str, payload: dict) -> Path:
     path.write_text(json.dumps(payload, indent=2, default=str))
     print(machine_line())
     return path
+
+
+def emit(name: str, payload: dict, json_path: Path | None = None) -> Path:
+    """``payload`` to ``json_path`` (a script's ``--json OUT``) when given, else :func:`save` under ``name``."""
+    if json_path is None:
+        return save(name, payload)
+    json_path.parent.mkdir(parents=True, exist_ok=True)
+    json_path.write_text(json.dumps(payload, indent=2, default=float))
+    return json_path

@@ -28,7 +28,6 @@ Prints a table and writes JSON (``--json OUT``; benchmarks/results/direct_maps.j
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -36,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import best_of, save, table  # noqa: E402
+from _common import best_of, emit, table  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "tables" / "scenes" / "sintel-groom.toml"
@@ -154,11 +153,7 @@ def main(argv=None):
     print(table(rows, cols))
     payload = {"scene": str(args.scene), "sectors": N, "live": live, "lights": int(inp["theta_l"].shape[1]),
                "pixels": 32, "block": args.block, "rows": rows}
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(payload, indent=2))
-    else:
-        save("direct_maps", payload)
+    emit("direct_maps", payload, args.json)
 
 
 if __name__ == "__main__":

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import save, table  # noqa: E402
+from _common import emit, table  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -137,12 +137,44 @@ def convergence(args) -> dict:
     print(table([rec], [("re_rel_l2", "re rel-L2", ".4f"), ("alpha_rel_l2", "α rel-L2", ".4f"),
                         ("coverage_rel_l2", "coverage rel-L2", ".4f"), ("alpha_bias", "mean-α bias", "+.4f"),
                         ("level1_s", "level 1 s", ".1f"), ("level2_s", "level 2 s", ".1f")]))
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(rec, indent=2, default=float))
-    else:
-        save(f"map_truth_{args.scene.stem}", rec)
+    emit(f"map_truth_{args.scene.stem}", rec, args.json)
     return rec
+
+
+def grid_study(args) -> list[dict]:
+    """The direct method at several sector density grids and step counts (``--grid-study``: n × n grids with 2n
+    steps, plus n × n at the scene's own steps) against the truth of the scene's own recipe; trace seconds
+    with their ratio to the first row (the same run, so the ratio holds under a shared machine's load)."""
+    from hairlut.scene import direct_recipe
+    from hairlut.synth import direct_sector_maps, scene_sector_inputs, sweep_sectors
+
+    prep, t_rows, t_maps, truth_s = truth(args.scene, args.quick, cache=args.truth_cache)
+    sc = prep.scene
+    rec = direct_recipe(_scene(args.scene, method="direct"))
+    tv, tl, cs = _angles(prep, sc)
+    tv, tl = np.asarray(tv, np.float64), np.asarray(tl, np.float64)
+    records = []
+    for n in args.grid_study:
+        for steps in sorted({2 * n, rec["trace"]["steps"]}):
+            r = {**rec, "sectors": {**rec["sectors"], "grid": [n, n]}, "trace": {**rec["trace"], "steps": steps}}
+            parts = [scene_sector_inputs(pc.table, r, extent=pc.frames.extent) for pc in prep.clusters]
+            dens, geom = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+            t0 = time.perf_counter()
+            a, re = direct_sector_maps(dens, geom, tv, tl, r)
+            secs = time.perf_counter() - t0
+            maps = tuple(np.asarray(x) for x in sweep_sectors(prep.index, a, re, cs))
+            records.append({"method": "direct", "grid": n, "steps": steps, "rays": rec["trace"]["rays_per_pixel"],
+                            "trace_s": secs, **errors_of(maps, t_maps, (a, re), t_rows)})
+            records[-1]["trace_ratio"] = secs / records[0]["trace_s"]
+            print(records[-1], flush=True)
+    print(f"\n## Direct maps of {args.scene.name} per density grid against the truth ({truth_s:.1f} s to trace)\n")
+    print(table(records, [("grid", "grid", "d"), ("steps", "steps", "d"), ("re_rel_l2", "re rel-L2", ".3f"),
+                          ("alpha_rel_l2", "α rel-L2", ".3f"), ("coverage_rel_l2", "coverage rel-L2", ".3f"),
+                          ("alpha_bias", "mean-α bias", "+.3f"), ("trace_s", "trace s", ".1f"),
+                          ("trace_ratio", "× first row", ".2f")]))
+    payload = {"scene": str(args.scene), "truth_seconds": truth_s, "records": records}
+    emit(f"map_grid_{args.scene.stem}", payload, args.json)
+    return records
 
 
 def main(argv=None):
@@ -158,6 +190,8 @@ def main(argv=None):
     ap.add_argument("--default-only", action="store_true", help="the scene method at its default knobs only")
     ap.add_argument("--convergence", action="store_true",
                     help="only check the truth: level 1 against one more refinement (8 rays, 4× grid, 4× steps)")
+    ap.add_argument("--grid-study", type=int, nargs="+", metavar="N",
+                    help="only the direct method on N × N density grids (2N steps, and the scene's own steps)")
     ap.add_argument("--truth-cache", type=Path,
                     help="keep the traced truth in this .npz and reuse it while the scene and recipe are unchanged")
     ap.add_argument("--only", choices=("direct", "scene", "satf"), action="append",
@@ -165,6 +199,8 @@ def main(argv=None):
     args = ap.parse_args(argv)
     if args.convergence:
         return convergence(args)
+    if args.grid_study:
+        return grid_study(args)
     prep_t, t_rows, t_maps, truth_s = truth(args.scene, args.quick, cache=args.truth_cache)
     records = []
     want = set(args.only or ("direct", "scene", "satf")) - ({"satf"} if args.no_satf else set())
@@ -213,11 +249,7 @@ def main(argv=None):
                           ("alpha_bias", "mean-α bias", "+.3f"), ("frame_ms", "maps ms", ".1f"),
                           ("bake_s", "bake s", ".1f"), ("bytes", "bytes", "d")]))
     payload = {"scene": str(args.scene), "truth_seconds": truth_s, "quick": args.quick, "records": records}
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(payload, indent=2, default=float))
-    else:
-        save(f"map_accuracy_{args.scene.stem}", payload)
+    emit(f"map_accuracy_{args.scene.stem}", payload, args.json)
 
 
 if __name__ == "__main__":
