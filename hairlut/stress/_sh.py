@@ -185,6 +185,13 @@ def _radiance(tally, ctx):
     i64 = tally.finite("I float64", con.radiance(b, t, tv))
     i32 = tally.finite("I float32", con.radiance(b, t, tv, dtype="float32"))
     tally.compare("I float32 vs float64", i32, ctx.reference(i64))
+    # the float64 radiance itself, at the axis tangents, against Σ a_i b_j (Rd + Rs) from sphere quadrature
+    ld, ls, lt = (k - 1 for k in BANDS)
+    ref = [a[: (ld + 1) ** 2] @ _r_reference(ti, v, p, ld, lt, specular=False) @ bi[: (lt + 1) ** 2]
+           + a[: (ls + 1) ** 2] @ _r_reference(ti, v, p, ls, lt) @ bi[: (lt + 1) ** 2]
+           for ti, v, bi in zip(t[:8], tv[:8], b[:8])]
+    e64 = tally.compare("I float64 at the axes vs quadrature", i64[:8], np.array(ref))
+    tally.note(f"float64 radiance at ±x ±y ±z and the poles vs Σ a b (Rd + Rs) by sphere quadrature: {e64:.1e}")
     neg = i64 < 0
     tally.count("ringing (I < 0)", int(neg.sum()))
     tally.note(f"p={p:g}, {BANDS[1]} light bands, a positive lobe light, T ≡ 1: {int(neg.sum())} of {neg.size} radiances < 0 "
