@@ -7,6 +7,8 @@ Each configuration runs `hairlut bake hrir` in fresh processes, each pinned to i
 * ``dist 1 x 1``         the same bake through ``--distributed`` (one process, ``--merge virtual``), core 0:
                          what the distributed path costs on the same core;
 * ``plain 2 dev``        one process, two devices, cores 0 and 1;
+* ``2 x plain (pair)``   two independent plain bakes of the whole recipe at once, ``taskset -c 0`` and ``-c 1``:
+                         what two processes reach on this machine with no distributed runtime at all;
 * ``dist 2 x 1 virtual`` two jax.distributed processes on loopback, one device each, ``taskset -c 0`` and
                          ``-c 1``; ``dist 2 x 1 copy`` the same with ``--merge copy``.
 
@@ -16,6 +18,10 @@ process's blocks after its first, which compiles the kernels, summed over proces
 rounds and median; the bake's own seconds (the slowest process's report: imports excluded); the
 leader's time to write the final asset; bytes per sector; each process's peak memory (``os.wait4``).
 Ratios are of the best rates; ``range`` is the spread of the same ratio taken round by round.
+Because other work may hold the pinned cores, each block's CPU time is recorded too: ``cores got``
+(CPU seconds per wall second of the steady blocks, summed over processes), ``sectors/CPU-s``, and
+``x 1 core, full cores``: sectors per CPU-second times the configuration's cores against the same
+for one core, the speed-up if every pinned core were given in full (derived, not a wall-clock figure).
 
 Then the time to assemble the final asset, virtual datasets against a copy, from the same parts, at
 a few database sizes and part counts (parts baked with a 2-step trace: assembly reads and writes
@@ -44,12 +50,14 @@ from pathlib import Path
 from _common import save, table
 
 CODE = "import sys; from hairlut_cli.main import cli; cli(sys.argv[1:])"
-#: name, devices per process, the cores of each process, --distributed, merge
-CONFIGS = [("plain 1 dev", 1, [{0}], False, None), ("dist 1 x 1", 1, [{0}], True, "virtual"),
-           ("plain 2 dev", 2, [{0, 1}], False, None), ("dist 2 x 1 virtual", 1, [{0}, {1}], True, "virtual"),
-           ("dist 2 x 1 copy", 1, [{0}, {1}], True, "copy")]
-#: (config, baseline): the distributed path against a plain bake on the same cores
-SAME_CORES = [("dist 1 x 1", "plain 1 dev"), ("dist 2 x 1 virtual", "plain 2 dev"), ("dist 2 x 1 copy", "plain 2 dev")]
+#: name, devices per process, the cores of each process, how (plain: one bake; dist: --distributed; pair: independent
+#: plain bakes of the whole recipe, one per core, at once: what two processes can reach on this machine), merge
+CONFIGS = [("plain 1 dev", 1, [{0}], "plain", None), ("dist 1 x 1", 1, [{0}], "dist", "virtual"),
+           ("plain 2 dev", 2, [{0, 1}], "plain", None), ("2 x plain (pair)", 1, [{0}, {1}], "pair", None),
+           ("dist 2 x 1 virtual", 1, [{0}, {1}], "dist", "virtual"), ("dist 2 x 1 copy", 1, [{0}, {1}], "dist", "copy")]
+#: (config, baseline): the distributed path against plain bakes on the same cores
+SAME_CORES = [("dist 1 x 1", "plain 1 dev"), ("dist 2 x 1 virtual", "plain 2 dev"), ("dist 2 x 1 copy", "plain 2 dev"),
+              ("dist 2 x 1 virtual", "2 x plain (pair)"), ("dist 2 x 1 copy", "2 x plain (pair)")]
 BLOCK = 4
 TRACE = {"angles": {"views": 16, "lights": 16}, "trace": {"pixels": 32, "steps": 32}, "sectors": {"grid": [16, 16]}}
 PRODUCTION = {"sectors": {"count": 65_536}, "angles": {"views": 64, "lights": 64}, "trace": {"pixels": 64},
@@ -81,13 +89,18 @@ def _toml(recipe: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _run(recipe: Path, out: Path, devices: int, cores: list[set[int]], distributed: bool, merge: str | None) -> dict:
+def _run(recipe: Path, out: Path, devices: int, cores: list[set[int]], how: str, merge: str | None) -> dict:
     env = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_NUM_CPU_DEVICES": str(devices)}
-    base = [sys.executable, "-c", CODE, "bake", "hrir", "--recipe", str(recipe), "--out", str(out), "--no-progress", "--json",
-            "--block", str(BLOCK)]
     port, n = _port(), len(cores)
-    cmds = [base + (["--distributed", "--coordinator", f"127.0.0.1:{port}", "--num-processes", str(n), "--process-id", str(k),
-                     "--merge", merge] if distributed else []) for k in range(n)]
+
+    def cmd(k):
+        dest = out.with_name(f"{out.stem}-{k}{out.suffix}") if how == "pair" else out
+        base = [sys.executable, "-c", CODE, "bake", "hrir", "--recipe", str(recipe), "--out", str(dest), "--no-progress",
+                "--json", "--block", str(BLOCK)]
+        return base + (["--distributed", "--coordinator", f"127.0.0.1:{port}", "--num-processes", str(n), "--process-id",
+                        str(k), "--merge", merge] if how == "dist" else [])
+
+    cmds = [cmd(k) for k in range(n)]
     t0 = time.perf_counter()
     procs = []
     for c, cs in zip(cmds, cores):
@@ -108,6 +121,9 @@ def _run(recipe: Path, out: Path, devices: int, cores: list[set[int]], distribut
     return {"bake_s": max(r["seconds"] for r in reports), "wall_s": wall, "assemble_s": lead.get("assemble_s"),
             "blocks_s": [r["blocks_s"] for r in reports],
             "steady_rate": sum((r["computed"] - BLOCK) / sum(r["block_seconds"][1:]) for r in reports),
+            # CPU-time normalised: sectors per CPU-second of the steady blocks, and the cores they received
+            "cpu_rate": sum(r["computed"] - BLOCK for r in reports) / sum(sum(r["block_cpu_seconds"][1:]) for r in reports),
+            "cores_got": sum(sum(r["block_cpu_seconds"][1:]) / sum(r["block_seconds"][1:]) for r in reports),
             "peak_rss_mib": max(peaks), "bytes": lead["bytes"], "sectors": sum(r["sectors"] for r in reports)}
 
 
@@ -198,8 +214,8 @@ def main(argv=None) -> dict:
         recipe.write_text(_toml({**TRACE, "sectors": {**TRACE["sectors"], "count": a.sectors}}))
         for i in range(a.repeat):
             got = {}
-            for name, devices, cores, dist, merge in CONFIGS:
-                got[name] = _run(recipe, tmp / f"{name.replace(' ', '_')}-{i}.h5", devices, cores, dist, merge)
+            for name, devices, cores, how, merge in CONFIGS:
+                got[name] = _run(recipe, tmp / f"{name.replace(' ', '_')}-{i}.h5", devices, cores, how, merge)
                 print(f"round {i + 1}/{a.repeat} {name}: {got[name]['steady_rate']:.2f} sectors/s, "
                       f"bake {got[name]['bake_s']:.1f} s", file=sys.stderr)
             rounds.append(got)
@@ -208,7 +224,7 @@ def main(argv=None) -> dict:
         asm = _assembly(sizes, grouping, tmp, repeat=2)
     base = "plain 1 dev"
     rows = []
-    for name, devices, cores, dist, merge in CONFIGS:
+    for name, devices, cores, how, merge in CONFIGS:
         runs = [r[name] for r in rounds]
         best = max(runs, key=lambda r: r["steady_rate"])
         rows.append({"config": name, "devices": devices, "processes": len(cores), "cores": "+".join(
@@ -218,8 +234,12 @@ def main(argv=None) -> dict:
             "x_base_range": _spread(rounds, name, base), "bake_s": min(r["bake_s"] for r in runs),
             "wall_s": min(r["wall_s"] for r in runs), "assemble_s": min((r["assemble_s"] for r in runs if r["assemble_s"]
                                                                         is not None), default=None),
-            "bytes_per_sector": best["bytes"] / best["sectors"], "peak_rss_mib": max(r["peak_rss_mib"] for r in runs),
+            "cpu_rate": max(r["cpu_rate"] for r in runs), "cores_got": statistics.median(r["cores_got"] for r in runs),
+            "bytes_per_sector": best["bytes"] / best["sectors"] if how != "pair" else None,  # a pair bakes it twice "peak_rss_mib": max(r["peak_rss_mib"] for r in runs),
             "rates": [r["steady_rate"] for r in runs]})
+    for r in rows:  # if every pinned core were given in full: sectors per CPU-second times the cores
+        r["full_cores_rate"] = r["cpu_rate"] * len(r["cores"].replace("+", ",").split(","))
+        r["x_base_full_cores"] = r["full_cores_rate"] / rows[0]["full_cores_rate"]
     by = {r["config"]: r for r in rows}
     costs = []
     for name, ref in SAME_CORES:
@@ -232,7 +252,9 @@ def main(argv=None) -> dict:
           f"{TRACE['trace']['steps']} steps, blocks of {BLOCK}; {a.repeat} interleaved rounds; load average before "
           f"{load_before[0]:.1f} on {os.cpu_count()} cores (a shared machine)\n")
     print(table(rows, [("config", "config", ""), ("cores", "cores", ""), ("rate_best", "sectors/s best", ".2f"),
-                       ("rate_median", "median", ".2f"), ("x_base", "x 1 core", ".2f"), ("bake_s", "bake s", ".1f"),
+                       ("rate_median", "median", ".2f"), ("x_base", "x 1 core", ".2f"), ("cores_got", "cores got", ".2f"),
+                       ("cpu_rate", "sectors/CPU-s", ".2f"), ("x_base_full_cores", "x 1 core, full cores", ".2f"),
+                       ("bake_s", "bake s", ".1f"),
                        ("assemble_s", "assemble s", ".3f"), ("bytes_per_sector", "B/sector", ".0f"),
                        ("peak_rss_mib", "peak MiB", ".0f")]))
     print()

@@ -95,7 +95,9 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
 
     ``progress(done, total)`` counts this process's units (resumed blocks first).  ``distributed``:
     this process is one of JAX's distributed processes (:func:`hairlut.distributed.initialize` first).
-    The leader's report says how long writing the final asset took (``assemble_s``: virtual or copy).
+    The leader's report says how long writing the final asset took (``assemble_s``: virtual or copy); each
+    computed block's wall and CPU seconds are ``block_seconds`` and ``block_cpu_seconds`` (CPU time over wall
+    time: the cores the block received, which a shared machine may not give in full).
     """
     units = baker.units
     if units is None:
@@ -143,10 +145,11 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
             if part.exists() and _intact(part, baker, digest, s, e, total):
                 report["resumed"] += e - s
             else:
-                tb = time.perf_counter()
+                tb, cb = time.perf_counter(), time.process_time()
                 units.bake_part(recipe, s, e, total, part, **inputs)
                 report["computed"] += e - s
                 report.setdefault("block_seconds", []).append(time.perf_counter() - tb)  # the first compiles
+                report.setdefault("block_cpu_seconds", []).append(time.process_time() - cb)  # every thread's CPU time
             done += e - s
             if progress:
                 progress(done, want)
