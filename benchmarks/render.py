@@ -161,26 +161,27 @@ def main():
     ap.add_argument("--resolution", type=int, default=None, help="square frame side (default: the scene's camera)")
     ap.add_argument("--paper", action="store_true", help="also the paper-scale model at 1024 × 1024")
     ap.add_argument("--quick", action="store_true", help="256 × 256, levels 0 1")
-    ap.add_argument("--paper-only", action="store_true",
-                    help="only the paper-scale row, merged into the rows of results/render.json (replacing its old one)")
+    ap.add_argument("--paper-only", action="store_true", help="only the paper-scale row (with --merge: added to the file)")
+    ap.add_argument("--merge", action="store_true",
+                    help="keep the rows of results/render.json for the scenes not run now (each row keeps its resolution)")
     a = ap.parse_args()
     if a.quick:
         a.resolution, a.levels = a.resolution or 256, [0, 1]
     rows = []
-    if a.paper_only:
+    if not a.paper_only:
+        for s in a.scene or SCENES:
+            rows += [{**r, "resolution": a.resolution} for r in run_scene(s, sorted(a.levels), a.resolution)]
+    if a.paper or a.paper_only:
+        rows.append(paper_model(1024))
+    if a.merge:
         import json
 
         from _common import RESULTS
 
         old = json.loads((RESULTS / "render.json").read_text()) if (RESULTS / "render.json").exists() else {}
-        rows = [r for r in old.get("rows", []) if r.get("scene") != "paper-scale"]
-        a.levels, a.resolution = old.get("levels", a.levels), old.get("resolution", a.resolution)
-    else:
-        for s in a.scene or SCENES:
-            rows += run_scene(s, sorted(a.levels), a.resolution)
-    if a.paper or a.paper_only:
-        rows.append(paper_model(1024))
-    cols = [("scene", "scene", ""), ("method", "method", ""), ("frame_ms", "frame ms", ".0f"),
+        now = {r["scene"] for r in rows}
+        rows = [r for r in old.get("rows", []) if r.get("scene") not in now] + rows
+    cols = [("scene", "scene", ""), ("resolution", "px", ""), ("method", "method", ""), ("frame_ms", "frame ms", ".0f"),
             ("cpu_ms", "cpu ms", ".0f"), ("maps_ms", "maps ms", ".0f"), ("flip_mean", "FLIP", ".3f"),
             ("alpha_bias", "α bias", "+.4f"), ("alpha_bias_relative", "α bias rel", "+.1%"),
             ("rgb_rmse", "RGB RMSE", ".4f"), ("rgb_rmse_8x8", "RGB RMSE 8×8", ".4f")]
