@@ -6,7 +6,9 @@ shadow method (eq 12 or a light-space map), eq 13 and the environment term when 
 for the scene's ``[camera] view`` (a perspective camera's per-pixel view direction is not re-shaded).
 The layer meshes (``hairlut.geometry.layer_meshes``, refined until a mesh edge spans at most
 :data:`EDGE_PIXELS` pixels) carry those maps as textures into :func:`raster_kernel` (``_raster``: perspective-
-correct rasterisation, eq 14 between a cluster's layers, front-to-back "over" between clusters).
+correct rasterisation, eq 14 between a cluster's layers, front-to-back "over" between clusters).  The textures
+are eq 13's colour as it comes (already α-premultiplied: :func:`layer_textures`) with α and colour lengthened for
+the camera ray's angle to the cluster's axis (:func:`oblique_path`, :func:`lengthen`).
 
 Compile shapes are bucketed: the candidate capacity to an eighth of a power of two, the cluster tile to a
 multiple of :data:`TILE_STEP`.
