@@ -187,13 +187,15 @@ def main(argv=None):
     ap.add_argument("--json", type=Path)
     ap.add_argument("--quick", action="store_true", help="fewer knobs; a 2-ray truth")
     ap.add_argument("--no-satf", action="store_true", help="skip the SATF rows (their database bake)")
-    ap.add_argument("--default-only", action="store_true", help="the scene method at its default knobs only")
+    ap.add_argument("--default-only", action="store_true", help="the scene method at the scene's own knobs only")
     ap.add_argument("--convergence", action="store_true",
                     help="only check the truth: level 1 against one more refinement (8 rays, 4× grid, 4× steps)")
     ap.add_argument("--grid-study", type=int, nargs="+", metavar="N",
                     help="only the direct method on N × N density grids (2N steps, and the scene's own steps)")
     ap.add_argument("--truth-cache", type=Path,
                     help="keep the traced truth in this .npz and reuse it while the scene and recipe are unchanged")
+    ap.add_argument("--scene-knob", dest="scene_knobs", action="append", metavar="KEY=VALUE",
+                    help="the first scene row's knob (views, terms, shading_pixels, precision) over the scene's own")
     ap.add_argument("--only", choices=("direct", "scene", "satf"), action="append",
                     help="run only these methods (repeatable)")
     args = ap.parse_args(argv)
@@ -211,7 +213,14 @@ def main(argv=None):
         records.append({"method": "direct", "knobs": f"rays={rays}", "frame_ms": ms, "bake_s": 0.0, "bytes": 0,
                         **errors_of(maps, t_maps, rows, t_rows)})
         print(records[-1], flush=True)
-    knobs = [dict(views=64, terms=4, shading_pixels=8, precision="float16")] if "scene" in want else []
+    own = _scene(args.scene).config["render"]
+    first = {k: own[k] for k in ("views", "terms", "shading_pixels", "precision")}
+    for item in args.scene_knobs or ():
+        key, _, value = item.partition("=")
+        if key not in first:
+            ap.error(f"--scene-knob {item!r}: the key must be one of {', '.join(first)}")
+        first[key] = value if key == "precision" else int(value)
+    knobs = [first] if "scene" in want else []
     if not (args.quick or args.default_only) and knobs:
         knobs += [dict(views=32, terms=4, shading_pixels=8, precision="float16"),
                   dict(views=128, terms=4, shading_pixels=8, precision="float16"),
