@@ -205,3 +205,28 @@ def test_float32_radiance_is_close(paper, rng):
     assert np.abs(fast - exact).max() <= 1e-5 * np.abs(exact).max()
     with pytest.raises(errors.ValidationError, match="dtype"):
         c.radiance(b, t, tv, dtype="float16")
+
+
+@pytest.mark.parametrize("n", [129, 500, 2001])
+def test_newton_gauss_legendre_is_exact_to_degree_2n_minus_1(n):
+    """The O(n²) rule used above 128 nodes (exponents up to 10⁶ need thousands) integrates every
+    Legendre polynomial of degree ≤ 2n − 1 exactly: Σ w P_j(x) = 2 δ_j0, and matches leggauss."""
+    from numpy.polynomial import legendre
+
+    from hairlut.shtables._zonal import gauss_legendre_newton
+
+    x, w = gauss_legendre_newton(n)
+    moments = legendre.legvander(x, 2 * n - 1).T @ w
+    expect = np.zeros(2 * n)
+    expect[0] = 2.0
+    assert np.all(np.diff(x) > 0) and np.abs(moments - expect).max() < 1e-14
+    x0, w0 = np.polynomial.legendre.leggauss(n)
+    assert np.abs(x - x0).max() < 1e-15 and np.abs(w - w0).max() < 1e-10 * w0.max()
+
+
+def test_truncation_error_at_the_largest_exponent_is_finite():
+    from hairlut.budget import MAX_EXPONENT
+    from hairlut.shtables import band_truncation_error
+
+    err = band_truncation_error(MAX_EXPONENT, specular_band_rule(49.0))
+    assert np.isfinite(err) and 0.0 < err <= 1.0
