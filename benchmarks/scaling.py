@@ -13,15 +13,17 @@ Each configuration runs `hairlut bake hrir` in fresh processes, each pinned to i
                          ``-c 1``; ``dist 2 x 1 copy`` the same with ``--merge copy``.
 
 The configurations run interleaved, ``--repeat`` rounds (the machine is shared: a round sees one
-load for all of them).  Per configuration: the steady throughput (sectors per second of every
-process's blocks after its first, which compiles the kernels, summed over processes) as best of the
-rounds and median; the bake's own seconds (the slowest process's report: imports excluded); the
-leader's time to write the final asset; bytes per sector; each process's peak memory (``os.wait4``).
-Ratios are of the best rates; ``range`` is the spread of the same ratio taken round by round.
-Because other work may hold the pinned cores, each block's CPU time is recorded too: ``cores got``
-(CPU seconds per wall second of the steady blocks, summed over processes), ``sectors/CPU-s``, and
-``x 1 core, full cores``: sectors per CPU-second times the configuration's cores against the same
-for one core, the speed-up if every pinned core were given in full (derived, not a wall-clock figure).
+load for all of them).  Per configuration: the steady throughput (sectors per second, summed over
+processes) as best of the rounds and median, taken at each process's median block: a block that
+meets a new array shape compiles (the first, and a few more as sector sizes vary), and every
+process compiles for itself, which ``compile CPU-s`` (the CPU seconds beyond median blocks)
+shows; the bake's own seconds (the slowest process's report: imports excluded); the leader's time
+to write the final asset; bytes per sector; each process's peak memory (``os.wait4``).  Ratios are
+of the best rates; ``range`` is the spread of the same ratio taken round by round.  Because other
+work may hold the pinned cores, each block's CPU time is recorded too: ``cores got`` (CPU seconds
+per wall second of a median block, summed over processes), ``sectors/CPU-s``, and ``x 1 core,
+full cores``: sectors per CPU-second times the configuration's cores against the same for one
+core, the speed-up if every pinned core were given in full (derived, not a wall-clock figure).
 
 Then the time to assemble the final asset, virtual datasets against a copy, from the same parts, at
 a few database sizes and part counts (parts baked with a 2-step trace: assembly reads and writes
@@ -120,10 +122,15 @@ def _run(recipe: Path, out: Path, devices: int, cores: list[set[int]], how: str,
     lead = reports[0]
     return {"bake_s": max(r["seconds"] for r in reports), "wall_s": wall, "assemble_s": lead.get("assemble_s"),
             "blocks_s": [r["blocks_s"] for r in reports],
-            "steady_rate": sum((r["computed"] - BLOCK) / sum(r["block_seconds"][1:]) for r in reports),
-            # CPU-time normalised: sectors per CPU-second of the steady blocks, and the cores they received
-            "cpu_rate": sum(r["computed"] - BLOCK for r in reports) / sum(sum(r["block_cpu_seconds"][1:]) for r in reports),
-            "cores_got": sum(sum(r["block_cpu_seconds"][1:]) / sum(r["block_seconds"][1:]) for r in reports),
+            # steady: each process's median block (blocks that meet a new shape compile, the first above all)
+            "steady_rate": sum(BLOCK / statistics.median(r["block_seconds"]) for r in reports),
+            # CPU-time normalised: sectors per CPU-second of a median block, and the cores it received
+            "cpu_rate": sum(r["computed"] for r in reports) / sum(len(r["block_cpu_seconds"]) * statistics.median(
+                r["block_cpu_seconds"]) for r in reports),
+            "cores_got": sum(statistics.median(r["block_cpu_seconds"]) / statistics.median(r["block_seconds"]) for r in reports),
+            # the CPU seconds of blocks beyond a median block's: compilation, which every process does for itself
+            "compile_cpu_s": sum(sum(r["block_cpu_seconds"]) - len(r["block_cpu_seconds"]) * statistics.median(
+                r["block_cpu_seconds"]) for r in reports),
             "peak_rss_mib": max(peaks), "bytes": lead["bytes"], "sectors": sum(r["sectors"] for r in reports)}
 
 
@@ -235,6 +242,7 @@ def main(argv=None) -> dict:
             "wall_s": min(r["wall_s"] for r in runs), "assemble_s": min((r["assemble_s"] for r in runs if r["assemble_s"]
                                                                         is not None), default=None),
             "cpu_rate": max(r["cpu_rate"] for r in runs), "cores_got": statistics.median(r["cores_got"] for r in runs),
+            "compile_cpu_s": min(r["compile_cpu_s"] for r in runs),
             "bytes_per_sector": best["bytes"] / best["sectors"] if how != "pair" else None,  # a pair bakes it twice "peak_rss_mib": max(r["peak_rss_mib"] for r in runs),
             "rates": [r["steady_rate"] for r in runs]})
     for r in rows:  # if every pinned core were given in full: sectors per CPU-second times the cores
@@ -254,6 +262,7 @@ def main(argv=None) -> dict:
     print(table(rows, [("config", "config", ""), ("cores", "cores", ""), ("rate_best", "sectors/s best", ".2f"),
                        ("rate_median", "median", ".2f"), ("x_base", "x 1 core", ".2f"), ("cores_got", "cores got", ".2f"),
                        ("cpu_rate", "sectors/CPU-s", ".2f"), ("x_base_full_cores", "x 1 core, full cores", ".2f"),
+                       ("compile_cpu_s", "compile CPU-s", ".1f"),
                        ("bake_s", "bake s", ".1f"),
                        ("assemble_s", "assemble s", ".3f"), ("bytes_per_sector", "B/sector", ".0f"),
                        ("peak_rss_mib", "peak MiB", ".0f")]))
