@@ -129,6 +129,18 @@ def test_agrees_with_brute_force_ray_march():
         assert np.sqrt(np.mean((T - ref) ** 2)) < 0.012 and np.abs(T - ref).max() < 0.06, res
 
 
+def test_reference_march_shadows_points_outside_the_grid():
+    """A point below the hair and outside the voxel grid, whose ray toward the light crosses the
+    hair, is shadowed as much as a point on the same ray just inside the grid (no density between)."""
+    vol = voxelize(TUFT, 16)
+    centre = TUFT.points.mean(0)
+    inside = centre - 1.2 * LIGHT  # behind the tuft's middle, still inside its bounds
+    far = centre - 40.0 * LIGHT  # far outside the grid on the same ray
+    t_in, t_far = ray_march(np.stack([inside, far]), LIGHT, KAPPA, vol)
+    assert t_in < 0.9 and abs(t_far - t_in) < 0.02
+    assert ray_march(np.stack([centre + 40.0 * LIGHT]), LIGHT, KAPPA, vol)[0] == 1.0  # ray leaves: lit
+
+
 @pytest.mark.parametrize("kwargs, field", [
     ({"light": [0, 0, 0]}, "light"), ({"light": [np.nan, 0, 1]}, "light"),
     ({"light": [0, 1]}, "light"), ({"resolution": 0}, "resolution"), ({"resolution": (8, 8)}, "resolution"),
