@@ -236,7 +236,8 @@ def _trace_one(rho, g, views, lights, phong, *, n_pix, n_steps, rays, shadow, sm
         S = _smooth_matrix(g[10], n_pix)
         alpha = jnp.matmul(alpha, S, precision=HIGHEST)
         refl = jnp.matmul(refl, S, precision=HIGHEST)
-    return alpha, refl
+    # Σ w telescopes to 1 − exp(−Σ τ) ≤ 1, but float32 rounding of the sum can overshoot by a few ulp
+    return jnp.clip(alpha, 0.0, 1.0), refl
 
 
 @partial(jax.jit, static_argnames=("n_pix", "n_steps", "rays", "shadow", "smooth", "eps", "chunk"))
