@@ -243,7 +243,8 @@ def main(argv=None) -> dict:
                                                                         is not None), default=None),
             "cpu_rate": max(r["cpu_rate"] for r in runs), "cores_got": statistics.median(r["cores_got"] for r in runs),
             "compile_cpu_s": min(r["compile_cpu_s"] for r in runs),
-            "bytes_per_sector": best["bytes"] / best["sectors"] if how != "pair" else None,  # a pair bakes it twice "peak_rss_mib": max(r["peak_rss_mib"] for r in runs),
+            "bytes_per_sector": best["bytes"] / best["sectors"] if how != "pair" else None,  # a pair bakes it twice
+            "peak_rss_mib": max(r["peak_rss_mib"] for r in runs),
             "rates": [r["steady_rate"] for r in runs]})
     for r in rows:  # if every pinned core were given in full: sectors per CPU-second times the cores
         r["full_cores_rate"] = r["cpu_rate"] * len(r["cores"].replace("+", ",").split(","))
