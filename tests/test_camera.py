@@ -47,10 +47,8 @@ def test_bad_camera_names_the_key(cam, key):
 
 
 def test_too_large_a_frame_is_refused_with_the_figure(monkeypatch):
-    from hairlut.scene import _camera
-
-    monkeypatch.setattr(_camera, "available_memory", lambda: 4 * 2**30)
-    with pytest.raises(errors.ValidationError, match=r"GiB") as exc:
+    monkeypatch.setenv("HAIRLUT_MEMORY_LIMIT", "4G")
+    with pytest.raises(errors.BudgetError, match=r"GiB.*4 GiB.*HAIRLUT_MEMORY_LIMIT") as exc:
         _scene(resolution=[8192, 8192])
     assert exc.value.field == "camera.resolution"
     assert frame_bytes(8192, 8192) > 2 * 2**30

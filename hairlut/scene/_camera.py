@@ -12,7 +12,8 @@
 ``extent``      orthographic: the height of the frame in world units (default: the groom's projected
                 bounds with a 5 % margin, widened to the frame's aspect);
 ``resolution``  ``[w, h]`` pixels (default 768 × 768), refused when a frame's buffers would not fit
-                in half the machine's memory (the estimate is in the message).
+                in the memory budget ($HAIRLUT_MEMORY_LIMIT, default half the machine's memory; the
+                estimate is in the message).
 
 :class:`Camera` holds the resolved camera.  Its ``matrix`` is the 4 × 4 world-to-clip matrix in the
 OpenGL convention (right-handed eye space looking down −z; clip w = eye distance for a perspective
@@ -24,12 +25,11 @@ integers + ½.  ``depth`` is the eye-space distance along the viewing axis (the 
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 
 import numpy as np
 
-from .. import errors
+from .. import budget, errors
 from ..recipes import Field
 from ..validate import direction
 
@@ -89,25 +89,16 @@ CAMERA = {
 }
 
 
-def available_memory() -> int:
-    """Bytes of physical memory (0 if unknown)."""
-    try:
-        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
-    except (ValueError, OSError, AttributeError):
-        return 0
-
-
 def frame_bytes(width: int, height: int, samples: int = 1) -> int:
     """Estimated bytes a render of w × h pixels with ``samples`` per pixel holds at once."""
     return int(width) * int(height) * max(int(samples), 1) * BYTES_PER_SAMPLE
 
 
 def check_memory(resolution, samples: int = 1, key: str = "camera.resolution") -> None:
-    """Refuse a frame whose buffers (:func:`frame_bytes`) exceed half the physical memory, with the figure."""
-    need, have = frame_bytes(*resolution, samples), available_memory()
-    if have and need > have // 2:
-        raise errors.ValidationError(key, list(resolution), f"a frame needs ~{need / 2**30:.1f} GiB "
-                                     f"({samples} sample(s) per pixel), more than half of the {have / 2**30:.1f} GiB here")
+    """Refuse a frame whose buffers (:func:`frame_bytes`) exceed the memory budget
+    (:func:`hairlut.budget.memory_limit`: ``$HAIRLUT_MEMORY_LIMIT`` or half the machine's memory)."""
+    budget.check(key, list(resolution), frame_bytes(*resolution, samples),
+                 f"the frame's buffers ({samples} sample(s) per pixel)")
 
 
 def _unit(x) -> np.ndarray:
