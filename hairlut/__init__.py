@@ -25,8 +25,8 @@ import importlib
 from . import errors
 from ._version import __version__
 
-_SUBMODULES = {"assets", "cache", "demo", "envlight", "geometry", "hrir", "kernels", "recipes", "scene", "sh",
-               "render", "shadows", "shtables", "synth"}
+_SUBMODULES = {"assets", "bench", "cache", "demo", "envlight", "geometry", "hrir", "kernels", "recipes", "scene", "sh",
+               "render", "shadows", "shtables", "stress", "synth"}
 _ATTRIBUTES = {"SHTables": "shtables", "HRIRDB": "hrir", "plan": "scene", "synthesize": "synth"}
 
 __all__ = ["__version__", "errors", *sorted(_SUBMODULES), *sorted(_ATTRIBUTES)]
