@@ -22,7 +22,11 @@ _LAZY = {
     "gaussian_smooth": "_reference", "reference_hrir": "_reference",
     "satf_query": "_query", "query_kernel": "_query", "device_arrays": "_query", "interpolate": "_query",
     "neighbours": "_query", "neighbours_kernel": "_query",
-    "GEOM": "_tracer", "trace_kernel": "_tracer",
+    "GEOM": "_march", "trace_kernel": "_tracer",
+    # the planar march, shared by the tracer, the direct map method and the scene table's bake
+    "SHADOW_GRID": "_march", "bilerp_nodes": "_march", "front_to_back": "_march", "grid_transmittance": "_march",
+    "light_depth_grid": "_march", "march": "_march", "normals": "_march", "phong_direct": "_march",
+    "sector_fields": "_march", "smooth_matrix": "_march", "view_points": "_march",
 }
 
 __all__ = ["BAKER", "BAKE_OVERHEAD", "KIND", "SHARD_KIND", "TRACE_RATE", "estimate", *sorted(_LAZY)]

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import ValidationError
 from ..geometry.splats import SIGMA_PER_RADIUS
-from ._tracer import GEOM
+from ._march import GEOM
 
 #: Smoothing width over the strand Gaussian's σ (satf §5.1: "a ratio of 1.5").
 SMOOTH_RATIO = 1.5

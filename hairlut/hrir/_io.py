@@ -40,7 +40,7 @@ from ..parts import check_virtual
 from ..geometry import angle_grid as angles
 from ..geometry.features import FeatureStats, feature_names, sector_features
 from ._kind import KIND, SHARD_KIND
-from ._tracer import GEOM
+from ._march import GEOM
 
 PARAMS = ("strands", "radius_rel", "spread", "clumps", "aspect", "v_inner", "radial_extent", "s_u", "phase", "profile")
 

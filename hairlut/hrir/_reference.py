@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._tracer import GEOM
+from ._march import GEOM
 
 _G = {k: i for i, k in enumerate(GEOM)}
 

@@ -3,8 +3,9 @@
 The ``direct`` map method: instead of looking an HRIR up in a random database on
 an angle grid (satf §6.2), each frame traces every sector of the scene at the θv and θl it
 actually sees (Params(b), satf §6.2.1), from its own density grid.  The result is the same
-physical quantity the HRIR database stores (satf §5.1, eqs 4–5), computed with exactly the
-planar tracer's conventions (``hairlut.hrir``'s tracer module docstring):
+physical quantity the HRIR database stores (satf §5.1, eqs 4–5), computed with the planar
+tracer's conventions (``hairlut.hrir``'s tracer module docstring) and its own march, normals and
+Phong terms (``hairlut.hrir.march``, ``normals``, ``phong_direct``, …), so both trace the same rays:
 
 * **Frame and pixels.**  The sector's local frame (+x the outward ellipse normal at its
   parametric centre c, +y the tangent of increasing phase); the image line through c
@@ -48,120 +49,24 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
+from ..hrir import (GEOM, SHADOW_GRID, front_to_back, grid_transmittance, light_depth_grid, march, normals,
+                    phong_direct, sector_fields, smooth_matrix, view_points)
 from ..validate import check_int
 
-HIGHEST = jax.lax.Precision.HIGHEST
-
-#: Largest side M of the Cartesian light-depth grid (M = min(steps, SHADOW_GRID)), as the tracer's.
-SHADOW_GRID = 128
+HIGHEST = jax.lax.Precision.HIGHEST  # stated, not inherited: XLA would use TF32 on NVIDIA GPUs
 
 #: Sectors mapped at once inside the kernel (vmapped), by default.
 BLOCK = 64
 
 # columns of the geometry rows (hairlut.hrir.GEOM)
-_PHASE, _DU, _V0, _V1, _ASPECT, _CX, _CY, _BETA, _EXTENT, _SIGMA_T, _SIGMA_PX = range(11)
-
-
-def _geom_columns() -> tuple:
-    from ..hrir import GEOM
-
-    return tuple(GEOM)
-
-
-# ---------------------------------------------------------------------------------------------
-# the kernel (one sector; vmapped over a block of sectors)
-
-
-def _patches(grid):
-    """(n−1, m−1, 4c) corner values of every cell-centre quad (a grid of one row or column is doubled)."""
-    g = grid if grid.shape[0] > 1 else jnp.concatenate([grid, grid], axis=0)
-    g = g if g.shape[1] > 1 else jnp.concatenate([g, g], axis=1)
-    return jnp.concatenate([g[:-1, :-1], g[1:, :-1], g[:-1, 1:], g[1:, 1:]], axis=-1)
-
-
-def _bilerp_patch(patches, fi, fj):
-    """Bilinear interpolation of cell-centre values at fractional indices (clamped at the edges)."""
-    n, m, c4 = patches.shape
-    c = c4 // 4
-    fi = jnp.clip(fi, 0.0, float(n))
-    fj = jnp.clip(fj, 0.0, float(m))
-    i0 = jnp.clip(jnp.floor(fi).astype(jnp.int32), 0, n - 1)
-    j0 = jnp.clip(jnp.floor(fj).astype(jnp.int32), 0, m - 1)
-    a = (fi - i0)[..., None]
-    b = (fj - j0)[..., None]
-    p = patches[i0, j0]
-    return ((1 - a) * (1 - b) * p[..., :c] + a * (1 - b) * p[..., c:2 * c]
-            + (1 - a) * b * p[..., 2 * c:3 * c] + a * b * p[..., 3 * c:])
-
-
-def _fields(rho):
-    """Patches of (ρ, ∂ρ/∂s, ∂ρ/∂r) on cell centres (central differences, one-sided at the edges)."""
-    n_s, n_r = rho.shape
-    rs = jnp.gradient(rho, axis=0) * n_s if n_s > 1 else jnp.zeros_like(rho)
-    rr = jnp.gradient(rho, axis=1) * n_r if n_r > 1 else jnp.zeros_like(rho)
-    return _patches(jnp.stack([rho, rs, rr], axis=-1))
-
-
-def _sample(fields, g, qx, qy):
-    """Density, inside mask, local-frame −(scaled) ∇ρ components and (ρ_s, ρ_r) at local points."""
-    n_s, n_r = fields.shape[0] + 1, fields.shape[1] + 1
-    cb, sb = jnp.cos(g[_BETA]), jnp.sin(g[_BETA])
-    ex = g[_CX] + cb * qx - sb * qy  # ellipse coordinates
-    ey = g[_CY] + sb * qx + cb * qy
-    ux, uy = ex, ey / g[_ASPECT]
-    v = jnp.sqrt(ux * ux + uy * uy)
-    phi = jnp.arctan2(uy, ux)
-    s = jnp.mod(phi - g[_PHASE], 2 * jnp.pi) / g[_DU]
-    r = (v - g[_V0]) / (g[_V1] - g[_V0])
-    inside = (s < 1.0) & (r >= 0.0) & (r <= 1.0)
-    f = _bilerp_patch(fields, s * n_s - 0.5, r * n_r - 0.5)
-    rho = jnp.where(inside, f[..., 0], 0.0)
-    # ∇ρ = J^{-T} (ρ_s, ρ_r) up to the positive factor 1/|det J| (det J < 0): −(d ρ_s − c ρ_r, −b ρ_s + a ρ_r)
-    cp, sp = ux / jnp.maximum(v, 1e-30), uy / jnp.maximum(v, 1e-30)
-    dv = g[_V1] - g[_V0]
-    a, c = -g[_DU] * v * sp, g[_DU] * v * g[_ASPECT] * cp
-    b, d = dv * cp, dv * g[_ASPECT] * sp
-    gx = -(d * f[..., 1] - c * f[..., 2])
-    gy = -(-b * f[..., 1] + a * f[..., 2])
-    lx, ly = cb * gx + sb * gy, -sb * gx + cb * gy  # into the local frame
-    return rho, inside, lx, ly, f[..., 1], f[..., 2]
-
-
-def _march(fields, g, ang, n_lanes: int, n_steps: int):
-    """Optical depth per step (A, lanes, K) and ∇ρ of rays entering along −d(ang), ``ang`` (A,)."""
-    R = g[_EXTENT]
-    dx, dy = jnp.cos(ang)[:, None, None], jnp.sin(ang)[:, None, None]
-    t = (-R + (jnp.arange(n_lanes) + 0.5) * (2 * R / n_lanes))[None, :, None]
-    ds = 2 * R / n_steps
-    z = (R - (jnp.arange(n_steps) + 0.5) * ds)[None, None, :]
-    rho, inside, gx, gy, rs, rr = _sample(fields, g, -dy * t + dx * z, dx * t + dy * z)
-    return g[_SIGMA_T] * rho * ds, gx, gy, rs, rr, inside
-
-
-def _light_depth(fields, g, lights, n_steps: int, m: int):
-    """Optical depth from each light to the nodes of an m × m local grid: (m, m, L)."""
-    tau, *_ = _march(fields, g, lights, m, n_steps)
-    # (L, m, K): to each step's midpoint
-    depth = jnp.cumsum(tau, axis=-1) - 0.5 * tau
-    R = g[_EXTENT]
-    x = -R + (jnp.arange(m) + 0.5) * (2 * R / m)
-    qx, qy = x[:, None, None], x[None, :, None]
-    c, s = jnp.cos(lights), jnp.sin(lights)
-    fi = jnp.clip(((-s * qx + c * qy) + R) / (2 * R) * m - 0.5, 0.0, m - 1.0)
-    fj = jnp.clip((R - (c * qx + s * qy)) / (2 * R) * n_steps - 0.5, 0.0, n_steps - 1.0)
-    i0 = jnp.clip(jnp.floor(fi).astype(jnp.int32), 0, m - 2)
-    j0 = jnp.clip(jnp.floor(fj).astype(jnp.int32), 0, n_steps - 2)
-    a, b = fi - i0, fj - j0
-    li = jnp.arange(lights.shape[0])[None, None, :]
-    return ((1 - a) * (1 - b) * depth[li, i0, j0] + a * (1 - b) * depth[li, i0 + 1, j0]
-            + (1 - a) * b * depth[li, i0, j0 + 1] + a * b * depth[li, i0 + 1, j0 + 1])
+_PHASE, _DU, _V0, _V1, _ASPECT, _CX, _CY, _BETA, _EXTENT, _SIGMA_T, _SIGMA_PX = range(len(GEOM))
 
 
 def _light_depth_at(fields, g, lights, n_steps: int, m: int, qx, qy):
     """Optical depth from each light to local points (qx, qy) (lanes, K), read straight from the light
     march's own (lane, step) lattice: (L, lanes, K).  One bilinear resampling instead of the tracer's two
     (march → Cartesian M × M grid → samples), and a third of the gathers for one view per sector."""
-    tau, *_ = _march(fields, g, lights, m, n_steps)
+    tau, *_ = march(fields, g, lights, m, n_steps)
     depth = jnp.cumsum(tau, axis=-1) - 0.5 * tau  # (L, m, K): to each step's midpoint
     L = lights.shape[0]
     R = g[_EXTENT]
@@ -177,40 +82,13 @@ def _light_depth_at(fields, g, lights, n_steps: int, m: int, qx, qy):
     return ((1 - a) * (1 - b) * p[..., 0] + a * (1 - b) * p[..., 1] + (1 - a) * b * p[..., 2] + a * b * p[..., 3])
 
 
-def _bilerp_nodes(grid, fi, fj):
-    """Bilinear interpolation of node values ``grid`` (n, m, L) at fractional indices (clamped)."""
-    n, m = grid.shape[:2]
-    fi = jnp.clip(fi, 0.0, n - 1.0)
-    fj = jnp.clip(fj, 0.0, m - 1.0)
-    i0 = jnp.clip(jnp.floor(fi).astype(jnp.int32), 0, max(n - 2, 0))
-    j0 = jnp.clip(jnp.floor(fj).astype(jnp.int32), 0, max(m - 2, 0))
-    i1, j1 = jnp.minimum(i0 + 1, n - 1), jnp.minimum(j0 + 1, m - 1)
-    a, b = (fi - i0)[..., None], (fj - j0)[..., None]
-    return ((1 - a) * (1 - b) * grid[i0, j0] + a * (1 - b) * grid[i1, j0]
-            + (1 - a) * b * grid[i0, j1] + a * b * grid[i1, j1])
-
-
-def _smooth_matrix(sigma_px, n_pix: int):
-    """(P, P) Gaussian convolution along the pixels (column j: the kernel centred on pixel j),
-    normalised over the infinite line (so a delta gives a discrete Gaussian of deviation σ_px)."""
-    off = jnp.arange(n_pix)[:, None] - jnp.arange(n_pix)[None, :]
-    s = jnp.maximum(sigma_px, 1e-6)
-    k = jnp.exp(-0.5 * (off / s) ** 2)
-    m = jnp.arange(-16, 17)
-    total = jnp.where(s <= 2.0, jnp.sum(jnp.exp(-0.5 * (m / s) ** 2)), jnp.sqrt(2 * jnp.pi) * s)
-    return k / total
-
-
 def _direct_one(rho, g, view, lights, phong, *, n_pix, n_steps, rays, shadow, smooth, eps, shade):
     """α (P,) and premultiplied re (L, P) of one sector at view ``view`` () and lights ``lights`` (L,)."""
-    fields = _fields(rho)
+    fields = sector_fields(rho)
     lanes = n_pix * rays
-    tau, gx, gy, rs, rr, inside = _march(fields, g, view[None], lanes, n_steps)
-    tau, gx, gy, rs, rr, inside = tau[0], gx[0], gy[0], rs[0], rr[0], inside[0]  # (lanes, K)
-    trans = jnp.exp(-(jnp.cumsum(tau, axis=-1) - tau))
-    w = jnp.where(trans >= eps, -jnp.expm1(-tau) * trans, 0.0)  # eq 5 front-to-back weights
-    alpha = jnp.sum(w, axis=-1)
-    S = _smooth_matrix(g[_SIGMA_PX], n_pix) if smooth else None
+    tau, gx, gy, rs, rr, inside = (x[0] for x in march(fields, g, view[None], lanes, n_steps))  # (lanes, K)
+    w, alpha = front_to_back(tau, eps)
+    S = smooth_matrix(g[_SIGMA_PX], n_pix) if smooth else None
     alpha_px = alpha.reshape(n_pix, rays).mean(-1)
     if smooth:
         alpha_px = jnp.dot(alpha_px, S, precision=HIGHEST)
@@ -218,32 +96,16 @@ def _direct_one(rho, g, view, lights, phong, *, n_pix, n_steps, rays, shadow, sm
     if not shade:
         return alpha_px, jnp.zeros((1, n_pix), alpha_px.dtype)  # sliced to (0, P) outside the map
     vx, vy = jnp.cos(view), jnp.sin(view)
-    mag2 = gx * gx + gy * gy
-    scale = jnp.max(jnp.abs(rho))
-    ok = (rs * rs + rr * rr > (1e-5 * scale) ** 2) & (mag2 > 0) & inside
-    inv = jnp.where(ok, jax.lax.rsqrt(jnp.where(ok, mag2, 1.0)), 0.0)
-    nx = jnp.where(ok, -gx * inv, vx)
-    ny = jnp.where(ok, -gy * inv, vy)
+    nx, ny = normals(rho, gx, gy, rs, rr, inside, vx, vy)
     lx, ly = jnp.cos(lights)[:, None, None], jnp.sin(lights)[:, None, None]
-    nl = nx[None] * lx + ny[None] * ly  # (L, lanes, K)
-    nv = (nx * vx + ny * vy)[None]
-    lv = lx * vx + ly * vy
-    rv = 2 * nl * nv - lv
-    spec = jnp.where((nl > 0) & (rv > 0), jnp.exp(phong[3] * jnp.log(jnp.where(rv > 0, rv, 1.0))), 0.0)
-    direct = phong[1] * jnp.maximum(nl, 0.0) + phong[2] * spec
+    direct = phong_direct(nx[None], ny[None], vx, vy, lx, ly, phong)  # (L, lanes, K)
     if shadow:
         m = min(n_steps, SHADOW_GRID)
-        R = g[_EXTENT]
-        t = (-R + (jnp.arange(lanes) + 0.5) * (2 * R / lanes))[:, None]
-        z = (R - (jnp.arange(n_steps) + 0.5) * (2 * R / n_steps))[None, :]
-        qx, qy = -vy * t + vx * z, vx * t + vy * z
         if shadow == "grid":  # the tracer's: march → M × M Cartesian grid → samples
-            depth = _light_depth(fields, g, lights, n_steps, m)  # (M, M, L)
-            fi, fj = (qx + R) / (2 * R) * m - 0.5, (qy + R) / (2 * R) * m - 0.5
-            # a loop boundary (as the tracer's map over views) stops XLA fusing the depth field into the gather
-            trans_l = jax.lax.map(lambda a: jnp.exp(-_bilerp_nodes(depth, a[0], a[1])), (fi[None], fj[None]))[0]
+            trans_l = grid_transmittance(light_depth_grid(fields, g, lights, n_steps, m), g, view[None], lanes, n_steps)[0]
             direct = direct * jnp.moveaxis(trans_l, -1, 0)
         else:  # "march": read the light march's lattice directly
+            qx, qy = (q[0] for q in view_points(g, view[None], lanes, n_steps))
             direct = direct * jnp.exp(-_light_depth_at(fields, g, lights, n_steps, m, qx, qy))
     refl = phong[0] * alpha[None] + jnp.einsum("lnk,nk->ln", direct, w, precision=HIGHEST)
     refl = refl.reshape(n_l, n_pix, rays).mean(-1)
@@ -327,7 +189,7 @@ def _check_inputs(density, geometry, theta_v, theta_l):
         raise errors.ValidationError("density", "non-finite or < 0", "densities must be finite and ≥ 0")
     n = rho.shape[0]
     g = np.asarray(geometry, np.float64)
-    n_geom = len(_geom_columns())
+    n_geom = len(GEOM)
     if g.shape != (n, n_geom):
         raise errors.ValidationError("geometry", g.shape, f"need shape ({n}, {n_geom}): one hrir.GEOM row per sector")
     if not np.all(np.isfinite(g)):

@@ -33,55 +33,34 @@ import numpy as np
 
 from .. import errors
 from ..validate import check_int
-from ._direct import (HIGHEST, SHADOW_GRID, _BETA, _EXTENT, _SIGMA_PX, _bilerp_nodes, _fields, _light_depth,
-                      _march, _smooth_matrix, bucket)
-
-_ = _BETA  # (the geometry columns are _direct's)
+from ..hrir import (SHADOW_GRID, front_to_back, grid_transmittance, light_depth_grid, march, normals, phong_direct,
+                    sector_fields, smooth_matrix)
+from ._direct import _SIGMA_PX, HIGHEST, bucket
 
 
 def _grid_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, shadow, smooth, eps):
     """α (V, P) and premultiplied re (V, L, P) of one sector on the views θ (V/2,) and θ + π."""
-    fields = _fields(rho)
+    fields = sector_fields(rho)
     lanes = n_pix * rays
     flip = lambda x: jnp.flip(x, axis=(1, 2))  # noqa: E731  (views, lanes, steps): the mirror view's order
-    half = _march(fields, g, views_half, lanes, n_steps)  # each (H, lanes, K)
+    half = march(fields, g, views_half, lanes, n_steps)  # each (H, lanes, K)
     tau, gx, gy, rs, rr, inside = (jnp.concatenate([x, flip(x)], axis=0) for x in half)
     views = jnp.concatenate([views_half, views_half + jnp.pi])
-    trans = jnp.exp(-(jnp.cumsum(tau, axis=-1) - tau))
-    w = jnp.where(trans >= eps, -jnp.expm1(-tau) * trans, 0.0)  # eq 5 front-to-back weights (per view)
-    alpha = jnp.sum(w, axis=-1)
-    mag2 = gx * gx + gy * gy
-    scale = jnp.max(jnp.abs(rho))
-    ok = (rs * rs + rr * rr > (1e-5 * scale) ** 2) & (mag2 > 0) & inside
-    inv = jnp.where(ok, jax.lax.rsqrt(jnp.where(ok, mag2, 1.0)), 0.0)
+    w, alpha = front_to_back(tau, eps)  # eq 5 front-to-back weights (per view)
     vx, vy = jnp.cos(views)[:, None, None], jnp.sin(views)[:, None, None]
-    nx = jnp.where(ok, -gx * inv, vx)
-    ny = jnp.where(ok, -gy * inv, vy)
-    lx, ly = jnp.cos(lights), jnp.sin(lights)
-    nl = nx[:, None] * lx[None, :, None, None] + ny[:, None] * ly[None, :, None, None]  # (V, L, lanes, K)
-    nv = (nx * vx + ny * vy)[:, None]
-    lv = (lx[None, :] * jnp.cos(views)[:, None] + ly[None, :] * jnp.sin(views)[:, None])[:, :, None, None]
-    rv = 2 * nl * nv - lv
-    spec = jnp.where((nl > 0) & (rv > 0), jnp.exp(phong[3] * jnp.log(jnp.where(rv > 0, rv, 1.0))), 0.0)
-    direct = phong[1] * jnp.maximum(nl, 0.0) + phong[2] * spec
+    nx, ny = normals(rho, gx, gy, rs, rr, inside, vx, vy)
+    lx, ly = jnp.cos(lights)[None, :, None, None], jnp.sin(lights)[None, :, None, None]
+    direct = phong_direct(nx[:, None], ny[:, None], vx[:, None], vy[:, None], lx, ly, phong)  # (V, L, lanes, K)
     if shadow:
-        m = min(n_steps, SHADOW_GRID)
-        R = g[_EXTENT]
-        depth = _light_depth(fields, g, lights, n_steps, m)  # (M, M, L)
-        hx, hy = jnp.cos(views_half)[:, None, None], jnp.sin(views_half)[:, None, None]
-        t = (-R + (jnp.arange(lanes) + 0.5) * (2 * R / lanes))[None, :, None]
-        z = (R - (jnp.arange(n_steps) + 0.5) * (2 * R / n_steps))[None, None, :]
-        qx, qy = -hy * t + hx * z, hx * t + hy * z
-        fi, fj = (qx + R) / (2 * R) * m - 0.5, (qy + R) / (2 * R) * m - 0.5
-        # one view at a time: the loop boundary stops XLA fusing the field into the gather (as the tracer)
-        t_half = jax.lax.map(lambda a: jnp.exp(-_bilerp_nodes(depth, a[0], a[1])), (fi, fj))  # (H, lanes, K, L)
+        depth = light_depth_grid(fields, g, lights, n_steps, min(n_steps, SHADOW_GRID))  # (M, M, L)
+        t_half = grid_transmittance(depth, g, views_half, lanes, n_steps)  # (H, lanes, K, L)
         trans_l = jnp.concatenate([t_half, flip(t_half)], axis=0)  # the mirror views read it reversed
         direct = direct * jnp.moveaxis(trans_l, -1, 1)
     refl = phong[0] * alpha[:, None] + jnp.einsum("vlnk,vnk->vln", direct, w, precision=HIGHEST)
     alpha = alpha.reshape(alpha.shape[0], n_pix, rays).mean(-1)
     refl = refl.reshape(*refl.shape[:2], n_pix, rays).mean(-1)
     if smooth:
-        S = _smooth_matrix(g[_SIGMA_PX], n_pix)
+        S = smooth_matrix(g[_SIGMA_PX], n_pix)
         alpha = jnp.dot(alpha, S, precision=HIGHEST)
         refl = jnp.dot(refl, S, precision=HIGHEST)
     return alpha, refl

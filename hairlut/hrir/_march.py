@@ -1,0 +1,185 @@
+"""The planar march through one sector's density (satf §5.1): the pieces that the HRIR tracer, the
+direct map method and the scene table's view-grid bake share, so that all three trace the same rays.
+
+Conventions (local frame, pixels, opacity, reflectance, accumulation, self-shadowing, smoothing)
+are the tracer's: ``hairlut.hrir._tracer``'s module docstring.  Per-sector geometry rows hold the
+columns :data:`GEOM`.  Everything here is float32 JAX meant to run inside one of the callers'
+jitted kernels; contractions state ``precision=HIGHEST``.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+HIGHEST = jax.lax.Precision.HIGHEST  # stated, not inherited: XLA would use TF32 on NVIDIA GPUs
+
+#: Largest side M of the Cartesian shadow grid (M = min(steps, SHADOW_GRID)).
+SHADOW_GRID = 128
+
+#: Columns of the per-sector geometry rows.
+GEOM = ("phase", "du", "v0", "v1", "aspect", "cx", "cy", "beta", "extent", "sigma_t", "sigma_px")
+PHASE, DU, V0, V1, ASPECT, CX, CY, BETA, EXTENT, SIGMA_T, SIGMA_PX = range(len(GEOM))
+
+
+def bilerp_nodes(grid, fi, fj):
+    """Bilinear interpolation of ``grid`` (n, m, ...) at fractional cell-centre indices (clamped)."""
+    n, m = grid.shape[:2]
+    fi = jnp.clip(fi, 0.0, n - 1.0)
+    fj = jnp.clip(fj, 0.0, m - 1.0)
+    i0 = jnp.clip(jnp.floor(fi).astype(jnp.int32), 0, max(n - 2, 0))
+    j0 = jnp.clip(jnp.floor(fj).astype(jnp.int32), 0, max(m - 2, 0))
+    i1 = jnp.minimum(i0 + 1, n - 1)
+    j1 = jnp.minimum(j0 + 1, m - 1)
+    a = fi - i0
+    b = fj - j0
+    if grid.ndim > 2:
+        a = a[..., None]
+        b = b[..., None]
+    return ((1 - a) * (1 - b) * grid[i0, j0] + a * (1 - b) * grid[i1, j0]
+            + (1 - a) * b * grid[i0, j1] + a * b * grid[i1, j1])
+
+
+def patches(grid):
+    """(n−1, m−1, 4·c) corner values of every cell-centre quad, so bilinear lookups gather once."""
+    g = grid if grid.shape[0] > 1 else jnp.concatenate([grid, grid], axis=0)
+    g = g if g.shape[1] > 1 else jnp.concatenate([g, g], axis=1)
+    return jnp.concatenate([g[:-1, :-1], g[1:, :-1], g[:-1, 1:], g[1:, 1:]], axis=-1)
+
+
+def bilerp_patch(patches, fi, fj):
+    """Bilinear interpolation from :func:`patches` at fractional cell-centre indices (clamped)."""
+    n, m, c4 = patches.shape
+    c = c4 // 4
+    fi = jnp.clip(fi, 0.0, float(n))
+    fj = jnp.clip(fj, 0.0, float(m))
+    i0 = jnp.clip(jnp.floor(fi).astype(jnp.int32), 0, n - 1)
+    j0 = jnp.clip(jnp.floor(fj).astype(jnp.int32), 0, m - 1)
+    a = (fi - i0)[..., None]
+    b = (fj - j0)[..., None]
+    p = patches[i0, j0]
+    return ((1 - a) * (1 - b) * p[..., :c] + a * (1 - b) * p[..., c:2 * c]
+            + (1 - a) * b * p[..., 2 * c:3 * c] + a * b * p[..., 3 * c:])
+
+
+def sector_fields(rho):
+    """Patches of (ρ, ∂ρ/∂s, ∂ρ/∂r) on cell centres (central differences, one-sided at the edges)."""
+    n_s, n_r = rho.shape
+    rs = jnp.gradient(rho, axis=0) * n_s if n_s > 1 else jnp.zeros_like(rho)
+    rr = jnp.gradient(rho, axis=1) * n_r if n_r > 1 else jnp.zeros_like(rho)
+    return patches(jnp.stack([rho, rs, rr], axis=-1))
+
+
+def sample(fields, g, qx, qy):
+    """Density, inside mask and local-frame ∇ρ direction at local points (qx, qy).
+
+    ``fields`` is (n_s, n_r, 3): ρ, ∂ρ/∂s, ∂ρ/∂r on cell centres.
+    """
+    n_s, n_r = fields.shape[0] + 1, fields.shape[1] + 1  # fields are patches
+    cb, sb = jnp.cos(g[BETA]), jnp.sin(g[BETA])
+    ex = g[CX] + cb * qx - sb * qy  # ellipse coordinates
+    ey = g[CY] + sb * qx + cb * qy
+    ux, uy = ex, ey / g[ASPECT]
+    v = jnp.sqrt(ux * ux + uy * uy)
+    phi = jnp.arctan2(uy, ux)
+    s = jnp.mod(phi - g[PHASE], 2 * jnp.pi) / g[DU]
+    r = (v - g[V0]) / (g[V1] - g[V0])
+    inside = (s < 1.0) & (r >= 0.0) & (r <= 1.0)
+    f = bilerp_patch(fields, s * n_s - 0.5, r * n_r - 0.5)
+    rho = jnp.where(inside, f[..., 0], 0.0)
+    # ∇ρ = J^{-T} (ρ_s, ρ_r), J = [∂P/∂s ∂P/∂r]; det J = −Δu Δv A B v < 0, so up to the positive
+    # factor 1/|det J|, ∇ρ = −(d ρ_s − c ρ_r, −b ρ_s + a ρ_r)
+    cp, sp = ux / jnp.maximum(v, 1e-30), uy / jnp.maximum(v, 1e-30)
+    dv = g[V1] - g[V0]
+    a, c = -g[DU] * v * sp, g[DU] * v * g[ASPECT] * cp
+    b, d = dv * cp, dv * g[ASPECT] * sp
+    gx = -(d * f[..., 1] - c * f[..., 2])
+    gy = -(-b * f[..., 1] + a * f[..., 2])
+    lx, ly = cb * gx + sb * gy, -sb * gx + cb * gy  # into the local frame
+    return rho, inside, lx, ly, f[..., 1], f[..., 2]
+
+
+def march(fields, g, ang, n_lanes: int, n_steps: int):
+    """Optical depth per step (A, lanes, K) and ∇ρ (local) of rays entering along −d(ang)."""
+    rho, inside, gx, gy, rs, rr = sample(fields, g, *view_points(g, ang, n_lanes, n_steps))
+    return g[SIGMA_T] * rho * (2 * g[EXTENT] / n_steps), gx, gy, rs, rr, inside
+
+
+def light_depth_grid(fields, g, light, n_steps: int, m: int):
+    """Optical depth from each light to the nodes of an m × m local grid: (m, m, L), lights minor.
+
+    Light rays: m lanes of ``n_steps`` steps from the light's side, like the view march.
+    """
+    tau, *_ = march(fields, g, light, m, n_steps)
+    depth = jnp.cumsum(tau, axis=-1) - 0.5 * tau  # (L, m, K): to each step's midpoint
+    R = g[EXTENT]
+    x = -R + (jnp.arange(m) + 0.5) * (2 * R / m)
+    qx, qy = x[:, None, None], x[None, :, None]
+    c, s = jnp.cos(light), jnp.sin(light)
+    fi = jnp.clip(((-s * qx + c * qy) + R) / (2 * R) * m - 0.5, 0.0, m - 1.0)  # (m, m, L)
+    fj = jnp.clip((R - (c * qx + s * qy)) / (2 * R) * n_steps - 0.5, 0.0, n_steps - 1.0)
+    i0 = jnp.clip(jnp.floor(fi).astype(jnp.int32), 0, m - 2)
+    j0 = jnp.clip(jnp.floor(fj).astype(jnp.int32), 0, n_steps - 2)
+    a, b = fi - i0, fj - j0
+    li = jnp.arange(light.shape[0])[None, None, :]
+    out = ((1 - a) * (1 - b) * depth[li, i0, j0] + a * (1 - b) * depth[li, i0 + 1, j0]
+           + (1 - a) * b * depth[li, i0, j0 + 1] + a * b * depth[li, i0 + 1, j0 + 1])
+    return out
+
+
+def smooth_matrix(sigma_px, n_pix: int):
+    """(P, P) Gaussian convolution along pixels (column j: the kernel centred on pixel j)."""
+    off = jnp.arange(n_pix)[:, None] - jnp.arange(n_pix)[None, :]
+    s = jnp.maximum(sigma_px, 1e-6)
+    k = jnp.exp(-0.5 * (off / s) ** 2)
+    m = jnp.arange(-16, 17)
+    # Σ over all integers of exp(−m²/2σ²): the direct sum for σ ≤ 2, √(2π)σ beyond (Poisson summation)
+    total = jnp.where(s <= 2.0, jnp.sum(jnp.exp(-0.5 * (m / s) ** 2)), jnp.sqrt(2 * jnp.pi) * s)
+    return k / total
+
+
+def front_to_back(tau, eps):
+    """Eq 5 in closed form: per-step weights w_k = α_k T_k (zero once T_k < ``eps``) and α = Σ_k w_k,
+    from the optical depth per step ``tau`` (..., K)."""
+    trans = jnp.exp(-(jnp.cumsum(tau, axis=-1) - tau))
+    w = jnp.where(trans >= eps, -jnp.expm1(-tau) * trans, 0.0)
+    return w, jnp.sum(w, axis=-1)
+
+
+def normals(rho, gx, gy, rs, rr, inside, vx, vy):
+    """n = −∇ρ/|∇ρ| at the march's samples, falling back to the view direction d = (vx, vy) where the
+    gradient is unresolved (below 1e-5 of the sector's peak density, or outside the sector)."""
+    mag2 = gx * gx + gy * gy
+    scale = jnp.max(jnp.abs(rho))
+    ok = (rs * rs + rr * rr > (1e-5 * scale) ** 2) & (mag2 > 0) & inside
+    inv = jnp.where(ok, jax.lax.rsqrt(jnp.where(ok, mag2, 1.0)), 0.0)
+    return jnp.where(ok, -gx * inv, vx), jnp.where(ok, -gy * inv, vy)
+
+
+def phong_direct(nx, ny, vx, vy, lx, ly, phong):
+    """The direct part of the tracer's reflectance, k_d max(0, n·l) + k_s max(0, r·d)^p [n·l > 0] with
+    r = 2(n·l)n − l; all arguments broadcast (the caller lays out the view and light axes)."""
+    nl = nx * lx + ny * ly
+    rv = 2 * nl * (nx * vx + ny * vy) - (lx * vx + ly * vy)
+    spec = jnp.where((nl > 0) & (rv > 0), jnp.exp(phong[3] * jnp.log(jnp.where(rv > 0, rv, 1.0))), 0.0)
+    return phong[1] * jnp.maximum(nl, 0.0) + phong[2] * spec
+
+
+def view_points(g, views, n_lanes: int, n_steps: int):
+    """Local (qx, qy) of every (view, lane, step) sample: (V, lanes, K) each, as :func:`march` places them."""
+    R = g[EXTENT]
+    dx, dy = jnp.cos(views)[:, None, None], jnp.sin(views)[:, None, None]
+    t = (-R + (jnp.arange(n_lanes) + 0.5) * (2 * R / n_lanes))[None, :, None]
+    z = (R - (jnp.arange(n_steps) + 0.5) * (2 * R / n_steps))[None, None, :]
+    return -dy * t + dx * z, dx * t + dy * z
+
+
+def grid_transmittance(depth, g, views, n_lanes: int, n_steps: int):
+    """exp(−optical depth toward each light) at every view sample, from :func:`light_depth_grid`'s
+    (M, M, L) nodes: (V, lanes, K, L)."""
+    m = depth.shape[0]
+    R = g[EXTENT]
+    qx, qy = view_points(g, views, n_lanes, n_steps)
+    fi, fj = (qx + R) / (2 * R) * m - 0.5, (qy + R) / (2 * R) * m - 0.5
+    # one view at a time: the loop boundary stops XLA fusing the field into the gather (10x slower)
+    return jax.lax.map(lambda a: jnp.exp(-bilerp_nodes(depth, a[0], a[1])), (fi, fj))
