@@ -42,20 +42,13 @@ def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bo
       hairlut render tables/scenes/sintel-groom.toml --reference --out out/sintel-ref.exr --png
     """
     from hairlut.render import render_layered, render_reference, write_frame
-    from hairlut.scene import load_scene
+    from hairlut.scene import load_scene, scene_assets
 
     sc = load_scene(scene)
     if reference:
         frame = render_reference(sc, bound=bound, max_level=max_level, verify=verify)
     else:
-        maps_path = None
-        if db_path is None or (sh_path is None and sc.environment is not None):
-            from hairlut.scene import find_assets
-
-            found = find_assets(sc, cache_root)
-            db_path = db_path or (str(found["hrir_db"]) if "hrir_db" in found else None)
-            maps_path = str(found["scene_maps"]) if "scene_maps" in found and db_path is None else None
-            sh_path = sh_path or (str(found["sh_tables"]) if "sh_tables" in found else None)
+        db_path, sh_path, maps_path = scene_assets(sc, cache_root, db=db_path, sh=sh_path)
         frame = render_layered(sc, db=db_path, sh=sh_path, maps=maps_path)
     files = write_frame(frame, out_path, png=png)
     report = {**files, **frame.info, "camera": frame.camera.to_json()}

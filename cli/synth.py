@@ -32,18 +32,11 @@ def synth_cmd(scene: str, db_path: str | None, sh_path: str | None, cache_root: 
       hairlut synth tables/scenes/sky-clusters.toml --out out/synth-sky
       hairlut synth tables/scenes/two-clusters.toml --db tables/hrir-default.h5 --out out/synth
     """
-    from hairlut.scene import load_scene
+    from hairlut.scene import load_scene, scene_assets
     from hairlut.synth import synthesize, write_outputs
 
     sc = load_scene(scene)
-    maps_path = None
-    if db_path is None or (sh_path is None and sc.environment is not None):
-        from hairlut.scene import find_assets
-
-        found = find_assets(sc, cache_root)
-        db_path = db_path or (str(found["hrir_db"]) if "hrir_db" in found else None)
-        maps_path = str(found["scene_maps"]) if "scene_maps" in found and db_path is None else None
-        sh_path = sh_path or (str(found["sh_tables"]) if "sh_tables" in found else None)
+    db_path, sh_path, maps_path = scene_assets(sc, cache_root, db=db_path, sh=sh_path)
     result = synthesize(sc, db_path, sh=sh_path, maps=maps_path)
     files = write_outputs(result, out_dir)
     report = {"scene": scene, "db": db_path, "sh": sh_path, **files, **result.stats}

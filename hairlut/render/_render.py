@@ -16,16 +16,6 @@ from ._strands import segments_of
 BOUND = 0.01
 
 
-def _material(scene) -> tuple[np.ndarray, np.ndarray]:
-    """(mat (9,), colours (3, 3)) as ``hairlut.synth.lighting_kernel`` takes them."""
-    m = scene.material
-    mat = np.array([m["kd"], m["ks_I"], m["ks_II"], m["p_I"], m["p_II"], m["shift"], m["diffuse_scale"],
-                    m["diffuse_bias"], m["noise_amount"]], np.float32)
-    hair = np.asarray(m["hair_color"], np.float32)
-    sec = np.asarray(m["spec_color_II"], np.float32) * (hair if m["secondary_hair_tint"] else 1.0)
-    return mat, np.stack([hair, np.asarray(m["spec_color_I"], np.float32), sec])
-
-
 def extinction(scene) -> float:
     """κ of σ_t = κ / r: the scene's HRIR recipe ``trace.extinction``."""
     from ..hrir import resolve_recipe
@@ -35,7 +25,7 @@ def extinction(scene) -> float:
 
 def segment_lighting(scene, tangent, view, lights, colors) -> np.ndarray:
     """(S, L, 3) eqs 8–11 (Scheuermann's terms) per segment and light, normal facing the viewer."""
-    from ..synth import lighting_kernel
+    from ..synth import lighting_kernel, material_arrays
 
     t = np.asarray(tangent, np.float64)
     v = np.asarray(view, np.float64)
@@ -43,7 +33,7 @@ def segment_lighting(scene, tangent, view, lights, colors) -> np.ndarray:
     nn = np.linalg.norm(n, axis=1, keepdims=True)
     n = np.where(nn > 1e-9, n / np.where(nn > 0, nn, 1.0), 0.0)  # a strand along the view: no shift direction
     fx = scene.effects
-    mat, colours = _material(scene)
+    mat, colours = material_arrays(scene)
     f32 = np.float32
     lit = lighting_kernel(jnp.asarray(t, f32), jnp.asarray(n, f32), jnp.asarray(v, f32), jnp.asarray(lights, f32),
                           jnp.asarray(colors, f32), jnp.full(len(t), 0.5, f32), mat, colours,

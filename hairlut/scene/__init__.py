@@ -23,7 +23,7 @@ _LAZY = {
     "scene_sectors": "_sectors",
     "Plan": "_planner", "Step": "_planner", "bake": "_planner", "environment_light": "_planner",
     "environment_bands": "_planner", "window_factors": "_envbands", "window_coeffs": "_envbands",
-    "find_assets": "_planner", "plan": "_planner", "sh_bands": "_planner", "sh_recipe": "_planner",
+    "find_assets": "_planner", "scene_assets": "_planner", "plan": "_planner", "sh_bands": "_planner", "sh_recipe": "_planner",
     "direct_recipe": "_planner", "map_method": "_planner", "scene_maps_recipe": "_planner",
 }
 

@@ -511,3 +511,16 @@ def find_assets(scene, cache_root=None) -> dict[str, Path]:
                                             f"`hairlut bake --scene {p.scene.source}` (or give its path)")
         out[s.name] = Path(s.path)
     return out
+
+
+def scene_assets(scene, cache_root=None, *, db=None, sh=None) -> tuple[str | None, str | None, str | None]:
+    """(hrir_db, sh_tables, scene_maps) paths for rendering ``scene``: the given ``db``/``sh`` paths,
+    and from the cache (:func:`find_assets`) what is missing; a scene table only when no database is
+    given.  Paths are strings, ``None`` where the scene needs no such table."""
+    maps = None
+    if db is None or (sh is None and scene.environment is not None):
+        found = find_assets(scene, cache_root)
+        db = db or (str(found["hrir_db"]) if "hrir_db" in found else None)
+        maps = str(found["scene_maps"]) if "scene_maps" in found and db is None else None
+        sh = sh or (str(found["sh_tables"]) if "sh_tables" in found else None)
+    return db, sh, maps

@@ -20,7 +20,7 @@ _LAZY = {
     "lighting_kernel": "_shading",
     "shade": "_shading", "shade_lights": "_shading", "shadow_map": "_shading", "specular": "_shading", "value_noise": "_shading",
     "ClusterResult": "_synth", "KIND": "_synth", "Prepared": "_synth", "PreparedCluster": "_synth",
-    "SynthResult": "_synth", "channels": "_synth", "ortho_preview": "_synth", "prepare": "_synth",
+    "SynthResult": "_synth", "channels": "_synth", "material_arrays": "_synth", "ortho_preview": "_synth", "prepare": "_synth",
     "prepare_cluster": "_synth", "render": "_synth", "render_clusters": "_synth", "synthesize": "_synth",
     "write_outputs": "_synth",
     "Shadows": "_shadowing", "prepare_shadows": "_shadowing",

@@ -76,7 +76,8 @@ def _load_db(db):
     return db
 
 
-def _material(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+def material_arrays(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """(mat (9,), colours (3, 3)) of the scene's ``[material]`` as :func:`lighting_kernel` takes them."""
     m = scene.material
     mat = np.array([m["kd"], m["ks_I"], m["ks_II"], m["p_I"], m["p_II"], m["shift"], m["diffuse_scale"],
                     m["diffuse_bias"], m["noise_amount"]], np.float32)
@@ -241,7 +242,7 @@ def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict
         re, alpha, uniform = prepared.maps.frame(prepared.index, view, lights)
     jax.block_until_ready(alpha)
     t1 = time.perf_counter()
-    mat, colours = _material(scene)
+    mat, colours = material_arrays(scene)
     st = prepared.stacked
     f32 = partial(np.asarray, dtype=np.float32)
     out = shade_kernel(re, alpha, st["tangent"], st["normal"], st["noise"], f32(view), f32(lights), f32(light_colors),
