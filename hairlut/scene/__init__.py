@@ -21,9 +21,9 @@ _LAZY = {
     "frame_bytes": "_camera", "make_camera": "_camera",
     "MARGIN": "_sectors", "SceneSectors": "_sectors", "grid_coverage": "_sectors", "restricted_space": "_sectors",
     "scene_sectors": "_sectors",
-    "Plan": "_planner", "Step": "_planner", "bake": "_planner", "environment_light": "_planner",
-    "environment_bands": "_planner", "window_factors": "_envbands", "window_coeffs": "_envbands",
-    "find_assets": "_planner", "scene_assets": "_planner", "plan": "_planner", "sh_bands": "_planner", "sh_recipe": "_planner",
+    "Plan": "_planner", "Step": "_planner", "bake": "_planner", "environment_light": "_lighting",
+    "environment_bands": "_lighting", "window_factors": "_envbands", "window_coeffs": "_envbands",
+    "find_assets": "_planner", "scene_assets": "_planner", "plan": "_planner", "sh_bands": "_lighting", "sh_recipe": "_lighting",
     "direct_recipe": "_planner", "map_method": "_planner", "scene_maps_recipe": "_planner",
 }
 

@@ -43,10 +43,10 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-import numpy as np
 
-from .. import cache, errors, registry
+from .. import budget, cache, errors, registry
 from ..assets import recipe_hash
+from ._lighting import environment_bands, environment_light, sh_recipe
 from ._schema import as_scene
 from ._sectors import SceneSectors, grid_coverage, restricted_space, scene_sectors
 
@@ -145,90 +145,6 @@ def _hrir_step(scene, ss: SceneSectors, root) -> Step:
                         0.0, details)
     return Step("hrir_db", "bake", f"the SATF lookup needs it; {restrict_words}; {angle_words}", "hrir_db", recipe,
                 str(path), nbytes, seconds, details)
-
-
-def _reference_light(scene):
-    """The scene's environment light (intensity applied) at the reference's bands (``_envbands``)."""
-    from ..envlight import EnvLight, load_env_light, sky_light
-    from ._envbands import REFERENCE_BANDS
-
-    env = scene.environment
-    lmax = REFERENCE_BANDS - 1
-    light = sky_light(lmax) if env["map"] == "sky" else load_env_light(env["map"], lmax, env["layout"], env["up"])
-    if env["intensity"] != 1.0:
-        light = EnvLight(light.coeffs * env["intensity"], light.channels, light.lmax, light.band_error, light.layout,
-                         f"{light.source_sha256}×{env['intensity']!r}")
-    return light
-
-
-_BANDS: dict = {}
-
-
-def environment_bands(scene) -> dict:
-    """How many light bands the scene's environment term gets and what they cost in radiance
-    (``hairlut.scene._envbands``): ``bands``, ``error`` (relative RMS against 30 bands, after
-    ``environment.window``), ``clamped`` (share of (tangent, θ′) samples below 0), ``rule`` (the
-    paper's ⌈√p⌉ + 1) and ``rule_error``.  ``environment.bands = auto``: the fewest within
-    ``environment.tolerance``; an integer is kept and measured.  None without an environment light."""
-    from ._envbands import band_radiance, choose_bands, radiance_error
-    from ..shtables import specular_band_rule
-
-    env, m, fx = scene.environment, scene.material, scene.effects
-    if env is None:
-        return None
-    kd = m["kd"] * float(np.mean(m["hair_color"])) if fx["diffuse"] else 0.0
-    ks = m["ks_I"] * fx["primary"] + m["ks_II"] * fx["secondary"]
-    stat = Path(env["map"]).stat() if env["map"] != "sky" and Path(env["map"]).is_file() else None
-    key = (env["map"], stat and (stat.st_size, stat.st_mtime_ns), env["layout"], env["up"], env["intensity"],
-           env["bands"], env["tolerance"], env["window"], kd, ks, m["p_I"])
-    if key not in _BANDS:
-        light = _reference_light(scene)
-        terms = band_radiance(light.coeffs, kd, ks, m["p_I"], tangents=1024, theta_v=17)
-        rule = specular_band_rule(m["p_I"])
-        if env["bands"] == "auto":
-            b, err, clamped = choose_bands(terms, env["tolerance"], env["window"])
-        else:
-            b = int(env["bands"])
-            err, clamped = radiance_error(terms, min(b, terms.shape[0]), env["window"])
-        _BANDS[key] = ({"bands": b, "error": err, "clamped": clamped, "rule": rule,
-                        "rule_error": radiance_error(terms, min(rule, terms.shape[0]), "none")[0]}, light)
-    return dict(_BANDS[key][0])
-
-
-def environment_light(scene):
-    """The scene's environment light projected to the bands its SH tables need (windowed by
-    ``environment.window``), or None."""
-    from ..envlight import EnvLight
-    from ._envbands import window_coeffs
-
-    env = scene.environment
-    if env is None:
-        return None
-    info = environment_bands(scene)
-    ref = next(light for stored, light in _BANDS.values() if stored == info)
-    n = max(3, info["bands"])
-    a = ref.coeffs[:n * n]
-    total = (ref.coeffs ** 2).sum(0) / np.maximum(1.0 - np.asarray(ref.band_error) ** 2, 1e-300)
-    err = np.sqrt(np.clip(1.0 - (a ** 2).sum(0) / np.maximum(total, 1e-300), 0.0, None))
-    if env["window"] != "none":
-        a = window_coeffs(a, env["window"])
-    return EnvLight(a, ref.channels, n - 1, err, ref.layout,
-                    ref.source_sha256 if env["window"] == "none" else f"{ref.source_sha256}|{env['window']}")
-
-
-def sh_bands(scene) -> int:
-    b = environment_bands(scene)
-    return b["bands"] if b is not None else 0
-
-
-def sh_recipe(scene) -> dict | None:
-    """The SH-table recipe of a scene's environment light (None when nothing is needed)."""
-    fx, m = scene.effects, scene.material
-    diffuse, specular = fx["diffuse"], fx["primary"] or fx["secondary"]
-    if scene.environment is None or not (diffuse or specular):
-        return None
-    return {"kernel": {"p": float(m["p_I"]), "diffuse": bool(diffuse), "specular": bool(specular)},
-            "bands": {"light_specular": sh_bands(scene)}}
 
 
 def _sh_step(scene, root) -> Step:
@@ -332,15 +248,6 @@ def _sector_bound(sc) -> int:
     return sum((s.s_t + 1) * s.n_layers * s.s_u for s in sc.specs)
 
 
-def _memory_bytes() -> int:
-    import os
-
-    try:
-        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
-    except (ValueError, OSError, AttributeError):
-        return 8 << 30
-
-
 def map_method(scene, sectors: int | None = None, live: int | None = None) -> tuple[str, str]:
     """The map method a scene runs (``direct``, ``scene`` or ``satf``) and why, in words.
 
@@ -367,7 +274,7 @@ def map_method(scene, sectors: int | None = None, live: int | None = None) -> tu
                         f"frame and the exact projection costs seconds a frame here, so {words['satf']}")
     n = _sector_bound(sc) if sectors is None else int(sectors)
     nbytes, _ = registry.get("scene_maps").estimate(scene_maps_recipe(sc), n, live)
-    mem = _memory_bytes()
+    mem = budget.physical_memory() or budget.FALLBACK
     if nbytes > SCENE_MEMORY_SHARE * mem:
         return "satf", (f"auto: static hair on the CPU, but its scene table (~{nbytes / 2**20:.0f} MiB) would exceed "
                         f"{100 * SCENE_MEMORY_SHARE:.0f} % of the memory ({mem / 2**30:.0f} GiB), so {words['satf']}")
