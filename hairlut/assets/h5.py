@@ -43,6 +43,7 @@ import numpy as np
 from .. import errors
 from .._version import __version__
 from .atomic import atomic_path, ensure_space, write_bytes
+from .chunks import ChunkWriter
 from .kinds import KINDS, SCHEMA, SUPPORTED_SCHEMAS
 from .layout import AXES_GROUP, NAME_ATTR, check_layout, disk_name, layout, table  # noqa: F401  (re-exported)
 from .recipe import canonical_json, recipe_hash
@@ -187,6 +188,7 @@ def write_table(
     # itself never meets a full disk (it can segfault there), and a short write is a
     # DiskFullError with nothing left under the final name.
     f = h5py.File(f"{path.name}.in-memory", "w", driver="core", backing_store=False, libver=LIBVER, track_order=True)
+    chunks = ChunkWriter()
     try:
         f.attrs["hairlut_schema"] = np.int32(SCHEMA)
         f.attrs["kind"] = kind
@@ -216,7 +218,9 @@ def write_table(
                     f.create_group(group, track_order=True)
             if where != var.name:
                 f[parts[0]].attrs[NAME_ATTR] = var.name.split("/")[0]
-            ds = f.create_dataset(where, data=data, **_dataset_kwargs(data.shape, var.chunks))
+            ds = f.create_dataset(where, shape=data.shape, dtype=data.dtype, **_dataset_kwargs(data.shape, var.chunks))
+            chunks.add(ds, data)  # shuffle, gzip, fletcher32 on every core: HDF5's own chunk bytes
+            chunks.flush()  # before anything else touches the file, so its layout is the same for any core count
             ds.attrs["units"] = var.units
             ds.attrs["long_name"] = var.long_name
             for key, value in var.attrs.items():
@@ -227,6 +231,7 @@ def write_table(
         f.flush()
         image = f.id.get_file_image()
     finally:
+        chunks.close()
         f.close()
     ensure_space(path, len(image))
     with atomic_path(path) as tmp:
