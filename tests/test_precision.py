@@ -171,6 +171,12 @@ KERNELS = {
     "hairlut.render._raster:raster_kernel": [
         (False, lambda: ((A(2, 2, 9, 3), A(2, 2, 4, 4, 4), A(2, 2, dtype=i32), A(8, 2, 3, dtype=i32), A(9, 2),
                           A(4, 4), A(3), A(3)), dict(size=(16, 12), tile=(8, 8), cap=64)))],
+    "hairlut.render._fragments:surface_kernel": [
+        (False, lambda: ((A(2, 2, 9, 3), A(2, 2, dtype=i32), A(8, 2, 3, dtype=i32), A(9, 2), A(4, 4), A(3), A(3)),
+                         dict(size=(16, 12), tile=(8, 8), cap=64)))],
+    "hairlut.render._fragments:_cells_of": [(False, lambda: ((A(20), A(20), A(20, dtype=i32)), dict(n_t=4, n_u=5)))],
+    "hairlut.render._fragments:composite_kernel": [
+        (False, lambda: ((A(2, 2, 4, 5, 4), A(20, dtype=i32), A(20, 2), A(192, dtype=i32)), dict(slabs=(10, 6, 4))))],
     "hairlut.render._reference:shadow_kernel": [
         (False, lambda: ((A(2, 2, dtype=i32), A(2, 5, dtype=i32), A(3), A(3, 3), A(), A(7, 3), A(7, 3), A(7), A(7),
                           A(7)), dict(depth=4, tile=4)))],

@@ -12,7 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 from hairlut.geometry.mesh import grid_triangles
-from hairlut.render import FAR, Frame, rasterise, read_frame, sample_texture, write_frame
+from hairlut.render import FAR, Frame, draw_layers, rasterise, read_frame, sample_texture, write_frame
 from hairlut.scene import Camera
 
 
@@ -50,13 +50,25 @@ def ramp(shape=(16, 16)):
     return tex
 
 
-def draw(cam, verts, uv, tri, tex):
-    """verts (C, K, V, 3), tex (C, K, n_t, n_u, 4): one tile the size of the frame."""
+def one_pass(cam, verts, uv, tri, tex):
+    """verts (C, K, V, 3), tex (C, K, n_t, n_u, 4): one tile the size of the frame (the one-pass reference)."""
     C = verts.shape[0]
     return rasterise(cam, verts, tri, uv, tex, tile=(cam.height, cam.width), origins=np.zeros((C, 2), np.int32))[:2]
 
 
-def test_constant_alpha_quad_renders_exactly_that_alpha():
+def two_pass(cam, verts, uv, tri, tex):
+    """The same frame through the fragment plan (camera pass) and the per-frame composite."""
+    C = verts.shape[0]
+    return draw_layers(cam, verts, tri, uv, tex, tile=(cam.height, cam.width), origins=np.zeros((C, 2), np.int32))[:2]
+
+
+@pytest.fixture(params=["one_pass", "two_pass"])
+def draw(request):
+    """Every exactness test runs on both renderers."""
+    return {"one_pass": one_pass, "two_pass": two_pass}[request.param]
+
+
+def test_constant_alpha_quad_renders_exactly_that_alpha(draw):
     """Interior pixels take the texture's α bit for bit (no shared edge drawn twice or missed); outside is empty."""
     cam = camera(res=(64, 48))
     a = np.float32(0.37)
@@ -77,7 +89,7 @@ def test_constant_alpha_quad_renders_exactly_that_alpha():
 
 
 @pytest.mark.parametrize("projection", ["orthographic", "perspective"])
-def test_projected_point_lands_where_drawn_and_interpolation_is_perspective_correct(projection, tmp_path):
+def test_projected_point_lands_where_drawn_and_interpolation_is_perspective_correct(projection, tmp_path, draw):
     """A tilted quad with a (u, t) ramp texture: at a pixel, the drawn (u, t) is that of the quad point the pixel's
     ray hits (perspective-correct), and a quad point projected with the camera matrix stored in the EXR lands on
     the pixel whose drawn (u, t) is its own."""
@@ -120,7 +132,7 @@ def test_projected_point_lands_where_drawn_and_interpolation_is_perspective_corr
     assert checked > 40
 
 
-def test_eq14_between_layers_and_depth_order_between_clusters():
+def test_eq14_between_layers_and_depth_order_between_clusters(draw):
     """Two layers of one cluster compose by eq 14 (outer over inner, whatever their order in the arrays' memory);
     two clusters compose front to back by depth, whichever comes first in the input."""
     cam = camera(res=(40, 40))
@@ -149,7 +161,7 @@ def test_eq14_between_layers_and_depth_order_between_clusters():
     assert np.allclose(got[20, 20], [0, 1, 0, 1], atol=1e-7)
 
 
-def test_back_faces_compose_behind_front_faces():
+def test_back_faces_compose_behind_front_faces(draw):
     """A layer's back face (outward normal away from the viewer) lies behind its front face: a closed box seen
     through its translucent front shows the back's colour attenuated by the front's α."""
     cam = camera(res=(32, 32))
@@ -251,7 +263,7 @@ def test_write_exr_attributes_round_trip_and_refusals(tmp_path):
     assert not (tmp_path / "b.exr").exists()
 
 
-def test_pixel_centres_exactly_on_a_shared_edge_are_drawn_once():
+def test_pixel_centres_exactly_on_a_shared_edge_are_drawn_once(draw):
     """A quad whose diagonal passes exactly through 48 pixel centres: each is drawn by one triangle only."""
     cam = camera(res=(64, 64), extent=2.0)
     a = np.float32(0.5)
@@ -282,3 +294,41 @@ def test_oblique_path_and_lengthen_follow_beer_lambert():
     assert np.allclose(out[0, :3] / out[0, 3], rgba[0, :3] / rgba[0, 3], atol=1e-6)
     assert np.all(out[1] == 0) and out[2, 3] == 1.0 and np.allclose(out[2, :3], 0.5)
     assert np.allclose(lengthen(rgba, np.ones(3)), rgba, atol=1e-7)
+
+
+@pytest.mark.parametrize("projection", ["orthographic", "perspective"])
+def test_two_pass_frame_equals_the_one_pass_reference(projection):
+    """Three overlapping tube clusters of three layers, each in its own tile, random translucent textures: the
+    fragment plan's frame equals the one-pass rasteriser's to float32 rounding (depth exactly), and a plan made
+    once re-textures a second set of maps to the one-pass frame of those maps."""
+    from hairlut.geometry import ClusterGeometry, ClusterSpec
+    from hairlut.render import draw_plan, layout
+
+    specs = [ClusterSpec(trajectory=np.array([[0.05 * c, 0.3, 0.02 * c], [0.04 + 0.03 * c, 0.0, 0.05],
+                                              [0.05 - 0.02 * c, -0.3, 0.04 * c]]),
+                         half_axis_a=0.06, half_axis_b=0.045, layer_radii=np.array([0.4, 0.7, 1.0]),
+                         s_t=6, s_u=6, twist=np.array([0.0, 0.3 * c])) for c in range(3)]
+    geometry = ClusterGeometry(specs)
+    cam = camera(projection, res=(72, 64), eye=(0.02, 0.05, 1.5), extent=0.8, fov=35.0)
+    meshes, tile, origins, _ = layout(cam, geometry, edge_pixels=6.0)
+    assert tile != (cam.height, cam.width) and len(set(map(tuple, origins.tolist()))) > 1  # tiles are exercised
+    rng = np.random.default_rng(3)
+    texs = []
+    for _ in range(2):
+        t = rng.uniform(0.0, 1.0, (3, 3, 8, 10, 4)).astype(np.float32)
+        t[..., 3] *= 0.7
+        t[..., :3] *= t[..., 3:]
+        texs.append(t)
+    args = (cam, meshes.vertices, meshes.triangles, meshes.uv)
+    ref, ref_depth = rasterise(*args, texs[0], tile=tile, origins=origins)[:2]
+    got, depth, _, plan = draw_layers(*args, texs[0], tile=tile, origins=origins)
+    assert (ref[..., 3] > 0).mean() > 0.1 and plan.info["slabs"] >= 6  # clusters and layers overlap
+    assert np.abs(got - ref).max() < 2e-6
+    assert np.array_equal(depth, ref_depth)
+    ref2 = rasterise(*args, texs[1], tile=tile, origins=origins)[0]
+    got2, _ = draw_plan(plan, texs[1])
+    assert np.abs(got2 - ref2).max() < 2e-6 and np.abs(ref2 - ref).max() > 0.1
+    from hairlut import errors
+
+    with pytest.raises(errors.ValidationError, match="textures"):
+        draw_plan(plan, texs[1][:, :, :4])

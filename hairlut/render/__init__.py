@@ -2,7 +2,7 @@
 reference, and the two compared.
 
 ``render_layered(scene)``: the layered cluster model, its layer meshes textured with the online module's
-maps and rasterised in JAX (``_layered``, ``_raster``).  ``render_reference(scene)``:
+maps and rasterised in JAX (``_layered``, ``_fragments``, ``_raster``).  ``render_reference(scene)``:
 the strands as the Gaussian tubes of the sector densities, ray-marched through the camera and refined until
 converged (``_reference``, ``_strands``).  ``compare(a, b)``: RMSE, α bias, 8 × 8-block figures and FLIP
 (``_compare``).  ``write_frame``/``read_frame``: the EXR with R, G, B, A, Z and the camera (``_frame``).
@@ -20,6 +20,8 @@ _LAZY = {
     "Segments": "_strands", "Z_CUT": "_strands", "crossings": "_strands", "inside_clusters": "_strands", "segments_of": "_strands",
     "bin_boxes": "_tiles",
     "FAR": "_raster", "raster_kernel": "_raster", "sample_texture": "_raster",
+    "FragmentPlan": "_fragments", "composite_kernel": "_fragments", "draw_layers": "_fragments",
+    "draw_plan": "_fragments", "plan_fragments": "_fragments", "surface_kernel": "_fragments",
     "candidates": "_layered", "layout": "_layered", "lengthen": "_layered", "oblique_path": "_layered", "pairs_of": "_layered", "layer_textures": "_layered", "rasterise": "_layered", "render_layered": "_layered",
     "layered_vs_reference": "_pair", "panels": "_pair",
     "compare": "_compare", "block_average": "_compare", "side_by_side": "_compare",

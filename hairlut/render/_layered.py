@@ -5,8 +5,10 @@ RGBA on the (n_t, n_u) texel grid: the map method's re- and α-maps, the scene's
 shadow method (eq 12 or a light-space map), eq 13 and the environment term when the scene has one, all
 for the scene's ``[camera] view`` (a perspective camera's per-pixel view direction is not re-shaded).
 The layer meshes (``hairlut.geometry.layer_meshes``, refined until a mesh edge spans at most
-:data:`EDGE_PIXELS` pixels) carry those maps as textures into :func:`raster_kernel` (``_raster``: perspective-
-correct rasterisation, eq 14 between a cluster's layers, front-to-back "over" between clusters).  The textures
+:data:`EDGE_PIXELS` pixels) carry those maps as textures, drawn in two passes (``_fragments``: once per camera the
+fragments, perspective-correct, from ``_raster.surfaces``; per frame the texturing and the composite, eq 14 between
+a cluster's layers and front-to-back "over" between clusters).  :func:`rasterise` draws the same frame in one pass
+(:func:`raster_kernel`), the reference the two-pass frame is tested against.  The textures
 are eq 13's colour as it comes (already α-premultiplied: :func:`layer_textures`) with α and colour lengthened for
 the camera ray's angle to the cluster's axis (:func:`oblique_path`, :func:`lengthen`).
 
@@ -24,6 +26,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
+from ._fragments import draw_layers
 from ._frame import Frame
 from ._raster import raster_kernel
 
@@ -178,9 +181,11 @@ def render_layered(scene, camera=None, *, db=None, sh=None, maps=None, prepared=
     """The layered model of ``scene`` through its camera (module docstring).  ``db``/``sh``/``maps``: the
     assets ``hairlut.synth.prepare`` reads (the scene's map method decides which); ``prepared``: a
     ``hairlut.synth.Prepared`` to reuse.  ``info["seconds"]``: ``maps`` and ``shade`` (the online module's
-    frame), ``raster_first`` (the first kernel call, compile included) and ``raster`` (the best of
-    ``repeat`` warm calls: the frame time, maps excluded).  ``oblique``: each texel's α (and colour) lengthened
-    by :func:`oblique_path` for the camera ray's angle to the cluster's axis (off: the in-plane α as it is)."""
+    frame), ``plan`` (the camera pass of ``_fragments``: which layer surfaces each pixel shows, and where in their
+    textures), ``raster_first`` (the first texturing and composite, compile included) and ``raster`` (the best of
+    ``repeat`` warm calls: the frame time for this camera, maps and camera pass excluded).  ``oblique``: each
+    texel's α (and colour) lengthened by :func:`oblique_path` for the camera ray's angle to the cluster's axis
+    (off: the in-plane α as it is)."""
     from ..geometry import ClusterGeometry
     from ..scene import as_scene
     from ..synth import prepare, render
@@ -199,13 +204,14 @@ def render_layered(scene, camera=None, *, db=None, sh=None, maps=None, prepared=
         tex = lengthen(tex, oblique_path(cam, np.stack([pc.tangent for pc in prep.clusters]),
                                          np.stack([pc.position for pc in prep.clusters])))
     t2 = time.perf_counter()
-    rgba, depth, sec, cap = rasterise(cam, meshes.vertices, meshes.triangles, meshes.uv, tex, tile=tile,
-                                      origins=origins, repeat=repeat)
+    rgba, depth, sec, plan = draw_layers(cam, meshes.vertices, meshes.triangles, meshes.uv, tex, tile=tile,
+                                         origins=origins, repeat=repeat)
+    cap = plan.info["candidates_per_cluster"]
     st = result.stats["seconds"]
     info = {"method": "layered", "map_method": prep.method, "scene": sc.source,
             "clusters": len(prep.clusters), "layers": int(tex.shape[1]), "texels": list(tex.shape[2:4]),
             "subdivision": list(subdiv), "triangles": int(meshes.triangles.shape[0] * tex.shape[0] * tex.shape[1]),
-            "candidates_per_cluster": cap, "tile": list(tile), "oblique": bool(oblique), "environment": "included" if prep.environment is not None else "none in scene",
+            "candidates_per_cluster": cap, "fragments": plan.info["fragments"], "tile": list(tile), "oblique": bool(oblique), "environment": "included" if prep.environment is not None else "none in scene",
             "seconds": {"prepare": t1 - t0, "maps": st.get("maps", 0.0), "shade": st.get("shade", 0.0),
                         "setup": t2 - t1, **sec}}
     return Frame(rgba, depth, cam, info)

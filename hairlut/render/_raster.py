@@ -46,24 +46,35 @@ def _edge(ax, ay, bx, by, px, py):
     return (bx - ax) * (py - ay) - (by - ay) * (px - ax)
 
 
-def sample_texture(tex, u, t):
-    """Bilinear RGBA of ``tex`` (n_t, n_u, 4) at mesh texture coordinates u ∈ [0, 1] (periodic), t ∈ [0, 1];
-    a constant texture returns its value exactly (a + w·(b − a))."""
-    n_t, n_u = tex.shape[:2]
+def texel_cell(u, t, n_t: int, n_u: int):
+    """The bilinear footprint of texture coordinates u ∈ [0, 1] (periodic), t ∈ [0, 1] on an (n_t, n_u) texel
+    grid (texel (i, j) at t = (i + ½)/n_t, u = (j + ½)/n_u): rows i0, i1 = min(i0 + 1, n_t − 1) (i0 clamped to
+    [0, n_t − 2]), columns j0, j1 = j0 + 1 mod n_u, and the weights ws (along u) and wr (along t)."""
     s = u * n_u - 0.5
     j0f = jnp.floor(s)
-    ws = (s - j0f)[..., None]
+    ws = s - j0f
     j0 = jnp.mod(j0f.astype(jnp.int32), n_u)
     j1 = jnp.mod(j0 + 1, n_u)
     r = jnp.clip(t * n_t - 0.5, 0.0, n_t - 1.0)
     i0 = jnp.clip(jnp.floor(r).astype(jnp.int32), 0, max(n_t - 2, 0))
     i1 = jnp.minimum(i0 + 1, n_t - 1)
-    wr = (r - i0)[..., None]
-    flat = tex.reshape(-1, tex.shape[-1])
-    a, b = flat[i0 * n_u + j0], flat[i0 * n_u + j1]
-    c, d = flat[i1 * n_u + j0], flat[i1 * n_u + j1]
+    return i0, i1, j0, j1, ws, r - i0
+
+
+def bilerp(a, b, c, d, ws, wr):
+    """(a, b) along u on row i0, (c, d) on row i1: exact for a constant texture (a + w·(b − a))."""
     top, bot = a + ws * (b - a), c + ws * (d - c)
     return top + wr * (bot - top)
+
+
+def sample_texture(tex, u, t):
+    """Bilinear RGBA of ``tex`` (n_t, n_u, 4) at mesh texture coordinates u ∈ [0, 1] (periodic), t ∈ [0, 1]
+    (:func:`texel_cell`); a constant texture returns its value exactly."""
+    n_t, n_u = tex.shape[:2]
+    i0, i1, j0, j1, ws, wr = texel_cell(u, t, n_t, n_u)
+    flat = tex.reshape(-1, tex.shape[-1])
+    return bilerp(flat[i0 * n_u + j0], flat[i0 * n_u + j1], flat[i1 * n_u + j0], flat[i1 * n_u + j1],
+                  ws[..., None], wr[..., None])
 
 
 def _records(x, y, w, depth, uv, pairs):
@@ -95,9 +106,11 @@ def _records(x, y, w, depth, uv, pairs):
     return rec, (lo_x, hi_x, lo_y, hi_y)
 
 
-def _cluster(verts, tex, origin, pairs, uv, matrix, eye, back, *, size, tile, cap):
-    """One cluster: (th, tw, 4) premultiplied RGBA, (th, tw) nearest depth of its tile at ``origin``, and the
-    number of candidate pixels it needed (at most ``cap`` are tested)."""
+def surfaces(verts, origin, pairs, uv, matrix, eye, back, *, size, tile, cap):
+    """One cluster's layer surfaces in its tile at ``origin`` (steps 1–4 of the module docstring): the nearest
+    fragment's eye depth (2K, th, tw) (inf where none; surface 2k: layer k's front faces, 2k + 1: its back
+    faces), its texture coordinates (2K, th, tw, 2) (u, t), and the number of candidate pixels the cluster
+    needed (at most ``cap`` are tested)."""
     W, H = size
     th, tw = tile
     K = verts.shape[0]
@@ -151,15 +164,27 @@ def _cluster(verts, tex, origin, pairs, uv, matrix, eye, back, *, size, tile, ca
     zbuf = jnp.full(dump + 1, jnp.inf, jnp.float32).at[idx].min(zf)
     win = hit & (zf == zbuf[idx])
     uvbuf = jnp.zeros((dump + 1, 2), jnp.float32).at[jnp.where(win, idx, dump)].set(jnp.stack([tu, tt], -1))
-    zb = zbuf[:dump].reshape(2 * K, th, tw)
-    uvb = uvbuf[:dump].reshape(2 * K, th, tw, 2)
+    return zbuf[:dump].reshape(2 * K, th, tw), uvbuf[:dump].reshape(2 * K, th, tw, 2), total
+
+
+def surface_order(K: int) -> list[int]:
+    """Eq 14's front-to-back order of a cluster's 2K surfaces: front faces outermost first, then back faces
+    innermost first (the depth order of nested shells)."""
+    return [2 * k for k in range(K - 1, -1, -1)] + [2 * k + 1 for k in range(K)]
+
+
+def _cluster(verts, tex, origin, pairs, uv, matrix, eye, back, *, size, tile, cap):
+    """One cluster: (th, tw, 4) premultiplied RGBA, (th, tw) nearest depth of its tile at ``origin``, and the
+    number of candidate pixels it needed (at most ``cap`` are tested)."""
+    th, tw = tile
+    K = verts.shape[0]
+    zb, uvb, total = surfaces(verts, origin, pairs, uv, matrix, eye, back, size=size, tile=tile, cap=cap)
     rgba = jax.vmap(sample_texture)(jnp.repeat(tex, 2, axis=0), uvb[..., 0], uvb[..., 1])
     drawn = jnp.isfinite(zb)
     rgba = jnp.where(drawn[..., None], rgba, 0.0)
-    order = [2 * k for k in range(K - 1, -1, -1)] + [2 * k + 1 for k in range(K)]
     acc = jnp.zeros((th, tw, 4), jnp.float32)
     trans = jnp.ones((th, tw), jnp.float32)
-    for sl in order:  # eq 14, front to back
+    for sl in surface_order(K):  # eq 14, front to back
         acc = acc + trans[..., None] * rgba[sl]
         trans = trans * (1.0 - rgba[sl, ..., 3])
     near = jnp.min(jnp.where(drawn, zb, FAR), axis=0)
