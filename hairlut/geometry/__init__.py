@@ -23,7 +23,8 @@ _LAZY = {
     "sector_density": "density", "sector_density_numpy": "density",
     "FEATURE_SETS": "features", "FeatureStats": "features", "PCABasis": "features",
     "feature_names": "features", "sector_features": "features",
-    "fit_clusters": "fit", "resample_strands": "fit",
+    "fit_clusters": "fit", "resample_strands": "fit", "PLACES": "coverage", "length_inside": "coverage",
+    "segment_places": "coverage",
     "SampledSectors": "sampler", "SectorSpace": "sector_space", "groom_sectors": "sampler", "sample_sectors": "sampler",
 }
 

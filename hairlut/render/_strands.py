@@ -140,32 +140,17 @@ def inside_clusters(pairs, *, samples: int = 801) -> tuple[list, dict]:
     nearest of ``samples`` sections) and between the core and the outer shell (core_radius ≤ v ≤ 1 of eq 1's
     ellipse): where a strand crosses the sectors' planes (``hairlut.geometry.build_sectors``).  Rendering these
     against all the strands separates what the cluster fit leaves out from what the layered model loses."""
-    from ..geometry import ClusterGeometry, Strands
+    from ..geometry import PLACES, Strands, segment_places
 
     kept, lost = [], {"before_start": 0.0, "after_end": 0.0, "core": 0.0, "outside": 0.0, "inside": 0.0}
     total = 0.0
     for spec, s in pairs:
-        sec = ClusterGeometry([spec]).sections(np.linspace(0.0, 1.0, samples)).take(0)
-        p = np.asarray(s.points, np.float64)
-        last = np.zeros(len(p), bool)
-        last[np.asarray(s.offsets)[1:] - 1] = True
-        first = np.flatnonzero(~last)
-        mid = 0.5 * (p[first] + p[first + 1])
-        length = np.linalg.norm(p[first + 1] - p[first], axis=1)
-        near = np.empty(len(mid), np.int64)
-        for a in range(0, len(mid), 4096):  # (chunk, samples) distances at a time
-            near[a:a + 4096] = np.argmin(np.linalg.norm(mid[a:a + 4096, None] - sec.origin[None], axis=-1), axis=1)
-        rel = mid - sec.origin[near]
-        along = np.sum(rel * sec.tangent[near], 1)
-        v = np.hypot(np.sum(rel * sec.normal[near], 1) / sec.a[near], np.sum(rel * sec.binormal[near], 1) / sec.b[near])
-        before, after = (near == 0) & (along < 0), (near == samples - 1) & (along > 0)
-        ends = before | after
-        core, out = ~ends & (v < spec.core_radius), ~ends & (v > 1.0)
-        keep = ~(ends | core | out)
-        for k, m in (("before_start", before), ("after_end", after), ("core", core), ("outside", out), ("inside", keep)):
-            lost[k] += float(length[m].sum())
+        first, length, place = segment_places(spec, s, samples=samples)
+        for k, name in enumerate(PLACES):
+            lost[name] += float(length[place == k].sum())
         total += float(length.sum())
-        f = first[keep]
+        f = first[place == 0]
+        p = np.asarray(s.points, np.float64)
         th = None if s.thickness is None else np.stack([s.thickness[f], s.thickness[f + 1]], 1).ravel()
         kept.append(Strands(np.stack([p[f], p[f + 1]], 1).reshape(-1, 3).astype(np.float32), np.full(len(f), 2), thickness=th))
     return kept, {k: v / total for k, v in lost.items()}

@@ -185,7 +185,7 @@ GROOM = {
     "clusters": Field(4, _I, _int_at_least(1), "number of fitted clusters"),
     "radius": Field(0.1, _F, _pos, "metric strand radius when the file has no thickness"),
     "layer_radii": Field(list(_D["layer_radii"]), _L, None, ""),
-    "core_radius": Field(_D["core_radius"], _F, _nonneg, ""),
+    "core_radius": Field(0.0, _F, _nonneg, "no core: a groom's strands fill the whole cross-section (a 0.25 core held 6–30 % of their length)"),
     "s_t": Field(_D["s_t"], _I, _int_at_least(1), ""),
     "s_u": Field(_D["s_u"], _I, _int_at_least(1), ""),
     "seed": Field(0, _I, _int_at_least(0), ""),
