@@ -177,13 +177,16 @@ KERNELS = {
     "hairlut.render._fragments:_cells_of": [(False, lambda: ((A(20), A(20), A(20, dtype=i32)), dict(n_t=4, n_u=5)))],
     "hairlut.render._fragments:composite_kernel": [
         (False, lambda: ((A(2, 2, 4, 5, 4), A(20, dtype=i32), A(20, 2), A(192, dtype=i32)), dict(slabs=(10, 6, 4))))],
+    "hairlut.render._hits:hit_kernel": [
+        (False, lambda: ((A(6, 3), A(6, 3), A(9, dtype=i32), A(9, dtype=i32), A(7, 3), A(7, 3), A(7), A(7), A(7), 0.0), {}))],
     "hairlut.render._reference:shadow_kernel": [
-        (False, lambda: ((A(2, 2, dtype=i32), A(2, 5, dtype=i32), A(3), A(3, 3), A(), A(7, 3), A(7, 3), A(7), A(7),
-                          A(7)), dict(depth=4, tile=4)))],
+        (False, lambda: ((A(2, 3), A(3), A(2, 5, dtype=i32), A(), A(7, 3), A(7, 3), A(7), A(7), A(7)), dict(depth=4)))],
+    "hairlut.render._reference:camera_rays": [
+        (False, lambda: ((A(2, 2, dtype=i32), A(6, 3)), dict(tile=4, ss=2, perspective=p))) for p in (True, False)],
     "hairlut.render._reference:reference_kernel": [
-        (False, lambda: ((A(2, 2, dtype=i32), A(2, 5, dtype=i32), A(6, 3), A(7, 3), A(7, 3), A(7), A(7), A(7),
+        (False, lambda: ((A(4, 3), A(4, 3), A(4, 5, dtype=i32), A(3), A(7, 3), A(7, 3), A(7), A(7), A(7),
                           A(7, 2, 3), A(2, 4, 4, 4), A(2, 4, 3), A(2)),
-                         dict(tile=4, ss=2, steps=3, perspective=p, shadows=True)))
+                         dict(steps=3, perspective=p, shadows=True)))
         for p in (True, False)],
     # scene tables
     "hairlut.scenemaps._fetch:fetch_kernel": [
