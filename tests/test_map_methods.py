@@ -58,6 +58,76 @@ def test_scene_table_fetch_equals_the_tracer_at_grid_angles(baked):
     assert a_ref.max() > 0.2 and r_ref.max() > 0.02
 
 
+def _fetch_reference(alpha_t, ratio_t, row, tv, tl):
+    """The fetch of ``hairlut.scenemaps._fetch``'s module docstring, element by element in float64."""
+    n, half, P = alpha_t.shape
+    V, Q, T = ratio_t.shape[1:]
+    S, L = tl.shape
+    a, re = np.zeros((S, P)), np.zeros((S, L, P))
+    for s in range(S):
+        if row[s] < 0:
+            continue
+        f = (tv[s] % (2 * np.pi)) * V / (2 * np.pi)
+        i0, w = int(np.floor(f)) % V, f - np.floor(f)
+        views = (i0, (i0 + 1) % V)
+        for p in range(P):
+            a[s, p] = sum(wt * (alpha_t[row[s], i, p] if i < half else alpha_t[row[s], i - half, P - 1 - p])
+                          for wt, i in zip((1 - w, w), views))
+        c = (1 - w) * ratio_t[row[s], views[0]].astype(np.float64) + w * ratio_t[row[s], views[1]]
+        for j in range(L):
+            d = tl[s, j] - tv[s]
+            basis = [1.0] + [fn(k * d) for k in range(1, (T - 1) // 2 + 1) for fn in (np.cos, np.sin)]
+            rho = c @ np.asarray(basis)
+            re[s, j] = a[s] * rho[np.arange(P) * Q // P]
+    return a, re
+
+
+@pytest.mark.parametrize("dtype", ["float16", "float32"])
+def test_fetch_kernel_equals_an_elementwise_reference(dtype):
+    from hairlut.scenemaps import fetch_kernel
+
+    rng = np.random.default_rng(1)
+    n, V, P, Q, K, S, L = 5, 8, 16, 4, 2, 9, 2
+    alpha_t = rng.random((n, V // 2, P)).astype(dtype)
+    ratio_t = (0.3 * rng.normal(size=(n, V, Q, 2 * K + 1))).astype(dtype)
+    row = np.array([0, 4, -1, 2, 2, 1, -1, 3, 0], np.int32)
+    tv = np.concatenate([rng.uniform(0, 2 * np.pi, S - 3), [0.0, np.pi, 2 * np.pi - 1e-3]])  # grid, mirror, wrap
+    tl = rng.uniform(0, 2 * np.pi, (S, L))
+    a, r = (np.asarray(x) for x in fetch_kernel(alpha_t, ratio_t, row, tv.astype(np.float32), tl.astype(np.float32)))
+    a_ref, r_ref = _fetch_reference(alpha_t, ratio_t, row, tv.astype(np.float32).astype(np.float64),
+                                    tl.astype(np.float32).astype(np.float64))
+    np.testing.assert_allclose(a, a_ref, atol=2e-6, rtol=0)
+    np.testing.assert_allclose(r, r_ref, atol=1e-5, rtol=0)
+    assert not a[row < 0].any() and not r[row < 0].any()
+
+
+def test_scene_frame_kernel_equals_fetch_then_sweep(baked):
+    """The scene method's one-kernel frame gives the maps of fetch_kernel's rows swept by sweep_sectors."""
+    import jax.numpy as jnp
+
+    from hairlut.scenemaps import fetch_kernel
+    from hairlut.synth import params_kernel, sweep_sectors
+
+    from hairlut.synth import MapSource
+
+    _, _, maps, _ = baked
+    lit = scene("direct")
+    lit["lights"] = {"directions": [[0.5, 0.8, 1.0], [-0.7, 0.2, 0.4]]}
+    prep = prepare(resolve_scene(lit))  # the geometry index of the same sectors
+    ix = prep.index
+    dev = (jnp.asarray(maps.alpha), jnp.asarray(maps.ratio), jnp.asarray(maps.row, jnp.int32))
+    f32 = lambda x: np.asarray(x, np.float32)  # noqa: E731
+    tv, tl, cs, _, _ = params_kernel(ix, f32(prep.scene.view), f32(prep.scene.lights), f32(0.0), n_v=1, n_l=1)
+    assert tl.shape[1] == 2 and len(maps.row) == len(tv)
+    a, r = fetch_kernel(*dev, tv, tl)
+    re_ref, a_ref = sweep_sectors(ix, a, r, cs)
+    re_map, a_map, uniform = MapSource("scene", "", maps.pixels, maps=maps, device=dev).frame(
+        ix, prep.scene.view, prep.scene.lights)
+    assert not uniform.any() and float(jnp.max(a_ref)) > 0.1 and float(jnp.max(re_ref)) > 0.01
+    np.testing.assert_allclose(np.asarray(a_map), np.asarray(a_ref), atol=1e-7, rtol=0)
+    np.testing.assert_allclose(np.asarray(re_map), np.asarray(re_ref), atol=1e-7, rtol=0)
+
+
 def test_compress_reconstructs_a_band_limited_ratio():
     rng = np.random.default_rng(0)
     n, V, L, P, K = 3, 4, 7, 4, 3

@@ -241,6 +241,9 @@ KERNELS = {
                           A(4, dtype=i32), (A(12, 2, 16), A(12, 16))), {}))],
     "hairlut.synth._frame:sweep_rows": [
         (False, lambda: ((_map_index(), A(12, 2, 16), A(12, 16), A(12, 2), A(8, dtype=bool), A(8, dtype=i32)), {}))],
+    "hairlut.synth._methods:scene_frame_kernel": [
+        (False, lambda: ((_map_index(neighbours=False), A(5, 4, 16), A(5, 8, 4, 5), A(12, dtype=i32), A(12), A(12, 2),
+                          A(12, 2)), {}))],
     "hairlut.synth._frame:sweep_sectors": [
         (False, lambda: ((_map_index(neighbours=False), A(12, 16), A(12, 2, 16), A(12, 2)), {}))],
     "hairlut.synth._maps:sweep_kernel": [

@@ -16,7 +16,7 @@ from ._kind import BAKER, KIND
 _LAZY = {
     "SCHEMA": "_recipe", "geometry_key": "_recipe", "resolve_recipe": "_recipe", "hrir_recipe": "_recipe",
     "SceneMaps": "_bake", "bake": "_parts", "load_scene_maps": "_bake", "scene_inputs": "_bake", "compress": "_bake",
-    "fetch_kernel": "_fetch", "fetch_rows": "_fetch",
+    "fetch_kernel": "_fetch", "fetch_rows": "_fetch", "fetch_terms": "_fetch",
 }
 
 __all__ = sorted(_LAZY) + ["BAKER", "KIND"]

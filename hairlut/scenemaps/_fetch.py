@@ -22,10 +22,15 @@ from .. import errors
 HIGHEST = jax.lax.Precision.HIGHEST
 
 
-@partial(jax.jit, static_argnames=("shade",))
-def fetch_kernel(alpha_t, ratio_t, row, theta_v, theta_l, *, shade: bool = True):
-    """α (S, P) and re (S, L, P) of S sectors from a scene table's ``alpha_t`` (N, V/2, P) and
-    ``ratio_t`` (N, V, Q, T) (any float dtype), ``row`` (S,) int32, ``theta_v`` (S,), ``theta_l`` (S, L)."""
+def fetch_terms(alpha_t, ratio_t, row, theta_v, theta_l, *, shade: bool = True):
+    """α (S, P) and the re/α ratio per light and bin, ρ (S, L, Q), of S sectors (module docstring):
+    re_l(p) = α(p) ρ_l(⌊p Q / P⌋).  Traceable (no jit of its own): :func:`fetch_kernel` and the
+    scene method's frame kernel (``hairlut.synth``) inline it.  Arguments as :func:`fetch_kernel`.
+
+    Every read is a whole contiguous row (P pixels of α; the Q·T terms of one view): the tables are
+    viewed as 2-D (N·V/2, P) and (N·V, Q·T) and indexed by row, so XLA gathers slices rather than one
+    index tuple per element (several times cheaper on the CPU than the (N, V, Q, T) element gather),
+    and a mirror view is its stored row reversed.  Narrow storage is converted after the gather."""
     n, half, P = alpha_t.shape
     V, Q, T = ratio_t.shape[1:]
     K = (T - 1) // 2
@@ -36,24 +41,37 @@ def fetch_kernel(alpha_t, ratio_t, row, theta_v, theta_l, *, shade: bool = True)
     w = (f - i0f)[:, None]
     i0 = jnp.mod(i0f.astype(jnp.int32), V)
     i1 = jnp.mod(i0 + 1, V)
-    p = jnp.arange(P)
+    rows_a = alpha_t.reshape(n * half, P)
 
     def alpha_at(i):
-        flip = (i >= half)[:, None]
-        return alpha_t[r[:, None], jnp.mod(i, half)[:, None], jnp.where(flip, P - 1 - p, p)].astype(jnp.float32)
+        a = jnp.take(rows_a, r * half + jnp.mod(i, half), axis=0, mode="clip").astype(jnp.float32)
+        return jnp.where((i >= half)[:, None], a[:, ::-1], a)
 
     alpha = jnp.where(live[:, None], (1 - w) * alpha_at(i0) + w * alpha_at(i1), 0.0)
     if not shade:
-        return alpha, jnp.zeros((alpha.shape[0], 0, P), jnp.float32)
-    c = (1 - w[..., None]) * ratio_t[r, i0].astype(jnp.float32) + w[..., None] * ratio_t[r, i1].astype(jnp.float32)
+        return alpha, jnp.zeros((alpha.shape[0], 0, Q), jnp.float32)
+    rows_c = ratio_t.reshape(n * V, Q * T)
+
+    def terms_at(i):
+        return jnp.take(rows_c, r * V + i, axis=0, mode="clip").astype(jnp.float32)
+
+    c = ((1 - w) * terms_at(i0) + w * terms_at(i1)).reshape(-1, Q, T)
     d = theta_l - theta_v[:, None]  # (S, L)
     k = jnp.arange(1, K + 1, dtype=jnp.float32)
     kd = d[..., None] * k  # (S, L, K)
     basis = jnp.concatenate([jnp.ones_like(d)[..., None], jnp.stack([jnp.cos(kd), jnp.sin(kd)], -1).reshape(
         *d.shape, 2 * K)], -1)  # (S, L, T)
-    ratio = jnp.einsum("sqt,slt->slq", c, basis, precision=HIGHEST)
-    re = alpha[:, None, :] * jnp.repeat(ratio, P // Q, axis=-1)
-    return alpha, re
+    return alpha, jnp.einsum("sqt,slt->slq", c, basis, precision=HIGHEST)
+
+
+@partial(jax.jit, static_argnames=("shade",))
+def fetch_kernel(alpha_t, ratio_t, row, theta_v, theta_l, *, shade: bool = True):
+    """α (S, P) and re (S, L, P) of S sectors from a scene table's ``alpha_t`` (N, V/2, P) and
+    ``ratio_t`` (N, V, Q, T) (any float dtype), ``row`` (S,) int32, ``theta_v`` (S,), ``theta_l`` (S, L)."""
+    alpha, ratio = fetch_terms(alpha_t, ratio_t, row, theta_v, theta_l, shade=shade)
+    if not shade:
+        return alpha, jnp.zeros((alpha.shape[0], 0, alpha.shape[1]), jnp.float32)
+    return alpha, alpha[:, None, :] * jnp.repeat(ratio, alpha.shape[1] // ratio.shape[-1], axis=-1)
 
 
 def fetch_rows(maps, row, theta_v, theta_l) -> tuple[np.ndarray, np.ndarray]:

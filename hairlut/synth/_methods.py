@@ -23,7 +23,7 @@ import numpy as np
 
 from .. import errors
 from ._direct import direct_sector_maps, scene_sector_inputs
-from ._frame import params_kernel, sweep_sectors
+from ._frame import MapIndex, _split, _texels, params_kernel, sweep_sectors
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,11 +51,45 @@ class MapSource:
                                            np.asarray(tl, np.float64), self.recipe)
             alpha, re = jnp.asarray(alpha), jnp.asarray(re)
         else:
-            from ..scenemaps import fetch_kernel
-
-            alpha, re = fetch_kernel(*self.device, tv, tl)
+            re_map, a_map = scene_frame_kernel(ix, *self.device, tv, tl, cs)
+            return re_map, a_map, np.zeros(int(np.prod(ix.grid)), bool)
         re_map, a_map = sweep_sectors(ix, alpha, re, cs)
         return re_map, a_map, np.zeros(int(np.prod(ix.grid)), bool)
+
+
+@jax.jit
+def scene_frame_kernel(ix: MapIndex, alpha_t, ratio_t, row, tv, tl, cs):
+    """The ``scene`` method's maps in one kernel: every sector's α (S, P) and re/α ratio ρ (S, Lt, Q)
+    read from its table row at its exact angles (``hairlut.scenemaps.fetch_terms``), then eq 7 per
+    texel as :func:`~hairlut.synth.sweep_sectors` (the HSV's top sector at x⊤, with weight γ its bottom
+    sector at x⊥, linear in the pixel), sampling re = α ρ at the two pixels it interpolates instead
+    of a materialised (S, Lt, P) re row: the same numbers as ``sweep_sectors(fetch_kernel(...))``
+    (each sampled re is the same float32 product α(p) ρ(⌊pQ/P⌋)), without writing and re-reading
+    the rows or concatenating the HSVs' two sectors.  ``tv`` (S,), ``tl`` (S, Lt), ``cs`` (S, 2)
+    from :func:`params_kernel`; re (C, K, Lt, n_t, n_u), α (C, K, n_t, n_u)."""
+    from ..scenemaps import fetch_terms
+
+    alpha, ratio = fetch_terms(alpha_t, ratio_t, row, tv, tl)
+    (S, P), (Lt, Q) = alpha.shape, ratio.shape[1:]
+    top, bot = (_texels(ix, x) for x in _split(ix, jnp.arange(S, dtype=jnp.int32)))
+    c1, c2 = (_texels(ix, x) for x in _split(ix, cs))
+    pix = [((-c[..., 1] * o[0] + c[..., 0] * o[1]) + 1.0) * P / 2.0 - 0.5 for c, o in zip((c1, c2), ix.offset)]
+    fa, fr = alpha.reshape(-1), ratio.reshape(-1)
+    g = ix.gamma[:, None]
+
+    def sample(s, p, j):  # α (j None) or α·ρ_j at float pixel p of sector s: linear in the pixel, clamped
+        f = jnp.clip(p, 0.0, P - 1.0)
+        i0 = jnp.clip(jnp.floor(f).astype(jnp.int32), 0, max(P - 2, 0))
+        i1 = jnp.minimum(i0 + 1, P - 1)
+        g0, g1 = fa[s * P + i0], fa[s * P + i1]
+        if j is not None:
+            g0, g1 = g0 * fr[(s * Lt + j) * Q + i0 // (P // Q)], g1 * fr[(s * Lt + j) * Q + i1 // (P // Q)]
+        return g0 + (f - i0) * (g1 - g0)
+
+    def eq7(j):
+        return (1 - g) * sample(top, pix[0], j) + g * sample(bot, pix[1], j)
+
+    return jnp.stack([eq7(j) for j in range(Lt)], axis=2), jnp.clip(eq7(None), 0.0, 1.0)
 
 
 def _scene_maps(maps):
