@@ -72,8 +72,9 @@ def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bo
         sec = frame.info["seconds"]
         click.echo(f"layered {cam.width} x {cam.height} ({cam.projection}), map method {frame.info['map_method']}: "
                    f"{frame.info['clusters']} clusters x {frame.info['layers']} layers, {frame.info['triangles']} triangles; "
-                   f"maps {1e3 * sec['maps']:.0f} ms, shade {1e3 * sec['shade']:.0f} ms, frame (raster) "
-                   f"{1e3 * sec['raster']:.0f} ms (first call with compile {sec['raster_first']:.1f} s)")
+                   f"maps {1e3 * sec['maps']:.0f} ms, shade {1e3 * sec['shade']:.0f} ms, camera pass {sec['plan']:.1f} s, "
+                   f"frame (texturing and composite) {1e3 * sec['raster']:.0f} ms (first call with compile "
+                   f"{sec['raster_first']:.1f} s)")
     for v in files.values():
         click.echo(f"  wrote {v}")
 

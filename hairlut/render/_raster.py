@@ -140,24 +140,28 @@ def surfaces(verts, origin, pairs, uv, matrix, eye, back, *, size, tile, cap):
     wo = jnp.maximum(bw[owner], 1)
     px = x0.reshape(-1)[owner] + loc % wo
     py = y0.reshape(-1)[owner] + loc // wo
-    r = rec.reshape(K * P, 2, -1)[owner]  # (cap, 2, 27)
-    cx = (px.astype(jnp.float32) + 0.5)[:, None, None]
-    cy = (py.astype(jnp.float32) + 0.5)[:, None, None]
-    e = r[..., 0:12:4] * cx + r[..., 1:12:4] * cy + r[..., 2:12:4]  # (cap, 2, 3)
-    s = r[..., 3:12:4]
-    inside = jnp.all((s * e > 0) | ((e == 0) & (s > 0)), -1)  # (cap, 2)
-    first = inside[:, 0]
-    lam = jnp.where(first[:, None], (s * e)[:, 0], (s * e)[:, 1]) * jnp.where(first, r[:, 0, 12], r[:, 1, 12])[:, None]
-    rv = jnp.where(first[:, None], r[:, 0], r[:, 1])  # (cap, 27)
-    iw, dw, uw, tw_ = rv[:, 13:16], rv[:, 16:19], rv[:, 19:22], rv[:, 22:25]
-    qs = jnp.sum(lam * iw, -1)
+    T = rec.reshape(K * P * 2, -1).T  # (27, 2KP) field-major: each candidate gathers single fields (1-D, fused)
+    cx = px.astype(jnp.float32) + 0.5
+    cy = py.astype(jnp.float32) + 0.5
+    inside, se = [], []
+    for i in range(2):  # the pair's two triangles
+        col = owner * 2 + i
+        e = [T[4 * q][col] * cx + T[4 * q + 1][col] * cy + T[4 * q + 2][col] for q in range(3)]
+        s = [T[4 * q + 3][col] for q in range(3)]
+        inside.append(jnp.all(jnp.stack([(sq * eq > 0) | ((eq == 0) & (sq > 0)) for sq, eq in zip(s, e)]), 0))
+        se.append([sq * eq for sq, eq in zip(s, e)])
+    col = owner * 2 + jnp.where(inside[0], 0, 1)  # the triangle that holds the centre
+    lam = [jnp.where(inside[0], a, b) * T[12][col] for a, b in zip(*se)]
+
+    def interpolate(j):
+        return sum(lam[q] * T[j + q][col] for q in range(3))
+
+    qs = interpolate(13)
     qs = jnp.where(qs != 0, qs, 1.0)
-    z = jnp.sum(lam * dw, -1) / qs
-    tu = jnp.sum(lam * uw, -1) / qs
-    tt = jnp.sum(lam * tw_, -1) / qs
-    hit = (k < total) & (inside[:, 0] | inside[:, 1])
+    z, tu, tt = interpolate(16) / qs, interpolate(19) / qs, interpolate(22) / qs
+    hit = (k < total) & (inside[0] | inside[1])
     n_pix = th * tw
-    slot = (owner // P) * 2 + jnp.where(rv[:, 25] > 0, 0, 1)  # layer k: front faces 2k, back faces 2k + 1
+    slot = (owner // P) * 2 + jnp.where(T[25][col] > 0, 0, 1)  # layer k: front faces 2k, back faces 2k + 1
     dump = 2 * K * n_pix
     idx = jnp.where(hit, slot * n_pix + py * tw + px, dump)
     zf = jnp.where(hit, z, jnp.inf)
