@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import save, table  # noqa: E402
 
 from hairlut.render import compare, inside_clusters, render_layered, render_reference  # noqa: E402
-from hairlut.scene import find_assets, load_scene, resolve_scene, scene_clusters  # noqa: E402
+from hairlut.scene import MAP_KEYS, MAP_KNOBS, find_assets, load_scene, resolve_scene, scene_clusters  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = [ROOT / "tables" / "scenes" / "sintel-groom.toml", ROOT / "tables" / "scenes" / "ratboy-groom.toml"]
@@ -43,6 +43,10 @@ def with_config(sc, **sections):
     cfg = copy.deepcopy(sc.raw if hasattr(sc, "raw") else sc.config)
     for sec, kv in sections.items():
         cfg.setdefault(sec, {}).update(kv)
+    method = cfg.get("render", {}).get("method", "auto")
+    if method != "auto":  # the scene's own method's knobs that the chosen one does not read (it would refuse them)
+        for key in set(MAP_KNOBS) - set(MAP_KEYS[method]):
+            cfg["render"].pop(key, None)
     if sc.groom_path is not None:  # relative paths were resolved next to the scene file: keep them absolute
         cfg["groom"]["path"] = str(Path(sc.groom_path).resolve())
     env = sc.config.get("environment") or {}

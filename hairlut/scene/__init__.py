@@ -14,7 +14,7 @@ on first use of a name.
 from .._lazy import lazy_exports
 
 _LAZY = {
-    "SCHEMA": "_schema", "SHADOW_KEYS": "_schema", "SHADOW_METHODS": "_schema", "Scene": "_schema", "as_scene": "_schema",
+    "MAP_KEYS": "_schema", "MAP_KNOBS": "_schema", "SCHEMA": "_schema", "SHADOW_KEYS": "_schema", "SHADOW_METHODS": "_schema", "Scene": "_schema", "as_scene": "_schema",
     "load_scene": "_schema", "resolve_path": "_schema", "resolve_scene": "_schema",
     "scene_clusters": "_clusters",
     "CAMERA": "_camera", "Camera": "_camera", "check_camera": "_camera", "check_memory": "_camera",
