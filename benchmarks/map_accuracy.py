@@ -31,12 +31,23 @@ from _common import emit, table  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _scene(path: Path, **render):
+def _scene(path: Path, hrir=None, **render):
+    """The scene file with ``render`` keys over its own and ``hrir`` ({section: {key: value}}) over its
+    ``[tables.hrir]`` (the SATF database's recipe).  With ``method`` given, the file's own map knobs are
+    dropped (the rows here give every knob their method reads; another method's would be refused)."""
     from hairlut.recipes import load_toml
     from hairlut.scene import resolve_scene
 
     given = load_toml(path)
-    return resolve_scene({**given, "render": {**given.get("render", {}), **render}}, path.parent, source=str(path))
+    if "method" in render:
+        knobs = ("rays", "views", "terms", "shading_pixels", "precision")
+        given = {**given, "render": {k: v for k, v in given.get("render", {}).items() if k not in knobs}}
+    tables = dict(given.get("tables", {}))
+    if hrir:
+        own = tables.get("hrir", {})
+        tables["hrir"] = {**own, **{k: {**own.get(k, {}), **v} for k, v in hrir.items()}}
+    return resolve_scene({**given, "tables": tables, "render": {**given.get("render", {}), **render}}, path.parent,
+                         source=str(path))
 
 
 def _rows(prepared, view, lights):
@@ -177,9 +188,49 @@ def grid_study(args) -> list[dict]:
     return records
 
 
+def satf_rows(args, tmp: Path, t_maps, t_rows) -> list[dict]:
+    """The SATF lookup per feature set, view grid and k (``--satf-features``, ``--satf-views``, ``--satf-k``;
+    ``--satf-count`` records, else the planner's): one database bake per view grid (the planner's recipe, timed);
+    the other feature sets index the same records (``hairlut.hrir.reindex``: the file their own bake would
+    write; bake seconds = the bake's plus the re-index's); per k the frame's maps and each sector's own
+    looked-up row at its exact angles (the coverage column)."""
+    from hairlut import registry
+    from hairlut.hrir import reindex
+    from hairlut.scene import plan
+    from hairlut.synth import prepare
+
+    out = []
+    for views in args.satf_views:
+        hrir = {"sectors": {"features": "basic"}, "angles": {"views": views}}
+        if args.satf_count:
+            hrir["sectors"]["count"] = args.satf_count
+        sc = _scene(args.scene, hrir, method="satf")
+        p = plan(sc, tmp / "cache")
+        step = p.step("hrir_db")
+        t0 = time.perf_counter()
+        base, _ = registry.ensure("hrir_db", step.recipe, p.cache_dir)
+        base_s = time.perf_counter() - t0
+        for feats in args.satf_features:
+            t0 = time.perf_counter()
+            path = base if feats == "basic" else reindex(base, tmp / f"hrir-{feats}-{views}.h5", feats)
+            bake_s = base_s + time.perf_counter() - t0
+            for k in args.satf_k:
+                pr = prepare(_scene(args.scene, hrir, method="satf", neighbours=k), str(path))
+                ms, maps = frame_ms(pr)
+                tv, tl, _ = _angles(pr, pr.scene)
+                _, a, _, _ = pr.db.query(pr.frames.features, np.asarray(tv), np.asarray(tl)[:, 0], k=k)
+                rows = (a * pr.frames.occupied[:, None],)
+                out.append({"method": "satf", "features": feats, "views": views, "k": k,
+                            "knobs": f"{feats}, {step.recipe['sectors']['count']} records, {views} views, k={k}",
+                            "frame_ms": ms, "bake_s": bake_s, "bytes": Path(path).stat().st_size,
+                            "prepare_s": sum(pr.seconds.values()), **errors_of(maps, t_maps, rows, t_rows)})
+                print(out[-1], flush=True)
+    return out
+
+
 def main(argv=None):
     from hairlut import registry
-    from hairlut.scene import plan, scene_maps_recipe
+    from hairlut.scene import scene_maps_recipe
     from hairlut.synth import prepare
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -198,6 +249,11 @@ def main(argv=None):
                     help="the first scene row's knob (views, terms, shading_pixels, precision) over the scene's own")
     ap.add_argument("--only", choices=("direct", "scene", "satf"), action="append",
                     help="run only these methods (repeatable)")
+    ap.add_argument("--satf-features", nargs="+", default=["basic"], choices=("basic", "moments", "projection"),
+                    help="SATF rows: the database's feature sets (sectors.features)")
+    ap.add_argument("--satf-views", nargs="+", type=int, default=[32], help="SATF rows: view grids (angles.views)")
+    ap.add_argument("--satf-k", nargs="+", type=int, default=[4], help="SATF rows: k of the lookup")
+    ap.add_argument("--satf-count", type=int, help="SATF rows: records (sectors.count) over the planner's")
     args = ap.parse_args(argv)
     if args.convergence:
         return convergence(args)
@@ -240,18 +296,7 @@ def main(argv=None):
                             "bake_s": bake_s, "bytes": rep["bytes"], **errors_of(maps, t_maps, rows, t_rows)})
             print(records[-1], flush=True)
         if "satf" in want:
-            sc = _scene(args.scene, method="satf")
-            p = plan(sc, Path(tmp) / "cache")
-            step = p.step("hrir_db")
-            t0 = time.perf_counter()
-            path, _ = registry.ensure("hrir_db", step.recipe, p.cache_dir)
-            bake_s = time.perf_counter() - t0
-            pr = prepare(sc, str(path))
-            ms, maps = frame_ms(pr)
-            records.append({"method": "satf", "knobs": f"{step.recipe['sectors']['count']} records, k_threshold="
-                            f"{sc.material['k_threshold']:g}", "frame_ms": ms, "bake_s": bake_s,
-                            "bytes": Path(path).stat().st_size, **errors_of(maps, t_maps)})
-            print(records[-1], flush=True)
+            records += satf_rows(args, Path(tmp), t_maps, t_rows)
     print(f"\n## Map accuracy of {args.scene.name} against a converged truth ({truth_s:.1f} s to trace)\n")
     print(table(records, [("method", "method", "s"), ("knobs", "knobs", "s"), ("re_rel_l2", "re rel-L2", ".3f"),
                           ("alpha_rel_l2", "α rel-L2", ".3f"), ("coverage_rel_l2", "coverage rel-L2", ".3f"),

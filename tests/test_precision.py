@@ -167,6 +167,8 @@ KERNELS = {
     "hairlut.hrir._query:_interpolate_kernel": [
         (False, lambda: ((A(10, 4, dtype=i32), A(10, 4), A(10), A(10), A(24, 8, 16), A(24, 8, 8, 16)), {}))],
     "hairlut.hrir._tracer:trace_kernel": [(False, lambda: _tracer_args(False)), (False, lambda: _tracer_args(True))],
+    "hairlut.hrir._projection:projection_kernel": [
+        (False, lambda: ((A(4, 8, 8), A(4, 11)), dict(directions=2, bins=4, sub=2, n_steps=8, block=2)))],
     # renderers
     "hairlut.render._raster:raster_kernel": [
         (False, lambda: ((A(2, 2, 9, 3), A(2, 2, 4, 4, 4), A(2, 2, dtype=i32), A(8, 2, 3, dtype=i32), A(9, 2),

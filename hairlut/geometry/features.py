@@ -17,7 +17,9 @@ The richer, selectable set adds the spreads ``var_s`` = Σ (s_i − ρ_s)² h_s 
 ``contrast`` (area-weighted standard deviation of ρ over its mean, 0 if empty), the
 ``peak`` max ρ, and ``pc0`` … principal-component scores of the grid (a fitted
 :class:`PCABasis`).  Feature sets by name: "basic" (ρ_st, ρ_s, ρ_t), "moments" (basic +
-var_s, var_t, cov_st, contrast, peak).  :class:`FeatureStats` holds per-feature mean and
+var_s, var_t, cov_st, contrast, peak), "projection" (``proj0`` … ``proj23``: principal-component
+scores of each sector's own density projected at 8 views, which need the sector's tracer
+geometry and so are computed by ``hairlut.hrir.projection_features``, not here).  :class:`FeatureStats` holds per-feature mean and
 standard deviation so distances in the normalised space weigh features alike.
 """
 
@@ -35,7 +37,8 @@ from .splats import SplatBatch
 
 BASIC = ("rho_st", "rho_s", "rho_t")
 MOMENTS = BASIC + ("var_s", "var_t", "cov_st", "contrast", "peak")
-FEATURE_SETS = {"basic": BASIC, "moments": MOMENTS}
+PROJECTION = tuple(f"proj{k}" for k in range(24))
+FEATURE_SETS = {"basic": BASIC, "moments": MOMENTS, "projection": PROJECTION}
 _ALL = MOMENTS
 
 
@@ -46,6 +49,8 @@ def feature_names(features="basic", pca: PCABasis | None = None) -> tuple[str, .
         names = (features,) if isinstance(features, str) else tuple(features)
     if not names:
         raise ValidationError("features", features, "select at least one feature")
+    if names == PROJECTION:
+        return names
     for n in names:
         if n in _ALL:
             continue
@@ -110,6 +115,9 @@ def sector_features(density, areas=None, features="basic", *, pca: PCABasis | No
     if rho.ndim != 3 or rho.dtype.kind not in "fiu":
         raise ValidationError("density", rho.shape, "need (N, n_s, n_r) grids of numbers")
     names = feature_names(features, pca)
+    if names == PROJECTION:
+        raise ValidationError("features", "projection", "projection features need each sector's tracer geometry: "
+                              "hairlut.hrir.projection_features")
     rows = _row_areas(areas, rho)
     n = len(rho)
     size = min(int(chunk), 1 << (max(n, 8) - 1).bit_length())

@@ -4,6 +4,10 @@
 
 ``features``      (sector, feature)   ρ_feature per sector (attr ``names``), the SATF index (eq 4)
 ``features_mean``, ``features_std`` (feature)   normalisation: z = (x − mean) / std
+``projection_mean`` (projection_bin), ``projection_components`` (feature, projection_bin)
+                  only for ``sectors.features = "projection"``: the basis of the projection
+                  profiles the features are scores on (``hairlut.hrir._projection``); files of
+                  the other feature sets have neither and still read
 ``alpha``         (sector, theta_v, pixel)             accumulated opacity α_acc (eq 5), smoothed
 ``reflectance``   (sector, theta_v, theta_l, pixel)    accumulated reflectance re_acc (premultiplied)
 ``density``       (sector, s, r)      the traced density grid
@@ -38,7 +42,7 @@ from ..assets.layout import layout
 from ..assets.trust import finite_fault
 from ..parts import check_virtual
 from ..geometry import angle_grid as angles
-from ..geometry.features import FeatureStats, feature_names, sector_features
+from ..geometry.features import PROJECTION, FeatureStats, PCABasis, feature_names, sector_features
 from ._kind import KIND, SHARD_KIND
 from ._march import GEOM
 
@@ -155,21 +159,36 @@ def _index(recipe: dict, data: dict, n: int) -> tuple[list[Axis], list[Variable]
     """The whole-database part of an ``hrir_db``: axes, the feature index (satf §5.2) and root attributes."""
     n_s, n_r = recipe["sectors"]["grid"]
     names = feature_names(recipe["sectors"]["features"])
-    feats = sector_features(data["density"], _row_areas(data, n_s, n_r), names)
-    if n >= 2:
-        stats = FeatureStats.fit(feats, names)
+    extra, extra_attrs = [], {}
+    if names == PROJECTION:
+        from ._projection import fit_projection, projection_settings, sector_projections
+
+        basis, feats, stats = fit_projection(sector_projections(data["density"], data["geometry"],
+                                                                n_steps=recipe["trace"]["steps"]))
+        extra = [Variable("projection_mean", basis.mean, ("projection_bin",), "1", "mean projection profile"),
+                 Variable("projection_components", basis.components, ("feature", "projection_bin"), "1",
+                          "principal components of the projection profiles (zero rows pad a small database)")]
+        extra_attrs = {"projection": json.dumps(projection_settings(recipe))}
     else:
-        stats = FeatureStats(names, feats[0].copy(), np.ones(len(names)))
+        feats = sector_features(data["density"], _row_areas(data, n_s, n_r), names)
+        if n >= 2:
+            stats = FeatureStats.fit(feats, names)
+        else:
+            stats = FeatureStats(names, feats[0].copy(), np.ones(len(names)))
     dtype = np.dtype(recipe["storage"]["dtype"])
     err = data["errors"] if "errors" in data else storage_errors(recipe, data)
     axes = _axes(recipe, n) + [Axis("feature", np.arange(len(names), dtype=np.int32), "1", "feature: " + ",".join(names))]
+    if extra:
+        axes.append(Axis("projection_bin", np.arange(len(extra[0].data), dtype=np.int32), "1",
+                         "projection profile bin: direction-major (direction, bin along the image line)"))
     variables = [
         Variable("features", feats, ("sector", "feature"), "1", "density features rho_feature (satf 5.2)",
                  attrs={"names": json.dumps(list(names))}),
         Variable("features_mean", stats.mean, ("feature",), "1", "feature mean (normalisation)"),
         Variable("features_std", stats.std, ("feature",), "1", "feature standard deviation (normalisation)"),
+        *extra,
     ]
-    attrs = {"n_sectors": np.int64(n), "feature_names": json.dumps(list(names)), "frame": FRAME,
+    attrs = {**extra_attrs, "n_sectors": np.int64(n), "feature_names": json.dumps(list(names)), "frame": FRAME,
              "storage_dtype": dtype.name, "storage_max_abs_error_alpha": err["alpha"],
              "storage_max_abs_error_reflectance": err["reflectance"]}
     return axes, variables, attrs
@@ -233,6 +252,8 @@ class HRIRDB:
     params: dict
     recipe: dict
     attrs: dict
+    #: the projection profiles' basis (``hairlut.geometry.PCABasis``) of a ``projection``-indexed database, else None
+    projection: PCABasis | None = None
 
     @classmethod
     def load(cls, path) -> HRIRDB:
@@ -293,6 +314,16 @@ def _check_contents(path, t) -> tuple[str, ...]:
             raise errors.CorruptAssetError(path, f"table {name!r} has shape {t[name].shape}, the recipe "
                                            f"(views {V}, lights {L}, pixels {P}, grid {n_s}×{n_r}, {F} features) "
                                            f"needs {shape}")
+    if tuple(names) == PROJECTION:
+        from ._projection import projection_settings
+
+        m = projection_settings(r)["profile"]
+        want = {"projection_mean": (m,), "projection_components": (F, m)}
+        for name, shape in want.items():
+            if name not in t.variables:
+                raise errors.MissingDatasetError(path, f"a projection-indexed hrir_db lacks {name!r}")
+            if t[name].shape != shape:
+                raise errors.CorruptAssetError(path, f"table {name!r} has shape {t[name].shape}, need {shape}")
     for axis, size in (("theta_v", V), ("theta_l", L)):
         if axis not in t.axes or len(t.axes[axis].values) != size:
             raise errors.CorruptAssetError(path, f"axis {axis!r} does not have the recipe's {size} values")
@@ -309,11 +340,28 @@ def load_hrir_db(path) -> HRIRDB:
     try:
         names = _check_contents(path, t)
         stats = FeatureStats(names, t["features_mean"], t["features_std"])
+        basis = (PCABasis((1, len(t["projection_mean"])), np.asarray(t["projection_mean"], np.float64),
+                          np.asarray(t["projection_components"], np.float64)) if names == PROJECTION else None)
         return HRIRDB(t["features"], stats, t.axes["theta_v"].values, t.axes["theta_l"].values, t["alpha"],
                       t["reflectance"], t["density"], {c: t[f"geometry/{c}"] for c in GEOM},
-                      {p: t[f"sector/{p}"] for p in PARAMS}, t.recipe, dict(t.attrs))
+                      {p: t[f"sector/{p}"] for p in PARAMS}, t.recipe, dict(t.attrs), basis)
     except KeyError as exc:
         raise errors.MissingDatasetError(path, f"hrir_db lacks {exc}") from None
+
+
+def reindex(db_path, out, features: str) -> Path:
+    """The ``hrir_db`` at ``db_path`` with another feature index (``sectors.features``: "basic", "moments" or
+    "projection"), written atomically to ``out``: the per-sector tables are copied, not traced again, so the
+    file is the one a bake of the changed recipe writes (the index is computed from the same density and
+    geometry rows)."""
+    from ._recipe import resolve_recipe
+
+    db = load_hrir_db(db_path)
+    recipe = resolve_recipe({**db.recipe, "sectors": {**db.recipe["sectors"], "features": features}}, budget=False)
+    data = {"alpha": db.alpha, "reflectance": db.reflectance, "density": db.density,
+            "geometry": np.stack([db.geometry[c] for c in GEOM], axis=1), "params": db.params,
+            "errors": {k: float(db.attrs[f"storage_max_abs_error_{k}"]) for k in ("alpha", "reflectance")}}
+    return assemble(out, recipe, data)
 
 
 def export_slice(db_path, out, sector: int, light: int) -> Path:

@@ -33,8 +33,9 @@ SCHEMA = {
         "seed": Field(0, (int,), in_range(0, 2**63 - 1), "sector i is drawn from the seed and i alone"),
         "grid": Field([32, 32], (list,), _grid, "density grid (n_s, n_r) of each sector"),
         "density_scale": Field(1.0, _NUM, positive, "density of a fully covered cell"),
-        "features": Field("basic", (str,), one_of("basic", "moments"),
-                          "feature set of the index (satf §5.2)"),
+        "features": Field("basic", (str,), one_of("basic", "moments", "projection"),
+                          "feature set of the index: the paper's (satf §5.2), moments, or projection "
+                          "(each sector's density projected at 8 views, 24 principal components)"),
         "space": space_fields(),
     },
     "angles": {

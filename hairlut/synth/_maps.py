@@ -46,9 +46,10 @@ import numpy as np
 
 from .. import errors
 from ..geometry.density import sector_density
-from ..geometry.features import sector_features
+from ..geometry.features import PROJECTION, sector_features
 from ..geometry.inplane import TWO_PI, azimuths, sector_axes
-from ..hrir import query_kernel
+from ..hrir import projection_features, query_kernel
+from ._direct import scene_sector_inputs, sector_extent
 
 def wrap(x):
     """Angle differences wrapped to [−π, π)."""
@@ -95,26 +96,26 @@ def _ellipse(ab, v, phi):
 
 
 def sector_frames(geometry, table, db) -> SectorFrames:
-    """Features (in the database's feature set, grid and density scale) and frames of every sector."""
+    """Features (in the database's feature set, grid and density scale) and frames of every sector.
+
+    A ``projection``-indexed database's features are each sector's own density grid projected with
+    the tracer's march in its own geometry rows (``scene_sector_inputs``, at the extent the texels
+    use), scored on the database's stored basis (``hairlut.hrir.projection_features``)."""
     names = tuple(db.stats.names)
     if any(n.startswith("pc") for n in names):
         raise errors.ValidationError("db.features", names, "principal-component features need the bake's PCA basis")
     rec = db.recipe.get("sectors", {})
     grid = tuple(rec.get("grid", (32, 32)))
     splats = table.splats()
-    dens = sector_density(splats, grid, density_scale=float(rec.get("density_scale", 1.0)))
-    feats = sector_features(dens, splats, names)
+    extent = sector_extent(table)
+    if names == PROJECTION:
+        feats = projection_features(db, *scene_sector_inputs(table, db.recipe, extent=extent))
+    else:
+        dens = sector_density(splats, grid, density_scale=float(rec.get("density_scale", 1.0)))
+        feats = sector_features(dens, splats, names)
     reference, binormal, ex, ey = sector_axes(geometry, table)
     ab, q = table.half_axes, table.twist
     centre = _ellipse(ab, table.v_range.mean(axis=1), q + table.u_range.mean(axis=1))
-    w = np.linspace(0.0, 1.0, 9)
-    v0, v1 = table.v_range[:, :1], table.v_range[:, 1:]
-    u0, u1 = table.u_range[:, :1] + q[:, None], table.u_range[:, 1:] + q[:, None]
-    ua = u0 + (u1 - u0) * w
-    va = v0 + (v1 - v0) * w
-    edges = np.concatenate([_ellipse(ab[:, None], v0, ua), _ellipse(ab[:, None], v1, ua),
-                            _ellipse(ab[:, None], va, u0), _ellipse(ab[:, None], va, u1)], axis=1)
-    extent = np.linalg.norm(edges - centre[:, None], axis=-1).max(axis=1)
     return SectorFrames(feats, centre, ex, ey, extent, ab, q, table.v_range[:, 1].copy(), reference, binormal,
                         splats.mask.any(axis=1))
 
