@@ -77,14 +77,21 @@ class Units:
     ``bake_part(recipe, start, stop, total, path, **inputs)`` bakes units [start, stop) into a ``shard_kind``
     file at ``path`` (atomically) whose per-unit tables have ``axis`` as their first dimension, in the final
     storage dtype, and whose root attributes ``<axis>_start``,
-    ``<axis>_stop`` and ``<axis>_total`` say which units it holds; ``join(recipe, parts, out)`` writes
+    ``<axis>_stop`` and ``<axis>_total`` say which units it holds (it may instead return its last step, a
+    callable that writes the part: the shard path calls it after starting the next block, so the devices
+    compute one block while the host writes the one before); ``join(recipe, parts, out)`` writes
     consecutive parts as one ``shard_kind`` file; ``assemble(recipe, parts, out, **inputs)`` writes the
     self-contained asset from parts covering every unit; ``whole(recipe, parts, **inputs)`` returns
     (axes, variables, attrs): everything a virtual asset stores besides the per-unit tables (whole axes,
     tables computed from all units); ``check(recipe, path)`` (optional) raises a :mod:`hairlut.errors`
     AssetError unless a part file holds everything ``join``/``assemble``/``whole`` read from it (a part left
-    by an older part format is then baked again, not resumed).  A unit's numbers must not depend on how
-    units are grouped.
+    by an older part format is then baked again, not resumed); ``budget(recipe, block, held, note)``
+    (optional) raises BudgetError unless a process tracing ``block`` units at a time and holding the tables
+    of ``held`` units at once fits the memory budget (``note`` says why it holds that many);
+    ``index(recipe, path, **inputs)`` (optional) returns what ``whole`` reads from one part, as a dict of
+    NumPy arrays, and then ``whole(recipe, parts, index=[...], **inputs)`` takes those instead of opening
+    the parts (each process indexes its own parts as it bakes them, so the leader's assembly opens none).
+    A unit's numbers must not depend on how units are grouped.
     """
 
     axis: str
@@ -95,6 +102,8 @@ class Units:
     whole: Callable
     block: int = 32
     check: Callable | None = None
+    budget: Callable | None = None
+    index: Callable | None = None
 
 
 @dataclass(frozen=True)

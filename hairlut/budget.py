@@ -166,10 +166,21 @@ HRIR_DEFAULTS = {"sectors.count": 512, "angles.views": 32, "angles.lights": 32, 
 HRIR_BLOCK = 32  # sectors sampled and traced together (hairlut.hrir BLOCK)
 
 
-def check_hrir(r: dict, limit: int | None = None) -> None:
-    """Refuse an ``hrir_db`` recipe whose database, tracer working set, grids or splats would not fit."""
+def check_hrir(r: dict, limit: int | None = None, *, block: int | None = None, held: int | None = None,
+               note: str = "") -> None:
+    """Refuse an ``hrir_db`` recipe whose held tables, tracer working set, grids or splats would not fit.
+
+    ``block``: the sectors sampled and traced together (``--block``; default :data:`HRIR_BLOCK`).
+    ``held``: the sectors whose α and reflectance one process holds at once (default: one block, what
+    every bake holds: ``resolve_recipe`` checks that).  A copied asset (a plain or cached bake, ``--merge
+    copy``, ``hairlut merge``) holds the whole database, a ``--shard`` file its slice, a virtual asset
+    (``--distributed``) one block per process: :func:`hairlut.sharding.run` checks what its bake holds
+    before it starts.  The leader reads every sector's density grid (the feature index), so those count
+    whole.  ``note`` is added to a refusal (why that many are held)."""
     d = HRIR_DEFAULTS
     n, V, L = r["sectors"]["count"], r["angles"]["views"], r["angles"]["lights"]
+    block = min(n, HRIR_BLOCK if block is None else int(block))
+    held = block if held is None else min(n, int(held))
     P, K, rays = r["trace"]["pixels"], r["trace"]["steps"], r["trace"]["rays_per_pixel"]
     n_s, n_r = r["sectors"]["grid"]
     strands = max(r["sectors"]["space"]["strands"])
@@ -181,15 +192,16 @@ def check_hrir(r: dict, limit: int | None = None) -> None:
         shown = {"sectors.grid": r["sectors"]["grid"], "sectors.space.strands": r["sectors"]["space"]["strands"]}
         return key, shown.get(key, vals[key])
 
-    check(*keyed("sectors.count", "angles.views", "angles.lights", "trace.pixels"),
-          product(n, V, P, L + 1, 4), f"the database's α and reflectance tables ({n} sectors × {V} views × {L} lights × "
-          f"{P} pixels, float32)", limit)
+    what = "the database's" if held == n else f"{held} of its {n} sectors'"
+    check(*keyed(*(("sectors.count",) if held == n else ()), "angles.views", "angles.lights", "trace.pixels"),
+          product(held, V, P, L + 1, 4), f"{what} α and reflectance tables ({held} sectors × {V} views × {L} lights × "
+          f"{P} pixels, float32{note and '; ' + note})", limit)
     check(*keyed("angles.views", "angles.lights", "trace.pixels", "trace.steps", "trace.rays_per_pixel"),
           product(V, P, rays, K, 6 + L, 4), f"tracing one sector ({V} views × {P}×{rays} rays × {K} steps × {L} lights)",
           limit)
     check(*keyed("sectors.grid", "sectors.count"), product(n, n_s, n_r, 4 * 2), f"{n} density grids of {n_s}×{n_r}", limit)
-    check(*keyed("sectors.space.strands"), product(HRIR_BLOCK, strands, 64, n_s * n_r / (32 * 32) + 1),
-          f"the splats of a block of {HRIR_BLOCK} sectors with up to {strands} strands each", limit)
+    check(*keyed("sectors.space.strands"), product(block, strands, 64, n_s * n_r / (32 * 32) + 1),
+          f"the splats of a block of {block} sectors with up to {strands} strands each", limit)
 
 
 def check_sh(r: dict, limit: int | None = None) -> None:

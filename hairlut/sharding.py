@@ -22,11 +22,14 @@ import json
 import time
 from pathlib import Path
 
+import numpy as np
+
 from . import errors
 from .assets import canonical_json, open_table, read_table, recipe_hash
 from .baker import Baker, parse_shard
 from .distributed import Process, barrier, current
-from .parts import check_virtual, clean_temporaries, locked, open_folder, part_name, remove_folder, write_virtual
+from .parts import (check_virtual, clean_temporaries, locked, open_folder, part_name, read_share, remove_folder, share_name,
+                    stamp, write_share, write_virtual)
 
 MERGES = ("virtual", "copy")
 
@@ -76,6 +79,66 @@ def _intact(part: Path, baker: Baker, digest: str, start: int, stop: int, total:
     return True
 
 
+COPY_NOTE = ("a copied asset (a plain bake, --merge copy, hairlut merge) holds every unit at once; a virtual one "
+             "(--merge virtual, the default with --distributed) holds one block per process")
+
+
+def held(total: int, block: int, want: int, merge: str, shard, leader: bool) -> tuple[int, str]:
+    """(units whose tables this process holds at once, why): what its memory budget counts."""
+    if shard is not None:
+        return want, "a --shard file holds its slice at once"
+    if merge == "copy" and leader:
+        return total, COPY_NOTE
+    return min(block, total), ""
+
+
+def _bake_blocks(units, recipe: dict, todo, parts, total: int, digest: str, baker: Baker, report: dict, progress,
+                 want: int, inputs: dict) -> None:
+    """Bake (or resume) each block of ``todo`` into its part, the device's work on one block overlapping the
+    host's on the one before when ``bake_part`` returns its last step (see :class:`hairlut.baker.Units`).
+
+    A block's ``block_seconds`` (and ``block_cpu_seconds``) run from the later of its start and the previous
+    block's completion to its own completion: with the overlap they add up to the loop's time."""
+    done = 0
+    pending = None  # (finish, start, stop, started) of the block whose last step is still to run
+    mark = time.perf_counter(), time.process_time()
+
+    def complete(finish, s, e, started) -> None:
+        nonlocal done, mark
+        finish()
+        now = time.perf_counter(), time.process_time()
+        since = max(started, mark, key=lambda m: m[0])
+        report["computed"] += e - s
+        report.setdefault("block_seconds", []).append(now[0] - since[0])  # the first compiles
+        report.setdefault("block_cpu_seconds", []).append(now[1] - since[1])  # every thread's CPU time
+        mark = now
+        done += e - s
+        if progress:
+            progress(done, want)
+
+    for (s, e), part in zip(todo, parts):
+        if part.exists() and _intact(part, baker, digest, s, e, total):
+            report["resumed"] += e - s
+            done += e - s
+            if progress:
+                progress(done, want)
+            continue
+        started = time.perf_counter(), time.process_time()
+        try:
+            step = units.bake_part(recipe, s, e, total, part, **inputs)
+        except BaseException:
+            if pending:  # the block before is computed: keep it
+                complete(*pending)
+            raise
+        if pending:
+            complete(*pending)  # the host writes block i while the devices compute block i + 1
+        pending = (step, s, e, started) if callable(step) else None
+        if pending is None:
+            complete(lambda: None, s, e, started)
+    if pending:
+        complete(*pending)
+
+
 def valid_asset(path, kind: str, digest: str) -> bool:
     """Whether ``path`` is a valid ``kind`` asset of this recipe hash, virtual parts included."""
     try:
@@ -122,11 +185,13 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
     if not todo and shard is not None:  # a distributed process with no block just waits for the others
         raise errors.ValidationError("shard", shard, f"empty: {total} {units.axis} make {len(blocks_of(total, block))} "
                                      "blocks, fewer than shards")
+    want = todo[-1][1] - todo[0][0] if todo else 0
+    if units.budget is not None:  # before anything is made: what this process will hold at once
+        units.budget(recipe, block, *held(total, block, want, merge, shard, proc.leader))
     digest = recipe_hash(canonical_json(recipe))
     out = Path(out)
     t0 = time.perf_counter()
     writes_out = proc.leader or shard is not None
-    want = todo[-1][1] - todo[0][0] if todo else 0
     report = {"out": str(out), "kind": baker.kind if shard is None else baker.shard_kind, "units": want,
               "unit_range": [todo[0][0], todo[-1][1]] if todo else [0, 0], "total_units": total, "computed": 0, "resumed": 0,
               "process": proc.index, "processes": proc.count, "merge": merge if shard is None else "shard",
@@ -136,23 +201,13 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
             report.update(resumed=want, seconds=time.perf_counter() - t0, bytes=out.stat().st_size, status="reused")
             return report  # another bake of this output finished while we waited for it
         folder = open_folder(out)
-        clean_temporaries([folder / part_name(s, e) for s, e in todo] + ([out] if writes_out else []))
-        done = 0
-        mine = []
-        for s, e in todo:
-            part = folder / part_name(s, e)
-            mine.append(part)
-            if part.exists() and _intact(part, baker, digest, s, e, total):
-                report["resumed"] += e - s
-            else:
-                tb, cb = time.perf_counter(), time.process_time()
-                units.bake_part(recipe, s, e, total, part, **inputs)
-                report["computed"] += e - s
-                report.setdefault("block_seconds", []).append(time.perf_counter() - tb)  # the first compiles
-                report.setdefault("block_cpu_seconds", []).append(time.process_time() - cb)  # every thread's CPU time
-            done += e - s
-            if progress:
-                progress(done, want)
+        indexed = merge == "virtual" and shard is None and units.index is not None
+        share_file = folder / share_name(proc.index, proc.count)
+        clean_temporaries([folder / part_name(s, e) for s, e in todo] + ([out] if writes_out else [])
+                          + ([share_file] if indexed and proc.count > 1 else []))
+        mine = [folder / part_name(s, e) for s, e in todo]
+        _bake_blocks(units, recipe, todo, mine, total, digest, baker, report, progress, want, inputs)
+        indexes = _index_share(units, recipe, todo, mine, share_file, digest, total, proc, report, inputs) if indexed else None
         report["blocks_s"] = time.perf_counter() - t0
         if shard is not None:
             path = units.join(recipe, mine, out)
@@ -161,22 +216,75 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
             path = out
             t_assemble = time.perf_counter()
             if proc.leader:
-                parts = [(folder / part_name(s, e), s, e) for s, e in blocks_of(total, block)]
-                for p, s, e in parts:  # each process validated or wrote its own parts: the headers suffice here
-                    if not _intact(p, baker, digest, s, e, total, full=False):
-                        raise errors.AssetNotFoundError(p, "part missing or damaged after every process finished")
-                paths = [p for p, _, _ in parts]
-                if merge == "virtual":
-                    axes, variables, attrs = units.whole(recipe, paths, **inputs)
-                    write_virtual(out, baker.kind, recipe, units.axis, parts, axes, variables, attrs)
-                else:
-                    units.assemble(recipe, paths, out, **inputs)
+                finish(baker, recipe, out, total, block, merge, proc, indexes, **inputs)
                 report["assemble_s"] = time.perf_counter() - t_assemble
             barrier(f"hairlut:{out.name}:final")
         if not keep_parts and merge == "copy" and writes_out:
             remove_folder(folder)
     report.update(seconds=time.perf_counter() - t0, bytes=Path(path).stat().st_size, out=str(path), status="baked")
     return report
+
+
+def _index_share(units, recipe: dict, todo, parts, share_file: Path, digest: str, total: int, proc: Process, report: dict,
+                 inputs: dict) -> dict:
+    """{(start, stop): (stamp, index)} of this process's parts (``Units.index``: what the final asset stores from
+    each), written as its share file for the leader when there are other processes; ``index_s`` in the report."""
+    t = time.perf_counter()
+    indexes = {b: (stamp(p), units.index(recipe, p, **inputs)) for b, p in zip(todo, parts)}
+    if proc.count > 1 and indexes:
+        write_share(share_file, digest, total, indexes)
+    report["index_s"] = time.perf_counter() - t
+    return indexes
+
+
+def finish(baker: Baker, recipe: dict, out, total: int, block: int, merge: str, proc: Process = Process(),
+           own: dict | None = None, **inputs) -> Path:
+    """The leader's last step, once every process's parts are in ``<out>.parts/``: write ``out``, as virtual
+    datasets over the parts (``merge='virtual'``; the index from ``own`` and the share files, see
+    :func:`gather`) or as a copy."""
+    units, out = baker.units, Path(out)
+    folder = out.with_name(out.name + ".parts")
+    digest = recipe_hash(canonical_json(recipe))
+    parts = [(folder / part_name(s, e), s, e) for s, e in blocks_of(total, block)]
+    if merge == "virtual":
+        index = gather(baker, recipe, folder, proc, digest, total, parts, own, inputs)
+        axes, variables, attrs = units.whole(recipe, [p for p, _, _ in parts], **index, **inputs)
+        return write_virtual(out, baker.kind, recipe, units.axis, parts, axes, variables, attrs)
+    for p, s, e in parts:  # each process validated or wrote its own parts: the headers suffice
+        _present(p, baker, digest, s, e, total)
+    return units.assemble(recipe, [p for p, _, _ in parts], out, **inputs)
+
+
+def _present(part: Path, baker: Baker, digest: str, start: int, stop: int, total: int) -> None:
+    if not _intact(part, baker, digest, start, stop, total, full=False):
+        raise errors.AssetNotFoundError(part, "part missing or damaged after every process finished")
+
+
+def gather(baker: Baker, recipe: dict, folder: Path, proc: Process, digest: str, total: int, parts, own,
+            inputs: dict) -> dict:
+    """The leader's ``whole`` keyword arguments: every part's index (``index=[...]``) from its own indexes and
+    the other processes' share files, one file per process whatever the part count.  A part that no index
+    covers unchanged (a share file missing or foreign, a part rewritten since) is checked and indexed here;
+    without ``Units.index``, ``whole`` reads the parts itself ({})."""
+    if baker.units.index is None:
+        for p, s, e in parts:
+            _present(p, baker, digest, s, e, total)
+        return {}
+    got = {}
+    for b, (st, ix) in (own or {}).items():
+        try:
+            if np.array_equal(stamp(folder / part_name(*b)), st):
+                got[b] = ix
+        except OSError:
+            pass
+    for k in range(proc.count):
+        if k != proc.index:
+            got.update(read_share(folder / share_name(k, proc.count), digest, total, folder))
+    for p, s, e in parts:
+        if (s, e) not in got:
+            _present(p, baker, digest, s, e, total)
+            got[(s, e)] = baker.units.index(recipe, p, **inputs)
+    return {"index": [got[(s, e)] for _, s, e in parts]}
 
 
 def merge(baker: Baker, shards, out) -> dict:
@@ -196,6 +304,8 @@ def merge(baker: Baker, shards, out) -> dict:
         pos = stop
     if pos != total:
         raise errors.ValidationError("shards", [str(i[5]) for i in items], f"cover {baker.units.axis} 0..{pos - 1} of {total}")
+    if baker.units.budget is not None:
+        baker.units.budget(recipe, baker.units.block, total, COPY_NOTE)
     path = baker.units.assemble(recipe, [i[5] for i in items], out)
     return {"out": str(path), "shards": len(items), "units": pos, "bytes": Path(path).stat().st_size,
             "recipe_hash": digest}

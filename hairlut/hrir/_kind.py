@@ -59,16 +59,28 @@ def _assemble(recipe, parts, out, **inputs):
     return assemble_parts(recipe, parts, out)
 
 
-def _whole(recipe, parts, **inputs):
-    from ._io import index_parts
+def _whole(recipe, parts, index=None, **inputs):
+    from ._parts import whole
 
-    return index_parts(recipe, parts)
+    return whole(recipe, parts, index)
+
+
+def _index(recipe, path, **inputs):
+    from ._parts import part_index
+
+    return part_index(recipe, path)
 
 
 def _check(recipe, path):
     from ._io import read_shard
 
     read_shard(path)  # every table and attribute a part must hold (a part of an older format is baked again)
+
+
+def _budget(recipe, block, held, note=""):
+    from ..budget import check_hrir
+
+    check_hrir(recipe, block=block, held=held, note=note)
 
 
 def _load(path):
@@ -110,7 +122,8 @@ BAKER = Baker(
     shard_kind=SHARD_KIND,
     shard_required=("alpha", "reflectance", "density"),
     merge=_merge,
-    units=Units("sector", _count, _bake_part, _join, _assemble, _whole, block=32, check=_check),
+    units=Units("sector", _count, _bake_part, _join, _assemble, _whole, block=32, check=_check,
+                budget=_budget, index=_index),
     help="""HRIR database: planar ray tracing of random generalized sectors (satf §5).
 
     Resumable: finished blocks are kept in OUT.parts/; rerun the same command after an

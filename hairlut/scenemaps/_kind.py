@@ -94,7 +94,7 @@ BAKER = Baker(
     shard_kind=SHARD_KIND,
     shard_required=("alpha", "ratio", "scene_index"),
     units=Units("sector", _part("count"), _part("bake_part"), _part("join"), _part("assemble"), _part("whole"),
-                block=BLOCK, check=_part("check")),
+                block=BLOCK, check=_part("check"), index=_part("part_index")),
     help="""Per-groom scene table: each sector's own projections (the `scene` map method).
 
     Traces every non-empty sector of the scene's groom on a grid of views and lights once;

@@ -133,16 +133,21 @@ def join(recipe: dict, parts, out) -> Path:
                        read[0]["sector_total"], read[0]["sectors"], max(r["mirror_error"] for r in read))
 
 
-def whole(recipe: dict, parts, **_) -> tuple[list[Axis], list[Variable], dict]:
+def part_index(recipe: dict, path, **_) -> dict[str, np.ndarray]:
+    """What :func:`whole` reads from one part: its row indices, mirror error and scene sector count."""
+    with open_table(path, SHARD_KIND, required=("scene_index",)) as f:
+        return {"scene_index": np.asarray(layout(f)[1]["scene_index"][()], np.int64),
+                "mirror_error": np.array([float(f.attrs["mirror_error"])]), "sectors": np.array([int(f.attrs["sectors"])])}
+
+
+def whole(recipe: dict, parts, index=None, **_) -> tuple[list[Axis], list[Variable], dict]:
     """What a ``scene_maps`` asset stores besides its per-row tables: the axes, ``row`` and the root
-    attributes, from the parts' row indices and attributes alone (nothing else of a part is read)."""
-    index, mirror, sectors = [], 0.0, None
-    for p in parts:
-        with open_table(p, SHARD_KIND, required=("scene_index",)) as f:
-            index.append(np.asarray(layout(f)[1]["scene_index"][()], np.int64))
-            mirror = max(mirror, float(f.attrs["mirror_error"]))
-            sectors = int(f.attrs["sectors"])
-    index = np.concatenate(index)
+    attributes, from the parts' row indices and attributes alone (nothing else of a part is read), or from
+    their :func:`part_index` dicts ``index``."""
+    small = list(index) if index is not None else [part_index(recipe, p) for p in parts]
+    mirror = max(float(d["mirror_error"][0]) for d in small)
+    sectors = int(small[-1]["sectors"][0])
+    index = np.concatenate([d["scene_index"] for d in small])
     if len(np.unique(index)) != len(index) or index.min(initial=0) < 0 or index.max(initial=-1) >= sectors:
         raise errors.CorruptAssetError(parts[0], f"the parts' scene_index rows are not distinct sectors of {sectors}")
     row = np.full(sectors, -1, np.int32)
