@@ -332,3 +332,15 @@ def test_two_pass_frame_equals_the_one_pass_reference(projection):
 
     with pytest.raises(errors.ValidationError, match="textures"):
         draw_plan(plan, texs[1][:, :, :4])
+
+
+def test_camera_pass_refuses_above_the_memory_budget():
+    """The camera pass estimates its surface buffers first and refuses, naming the camera's resolution."""
+    from hairlut import errors
+    from hairlut.render import plan_fragments
+
+    cam = camera(res=(64, 48))
+    v, uv, tri = quad([(-0.5, -0.5, 0), (0.5, -0.5, 0), (-0.5, 0.5, 0), (0.5, 0.5, 0)])
+    with pytest.raises(errors.BudgetError, match="camera.resolution"):
+        plan_fragments(cam, v[None, None], tri, uv, (1, 1, 4, 4), tile=(48, 64), origins=np.zeros((1, 2), np.int32),
+                       limit=1000)

@@ -30,8 +30,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import errors
+from .. import budget, errors
 from ._raster import FAR, bilerp, surface_order, surfaces, texel_cell
+
+
+#: Bytes the camera pass holds per layer-surface slot of a tile: depth and (u, t) (float32), and, for a drawn
+#: fragment, its host-side index and key arrays (int64) while they are ordered.
+SLOT_BYTES = 12 + 8 * 8
 
 
 @partial(jax.jit, static_argnames=("size", "tile", "cap"))
@@ -125,10 +130,12 @@ def order_fragments(z, tuv, origins, size, n_t: int, n_u: int):
     return cell, weight, source, slabs, depth.reshape(H, W)
 
 
-def plan_fragments(cam, vertices, triangles, uv, texture_shape, *, tile, origins) -> FragmentPlan:
+def plan_fragments(cam, vertices, triangles, uv, texture_shape, *, tile, origins,
+                   limit: int | None = None) -> FragmentPlan:
     """The :class:`FragmentPlan` of (C, K, V, 3) ``vertices`` (triangles (T, 3), uv (V, 2) shared) through ``cam``,
     for textures of shape (C, K, n_t, n_u) (module docstring, step 1); ``tile``/``origins`` as ``_layered.layout``
-    gives them."""
+    gives them.  Refuses (``BudgetError``) when the camera pass would not fit the memory budget (``limit``: bytes,
+    default ``hairlut.budget.memory_limit()``)."""
     from ._layered import _bucket, candidates, pairs_of
 
     t0 = time.perf_counter()
@@ -136,6 +143,10 @@ def plan_fragments(cam, vertices, triangles, uv, texture_shape, *, tile, origins
     C, K, n_t, n_u = (int(n) for n in texture_shape[:4])
     if vertices.shape[:2] != (C, K):
         raise errors.ValidationError("textures", list(texture_shape), f"need (C, K) = {list(vertices.shape[:2])} first")
+    th, tw = (int(t) for t in tile)
+    # the surface buffers (depth, u, t) and, at most one fragment per buffer slot, the host's fragment arrays
+    budget.check("camera.resolution", [cam.width, cam.height], budget.product(C, 2 * K, th, tw, SLOT_BYTES),
+                 f"the camera pass's {C} clusters x {2 * K} layer surfaces on {th} x {tw}-pixel tiles", limit)
     pairs = pairs_of(triangles)
     args = (jnp.asarray(vertices, f32), jnp.asarray(origins, jnp.int32), jnp.asarray(pairs, jnp.int32),
             jnp.asarray(uv, f32), jnp.asarray(cam.matrix, f32), jnp.asarray(cam.eye, f32), jnp.asarray(cam.back, f32))
