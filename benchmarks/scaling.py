@@ -26,13 +26,17 @@ full cores``: sectors per CPU-second times the configuration's cores against the
 core, the speed-up if every pinned core were given in full (derived, not a wall-clock figure).
 
 Then the time to assemble the final asset, virtual datasets against a copy, from the same parts, at
-a few database sizes and part counts (parts baked with a 2-step trace: assembly reads and writes
-bytes, whatever their values).  Then the projected time of the production database (65,536 sectors,
+a few part counts (``--sizes`` sectors in blocks of each of ``--blocks``; parts baked with a 2-step trace:
+assembly reads and writes bytes, whatever their values), as the leader of a 2-process bake takes it
+(``hairlut.sharding.finish``: its own parts' indexes in memory, the other process's share file), wall
+and CPU seconds (the machine is shared: CPU seconds are the work), and what indexing a part costs each
+process while it bakes.  ``--repeat 0`` runs the assembly alone.
+Then the projected time of the production database (65,536 sectors,
 64 × 64 angles, 64 px, float16: 34 GB) on 8 devices, from the measured one-core throughput, and,
 labelled as such, from the one GPU figure measured elsewhere (issue 15: 94 sectors/s on one H200 at
 an older commit, default recipe, host-bound).
 
-    .venv/bin/python benchmarks/scaling.py [--sectors 64] [--repeat 3] [--sizes 256,1024]
+    .venv/bin/python benchmarks/scaling.py [--sectors 256] [--repeat 3] [--sizes 1024] [--blocks 1,4,64]
 """
 
 from __future__ import annotations
@@ -134,56 +138,63 @@ def _run(recipe: Path, out: Path, devices: int, cores: list[set[int]], how: str,
             "peak_rss_mib": max(peaks), "bytes": lead["bytes"], "sectors": sum(r["sectors"] for r in reports)}
 
 
-def _assemble_times(recipe: dict, paths: list[Path], scratch: Path, repeat: int) -> dict:
-    """Best seconds to write the final asset from ``paths``: virtual datasets (the leader's whole step), and a copy."""
+def _assemble_times(recipe: dict, paths: list[Path], scratch: Path, repeat: int, processes: int = 2) -> dict:
+    """Seconds (wall and CPU, best of ``repeat``) of the leader's last step of a ``processes``-process bake, as
+    ``hairlut.sharding.run`` takes it: virtual datasets over the parts (the index from the leader's own parts
+    and the other processes' share files) and a copy; and what indexing costs each process per part (paid
+    before the barrier, while it bakes)."""
     from hairlut import registry
-    from hairlut.parts import write_virtual
-    from hairlut.sharding import header
+    from hairlut.assets import canonical_json, recipe_hash
+    from hairlut.distributed import Process
+    from hairlut.parts import share_name, stamp, write_share
+    from hairlut.sharding import blocks_of, finish, header
 
     baker = registry.get("hrir_db")
-    spans = [(p, *header(p, baker)[:2]) for p in paths]
-    times = {"virtual": [], "copy": []}
+    spans = [header(p, baker)[:2] for p in paths]
+    total, block = spans[-1][1], spans[0][1] - spans[0][0]
+    folder = paths[0].parent
+    out = folder.with_name(folder.name[:-len(".parts")])
+    digest = recipe_hash(canonical_json(recipe))
+    t0, c0 = time.perf_counter(), time.process_time()
+    own = {}
+    for k in range(processes):  # what each process does after its blocks: index them, write its share file
+        mine = {b: (stamp(folder / Path(paths[spans.index(b)]).name), baker.units.index(recipe, paths[spans.index(b)]))
+                for b in blocks_of(total, block, (k, processes))}
+        if k == 0:
+            own = mine
+        else:
+            write_share(folder / share_name(k, processes), digest, total, mine)
+    index = {"index_cpu_s_per_part": (time.process_time() - c0) / len(paths),
+             "index_s_per_part": (time.perf_counter() - t0) / len(paths)}
+    times = {m: [] for m in ("virtual", "copy")}
     for i in range(repeat):
-        t0 = time.perf_counter()
-        axes, variables, attrs = baker.units.whole(recipe, paths)
-        v = write_virtual(scratch / f"v{i}.h5", baker.kind, recipe, baker.units.axis, spans, axes, variables, attrs)
-        times["virtual"].append(time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        c = baker.units.assemble(recipe, paths, scratch / f"c{i}.h5")
-        times["copy"].append(time.perf_counter() - t0)
-    out = {"virtual_s": min(times["virtual"]), "copy_s": min(times["copy"]), "virtual_bytes": Path(v).stat().st_size,
-           "copy_bytes": Path(c).stat().st_size}
-    for p in scratch.glob("[vc][0-9]*.h5"):
-        p.unlink()
-    return out
+        for merge in times:
+            t0, c0 = time.perf_counter(), time.process_time()
+            finish(baker, recipe, out, total, block, merge, Process(0, processes), own if merge == "virtual" else None)
+            times[merge].append((time.perf_counter() - t0, time.process_time() - c0))
+            size = out.stat().st_size
+            index[f"{merge}_bytes"] = size
+            out.unlink()
+    return {**index, **{f"{m}_s": min(t[0] for t in v) for m, v in times.items()},
+            **{f"{m}_cpu_s": min(t[1] for t in v) for m, v in times.items()}}
 
 
-def _assembly(sizes: list[int], grouping: list[int], tmp: Path, repeat: int) -> list[dict]:
-    """Virtual against copy assembly: each size baked once in blocks of ``grouping[0]``, then joined into coarser parts."""
-    from hairlut import registry
+def _assembly(sizes: list[int], blocks: list[int], tmp: Path, repeat: int) -> list[dict]:
+    """Virtual against copy assembly: each size baked once for each block size (parts of ``block`` sectors)."""
     from hairlut.hrir import bake, resolve_recipe
     from hairlut.parts import parts_dir
 
-    baker = registry.get("hrir_db")
     rows = []
     for n in sizes:
         given = {**TRACE, "sectors": {**TRACE["sectors"], "count": n}, "trace": {**TRACE["trace"], "steps": 2}}
-        recipe = resolve_recipe(given)
-        out = tmp / f"asm{n}.h5"
-        bake(given, out, block=grouping[0], keep_parts=True)
-        fine = sorted(parts_dir(out).glob("part-*.h5"))
-        for g in grouping:
-            if g == grouping[0]:
-                parts = fine
-            else:
-                step = g // grouping[0]
-                folder = tmp / f"asm{n}-{g}"
-                folder.mkdir()
-                parts = [baker.units.join(recipe, fine[i:i + step], folder / f"part-{i:09d}.h5")
-                         for i in range(0, len(fine), step)]
-            t = _assemble_times(recipe, [Path(p) for p in parts], tmp, repeat)
-            rows.append({"sectors": n, "parts": len(parts), "part_bytes": sum(Path(p).stat().st_size for p in parts), **t,
-                         "copy_x_virtual": t["copy_s"] / t["virtual_s"]})
+        for b in blocks:
+            out = tmp / f"asm{n}-{b}.h5"
+            bake(given, out, block=b, keep_parts=True)
+            out.unlink()
+            parts = sorted(parts_dir(out).glob("part-*.h5"))
+            t = _assemble_times(resolve_recipe(given), parts, tmp, repeat)
+            rows.append({"sectors": n, "parts": len(parts), "part_bytes": sum(p.stat().st_size for p in parts), **t,
+                         "copy_x_virtual": t["copy_cpu_s"] / t["virtual_cpu_s"]})
     return rows
 
 
@@ -198,17 +209,33 @@ def _work(recipe: dict) -> float:
 
 
 def _spread(rounds: list[dict], name: str, base: str, key=lambda r: r["steady_rate"]) -> list[float]:
-    """The ratio name/base taken round by round: (min, max)."""
+    """The ratio name/base taken round by round: (min, median, max)."""
     ratios = [key(r[name]) / key(r[base]) for r in rounds]
-    return [min(ratios), max(ratios)]
+    return [min(ratios), statistics.median(ratios), max(ratios)]
+
+
+def _print_assembly(asm: list[dict]) -> None:
+    if not asm:
+        return
+    print(f"assembling the final asset from the same parts, the leader's step of a 2-process bake (best of 2, "
+          f"in-process; load average {os.getloadavg()[0]:.1f}):\n")
+    for r in asm:
+        r["index_ms_per_part"] = 1e3 * r["index_cpu_s_per_part"]
+    print(table(asm, [("sectors", "sectors", ""), ("parts", "parts", ""), ("part_bytes", "part bytes", ",.0f"),
+                      ("index_ms_per_part", "index CPU-ms/part", ".1f"),
+                      ("virtual_s", "virtual s", ".3f"), ("virtual_cpu_s", "virtual CPU-s", ".3f"),
+                      ("virtual_bytes", "virtual bytes", ",.0f"), ("copy_s", "copy s", ".3f"),
+                      ("copy_cpu_s", "copy CPU-s", ".3f"), ("copy_bytes", "copy bytes", ",.0f"),
+                      ("copy_x_virtual", "copy/virtual CPU", ".1f")]))
+    print()
 
 
 def main(argv=None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sectors", type=int, default=64)
+    ap.add_argument("--sectors", type=int, default=256, help="sectors of the scaling rounds (256: compilation amortised)")
     ap.add_argument("--repeat", type=int, default=3, help="interleaved rounds of every configuration")
-    ap.add_argument("--sizes", default="256,1024", help="database sizes (sectors) of the assembly timing")
-    ap.add_argument("--grouping", default="4,16,64", help="sectors per part of the assembly timing (multiples of the first)")
+    ap.add_argument("--sizes", default="1024", help="database sizes (sectors) of the assembly timing")
+    ap.add_argument("--blocks", default="1,4,64", help="sectors per part of the assembly timing")
     ap.add_argument("--name", default="scaling", help="results/<name>.json")
     a = ap.parse_args(argv)
     if len(os.sched_getaffinity(0)) < 2:
@@ -227,8 +254,13 @@ def main(argv=None) -> dict:
                       f"bake {got[name]['bake_s']:.1f} s", file=sys.stderr)
             rounds.append(got)
         sizes = [int(s) for s in a.sizes.split(",") if s]
-        grouping = [int(g) for g in a.grouping.split(",") if g]
-        asm = _assembly(sizes, grouping, tmp, repeat=2)
+        blocks = [int(g) for g in a.blocks.split(",") if g]
+        asm = _assembly(sizes, blocks, tmp, repeat=2)
+    _print_assembly(asm)
+    if not rounds:  # --repeat 0: the assembly only
+        doc = {"assembly": asm, "load_before": load_before, "load_after": os.getloadavg()}
+        save(a.name, doc)
+        return doc
     base = "plain 1 dev"
     rows = []
     for name, devices, cores, how, merge in CONFIGS:
@@ -253,10 +285,10 @@ def main(argv=None) -> dict:
     costs = []
     for name, ref in SAME_CORES:
         rate = by[ref]["rate_best"] / by[name]["rate_best"] - 1
-        lo, hi = _spread(rounds, ref, name)
+        lo, mid, hi = _spread(rounds, ref, name)
         bake = by[name]["bake_s"] / by[ref]["bake_s"] - 1
-        costs.append({"config": name, "against": ref, "rate_cost": rate, "rate_cost_range": [lo - 1, hi - 1],
-                      "bake_s_cost": bake})
+        costs.append({"config": name, "against": ref, "rate_cost": rate, "rate_cost_median": mid - 1,
+                      "rate_cost_range": [lo - 1, hi - 1], "bake_s_cost": bake})
     print(f"{a.sectors} sectors, {TRACE['angles']['views']}x{TRACE['angles']['lights']} angles, {TRACE['trace']['pixels']} px, "
           f"{TRACE['trace']['steps']} steps, blocks of {BLOCK}; {a.repeat} interleaved rounds; load average before "
           f"{load_before[0]:.1f} on {os.cpu_count()} cores (a shared machine)\n")
@@ -269,21 +301,18 @@ def main(argv=None) -> dict:
                        ("peak_rss_mib", "peak MiB", ".0f")]))
     print()
     for r in rows[1:]:
-        lo, hi = r["x_base_range"]
-        print(f"  {r['config']:<19} x 1 core {r['x_base']:.2f} (round by round {lo:.2f}..{hi:.2f})")
+        lo, mid, hi = r["x_base_range"]
+        print(f"  {r['config']:<19} x 1 core: best rates {r['x_base']:.2f}; round by round median {mid:.2f} "
+              f"(range {lo:.2f}..{hi:.2f})")
     for c in costs:
         lo, hi = c["rate_cost_range"]
-        print(f"  {c['config']:<19} against {c['against']} on the same cores: throughput cost {100 * c['rate_cost']:+.0f}% "
-              f"(round by round {100 * lo:+.0f}..{100 * hi:+.0f}%), whole-bake seconds {100 * c['bake_s_cost']:+.0f}%")
-    print("\nassembling the final asset from the same parts (best of 2, in-process):\n")
-    print(table(asm, [("sectors", "sectors", ""), ("parts", "parts", ""), ("part_bytes", "part bytes", ",.0f"),
-                      ("virtual_s", "virtual s", ".3f"), ("virtual_bytes", "virtual bytes", ",.0f"),
-                      ("copy_s", "copy s", ".3f"), ("copy_bytes", "copy bytes", ",.0f"), ("copy_x_virtual", "copy/virtual", ".1f")]))
+        print(f"  {c['config']:<19} against {c['against']} on the same cores: throughput cost, best rates "
+              f"{100 * c['rate_cost']:+.0f}%, round by round median {100 * c['rate_cost_median']:+.0f}% (range "
+              f"{100 * lo:+.0f}..{100 * hi:+.0f}%); whole-bake seconds {100 * c['bake_s_cost']:+.0f}%")
     bench = {**TRACE, "sectors": {**TRACE["sectors"], "count": a.sectors}}
     per_sector = _work(bench) / a.sectors
     core_rate = by[base]["rate_best"] * per_sector  # work per second, one core
     prod_work = _work(PRODUCTION)
-    os.environ.setdefault("HAIRLUT_MEMORY_LIMIT", "1024T")  # the estimate only: no process holds the whole database
     from hairlut import registry
 
     prod_bytes, _ = registry.get("hrir_db").estimate(PRODUCTION)
