@@ -43,7 +43,7 @@ def test_fit_spans_strands_of_different_lengths():
     pts = [np.stack([np.full(33, ox), np.linspace(0.0, top, 33), np.full(33, oz)], 1) for top, (ox, oz) in zip(tops, offs)]
     strands = Strands(np.concatenate(pts).astype(np.float32), np.full(n, 33))
     old, lab = fit_clusters(strands, 1, extend=False, coverage=0.95, n_fit=12, n_axis=4, core_radius=0.0)
-    new, lab2 = fit_clusters(strands, 1, core_radius=0.0)
+    new, lab2 = fit_clusters(strands, 1, core_radius=0.0, coverage=1.0)
     assert (lab == 0).all() and (lab2 == 0).all()
     before = length_inside(old, strands, lab)
     after = length_inside(new, strands, lab2)
@@ -53,17 +53,21 @@ def test_fit_spans_strands_of_different_lengths():
     assert end[1] >= 3.0 - 1e-6
 
 
-@pytest.mark.parametrize("groom, clusters, least", [("sintel_lite.tfx", 6, 0.99),
-                                                         pytest.param("ratboy_mohawk.tfx", 12, 0.99, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("groom, clusters, least", [("sintel_lite.tfx", 6, 0.98),
+                                                         pytest.param("ratboy_mohawk.tfx", 12, 0.98, marks=pytest.mark.slow)])
 def test_fitted_clusters_hold_the_vendored_grooms(groom, clusters, least):
-    """The vendored grooms with their scenes' cluster counts and no core (the ``[groom]`` default): at least 99 %
-    of the strand length lies inside the fitted clusters (measured 99.8 % on both; the former fit kept 63–65 %)."""
+    """The vendored grooms with their scenes' cluster counts and no core (the ``[groom]`` default): at least 98 %
+    of the strand length lies inside the fitted clusters (measured 98.4 % and 98.2 % at the default 95 % coverage,
+    99.8 % at full coverage; the former fit kept 63–65 %)."""
     strands = read_strands(groom_path(groom))
+    full, labels_full = fit_clusters(strands, clusters, core_radius=0.0, coverage=1.0)
+    assert length_inside(full, strands, labels_full)["inside"] >= 0.995
     batch, labels = fit_clusters(strands, clusters, core_radius=0.0)
     frac = length_inside(batch, strands, labels)
     assert frac["inside"] >= least, frac
     again, labels2 = fit_clusters(strands, clusters, core_radius=0.0)  # deterministic by seed
     assert (labels2 == labels).all()
+    assert (labels_full == labels).all()  # coverage does not change the grouping
     for a, b in zip(batch.specs, again.specs):
         assert np.array_equal(a.trajectory.control, b.trajectory.control)
         assert np.array_equal(a.half_axis_a.control, b.half_axis_a.control)
