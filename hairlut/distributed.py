@@ -159,6 +159,14 @@ def map_units(fn, sharded: tuple, replicated: tuple = (), *, micro: int = 1, dev
     runs on local device c mod D (``devices`` caps D; default all local devices), each call
     dispatched asynchronously, the replicated inputs placed once per device.
     """
+    return dispatch_units(fn, sharded, replicated, micro=micro, devices=devices, **static)()
+
+
+def dispatch_units(fn, sharded: tuple, replicated: tuple = (), *, micro: int = 1, devices: int | None = None,
+                   **static):
+    """:func:`map_units` without waiting: every call is enqueued on its device, and the returned ``gather()``
+    waits for them and returns the NumPy outputs.  The host is free in between (JAX's asynchronous
+    dispatch): a bake writes one block while the devices compute the next."""
     import jax
 
     n = len(sharded[0])
@@ -179,5 +187,23 @@ def map_units(fn, sharded: tuple, replicated: tuple = (), *, micro: int = 1, dev
     for c in range(chunks):
         d = devs[c % len(devs)]
         calls.append(kernel(tuple(jax.device_put(x[c * micro:(c + 1) * micro], d) for x in xs), rep[d]))
-    outs = [np.concatenate([np.asarray(call[i]) for call in calls]) for i in range(len(calls[0]))]
-    return tuple(o[:n] for o in outs)
+
+    def gather() -> tuple[np.ndarray, ...]:
+        outs = [np.concatenate([np.asarray(call[i]) for call in calls]) for i in range(len(calls[0]))]
+        return tuple(o[:n] for o in outs)
+
+    return gather
+
+
+def free_memory() -> int | None:
+    """Bytes free on the most loaded local device (``memory_stats``: limit − in use); None where unknown (CPU)."""
+    free = []
+    for d in local_devices():
+        try:
+            stats = d.memory_stats()
+        except (AttributeError, NotImplementedError, RuntimeError):
+            stats = None
+        if not stats or "bytes_limit" not in stats:
+            return None
+        free.append(int(stats["bytes_limit"]) - int(stats.get("bytes_in_use", 0)))
+    return min(free) if free else None

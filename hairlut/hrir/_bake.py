@@ -19,7 +19,7 @@ import numpy as np
 
 from .. import errors
 from ..baker import parse_shard  # noqa: F401  (re-exported)
-from ..distributed import map_units
+from ..distributed import dispatch_units, free_memory
 from ..parts import parts_dir  # noqa: F401  (re-exported)
 from ..sharding import blocks_of  # noqa: F401  (re-exported)
 from ..geometry.density import sector_density
@@ -31,6 +31,8 @@ from ._recipe import resolve_recipe, sector_space
 from ._tracer import trace_kernel
 
 BLOCK = 32
+#: Blocks a bake is cut into at most when ``block`` is not given (:func:`auto_block`).
+PIPELINE_BLOCKS = 16
 
 
 def sector_seed(seed: int, index: int) -> int:
@@ -54,6 +56,11 @@ def trace_sectors(density, geometry, recipe: dict, *, views=None, lights=None, *
 
     ``overrides`` replace ``trace`` settings (n_pix, n_steps, rays, shadow, smooth, eps).
     """
+    return dispatch_trace(density, geometry, recipe, views=views, lights=lights, **overrides)()
+
+
+def dispatch_trace(density, geometry, recipe: dict, *, views=None, lights=None, **overrides):
+    """:func:`trace_sectors` enqueued on the devices; returns ``gather()``, which waits and returns (α, reflectance)."""
     from ..geometry import angle_grid
 
     tr, ph = recipe["trace"], recipe["phong"]
@@ -66,7 +73,7 @@ def trace_sectors(density, geometry, recipe: dict, *, views=None, lights=None, *
     lights = angle_grid(L) if lights is None else np.asarray(lights)
     phong = np.array([ph["ambient"], ph["diffuse"], ph["specular"], ph["shininess"]])
     f32 = [np.asarray(x, np.float32) for x in (density, geometry, views, lights, phong)]
-    return map_units(_trace_units, tuple(f32[:2]), tuple(f32[2:]), **cfg)
+    return dispatch_units(_trace_units, tuple(f32[:2]), tuple(f32[2:]), **cfg)
 
 
 def _trace_units(rho, geom, views, lights, phong, **cfg):
@@ -76,12 +83,24 @@ def _trace_units(rho, geom, views, lights, phong, **cfg):
 
 def bake_block(recipe: dict, start: int, stop: int) -> dict:
     """Everything stored for sectors [start, stop)."""
+    return launch_block(recipe, start, stop)()
+
+
+def launch_block(recipe: dict, start: int, stop: int):
+    """Sample sectors [start, stop), compute their densities and enqueue their tracing on the devices.
+
+    Returns ``finish()``, which waits for the devices and returns everything stored for the sectors
+    (:func:`bake_block`): between the two the host is free to write the previous block."""
     splats, params = sample_block(recipe, start, stop)
     density = sector_density(splats, tuple(recipe["sectors"]["grid"]), density_scale=recipe["sectors"]["density_scale"],
                              chunk=1)
     geometry = sector_geometry(params, kappa=recipe["trace"]["extinction"], n_pix=recipe["trace"]["pixels"],
                                smooth_ratio=recipe["trace"]["smooth_ratio"])
-    alpha, refl = trace_sectors(density, geometry, recipe)
+    gather = dispatch_trace(density, geometry, recipe)
+    return lambda: _finished(recipe, start, stop, density, geometry, params, *gather())
+
+
+def _finished(recipe: dict, start: int, stop: int, density, geometry, params, alpha, refl) -> dict:
     for name, arr in (("density", density), ("geometry", geometry), ("alpha", alpha), ("reflectance", refl)):
         if not np.all(np.isfinite(np.asarray(arr))):  # finite or refused: never write NaN/Inf
             raise errors.NonFiniteError(
@@ -93,9 +112,39 @@ def bake_block(recipe: dict, start: int, stop: int) -> dict:
             "params": {k: params[k] for k in PARAMS}}
 
 
-def bake_part(recipe: dict, start: int, stop: int, total: int, path, **_) -> None:
-    """Bake sectors [start, stop) into the ``hrir_shard`` part ``path`` (the sharding path's unit of work)."""
-    write_shard(path, recipe, bake_block(recipe, start, stop), start, total)
+def bake_part(recipe: dict, start: int, stop: int, total: int, path, **_):
+    """Start baking sectors [start, stop) into the ``hrir_shard`` part ``path`` (the sharding path's unit of work).
+
+    Returns the step that completes it (wait for the devices, check, write the part): the shard path calls
+    it once the next block is on the devices (:class:`hairlut.baker.Units`)."""
+    finish = launch_block(recipe, start, stop)
+    return lambda: write_shard(path, recipe, finish(), start, total)
+
+
+def auto_block(recipe: dict, *, shared: bool = False) -> int:
+    """Sectors per block when none is given: sized to the device's memory (else the host's budget).
+
+    At least :data:`BLOCK` sectors (a part file and its checks cost the same for any size), and large
+    enough that a bake has at most :data:`PIPELINE_BLOCKS` blocks (fewer, larger parts on a fast
+    device), but no more sectors than fit in an eighth of the device's free memory (``memory_stats``;
+    the host's budget, :func:`hairlut.budget.memory_limit`, where the device does not say, as on CPUs)
+    at their inputs and outputs (two blocks are in flight: one traced while the other is written).  A
+    multiple of :data:`BLOCK`.  The default database (512 sectors) keeps blocks of 32.  A ``shared`` bake
+    (``--shard``, ``--distributed``: processes that may sit on other machines must cut the same blocks,
+    and as many as there are shares) keeps :data:`BLOCK`."""
+    from ..budget import memory_limit
+
+    if shared:
+        return BLOCK
+    n = recipe["sectors"]["count"]
+    want = -(-n // (PIPELINE_BLOCKS * BLOCK)) * BLOCK
+    V, L, P = recipe["angles"]["views"], recipe["angles"]["lights"], recipe["trace"]["pixels"]
+    n_s, n_r = recipe["sectors"]["grid"]
+    per_sector = 4 * (V * P * (L + 1) + n_s * n_r + 32)
+    room = free_memory()
+    room = memory_limit() if room is None else min(room, memory_limit())
+    fits = max(BLOCK, room // 8 // per_sector // BLOCK * BLOCK)
+    return int(min(want, fits))
 
 
 def join_parts(recipe: dict, parts, out):
@@ -110,7 +159,7 @@ def assemble_parts(recipe: dict, parts, out, **_):
     return assemble(out, recipe, concat([read_shard(p)[0] for p in parts]))
 
 
-def bake(given: dict | None, out, *, shard=None, block: int = BLOCK, progress=None, keep_parts: bool = False,
+def bake(given: dict | None, out, *, shard=None, block: int | None = None, progress=None, keep_parts: bool = False,
          distributed=False, merge: str | None = None) -> dict:
     """Bake (or resume) the HRIR-DB of a recipe into ``out`` (written atomically).
 
@@ -125,6 +174,7 @@ def bake(given: dict | None, out, *, shard=None, block: int = BLOCK, progress=No
     from ._kind import BAKER
 
     r = resolve_recipe(given)
+    block = auto_block(r, shared=bool(shard is not None or distributed)) if block is None else block
     if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1:
         raise errors.ValidationError("block", block, "must be an integer ≥ 1")
     rep = run(BAKER, r, out, progress=progress, shard=shard, block=int(block), keep_parts=keep_parts,
