@@ -31,9 +31,9 @@ def estimate(recipe: dict) -> tuple[int, float]:
 
 
 def _bake(recipe, out, *, progress=None, shard=None, block=None, keep_parts=False, distributed=False, merge=None):
-    from ._bake import BLOCK, bake
+    from ._bake import bake
 
-    return bake(recipe, out, shard=shard, block=BLOCK if block is None else block, progress=progress,
+    return bake(recipe, out, shard=shard, block=block, progress=progress,
                 keep_parts=keep_parts, distributed=distributed, merge=merge)
 
 
@@ -115,7 +115,9 @@ BAKER = Baker(
     estimate=estimate,
     describe=describe,
     options=(
-        Option("block", int, 32, "Sectors per resumable part (OUT.parts/); does not change the result.", minimum=1),
+        Option("block", int, None, "Sectors per resumable part (OUT.parts/); does not change the result.  Default: "
+               "32, or up to a 16th of a large bake as the device's memory allows (32 with --shard/--distributed).",
+               minimum=1),
         Option("keep_parts", bool, False, "Keep OUT.parts/ after the final file is written."),
     ),
     unit="sectors",
