@@ -1,46 +1,55 @@
 """Part ``render``: camera frames of the layered model per map method and of the strand-level
 reference at each convergence level, against the finest level (``benchmarks/render.py``, run as
-a subprocess: FLIP mean error, frame time)."""
+a subprocess per scene: FLIP mean error, frame time).
+
+Sizes (:data:`RUNS`): the full run renders both vendored grooms at 128 × 128, the Sintel groom to
+level 3 (64 samples per pixel, 16 steps per crossing) so that levels 0–2 show the convergence
+trend against it, the ten-times-denser Ratboy crest to level 2; ``--quick`` renders Sintel at 32 × 32,
+levels 0 and 1.  Measured alone on the shared 2-core machine, these fit the full run's 30 minutes
+with the other parts (README, Speed and accuracy)."""
 
 from __future__ import annotations
-
-import re
 
 from ._figure import Figure
 from ._parts import Context
 from ._scripts import ROOT, run_script, script_missing
 
 PART = "render"
-LEVEL = re.compile(r"reference L(\d+)")
+SINTEL, RATBOY = "tables/scenes/sintel-groom.toml", "tables/scenes/ratboy-groom.toml"
+#: (scene, square resolution, reference levels: the last is the truth) per run size.
+RUNS = {"quick": [(SINTEL, 32, (0, 1))], "full": [(SINTEL, 128, (0, 1, 2, 3)), (RATBOY, 128, (0, 1, 2))]}
 
 
 def unavailable() -> str | None:
     return script_missing("render.py")
 
 
-def run(ctx: Context) -> list[Figure]:
-    scenes = ["tables/scenes/sintel-groom.toml"] if ctx.quick else ["tables/scenes/sintel-groom.toml",
-                                                                      "tables/scenes/ratboy-groom.toml"]
-    args = [a for s in scenes for a in ("--scene", str(ROOT / s))] + (["--resolution", "32", "--levels", "0", "1"]
-                                                                      if ctx.quick else [])
-    doc = run_script("render.py", args, ctx.workdir / "render.json", timeout=900 if ctx.quick else 1500)
-    rows = doc.get("rows", doc.get("records", []))
-    levels = sorted(int(m.group(1)) for r in rows if (m := LEVEL.fullmatch(r["method"])))
+def _figures(rows: list[dict], levels: tuple[int, ...]) -> list[Figure]:
     figs = []
+    truth, coarse = f"reference L{max(levels)}", f"reference L{min(levels)}"
     for r in rows:
         if r.get("scene") == "paper-scale" or r.get("frame_ms") is None:
             continue
         method = r["method"]
-        truth = method == f"reference L{levels[-1]}" if levels else False
         ms = r["frame_ms"] + (r.get("maps_ms") or 0.0)  # a layered frame: its maps (made per frame) and the raster
         figs.append(Figure(PART, f"{r['scene']}: frame against the finest reference level", method, ms / 1e3,
-                           None if truth else r.get("flip_mean"), "FLIP mean",
-                           {k: r[k] for k in ("spp", "steps", "triangles") if r.get(k) is not None},
-                           baseline=bool(levels) and method == f"reference L{levels[0]}", paper=method == "layered satf",
+                           None if method == truth else r.get("flip_mean"), "FLIP mean",
+                           {k: r[k] for k in ("spp", "steps", "triangles", "resolution") if r.get(k) is not None},
+                           baseline=method == coarse, paper=method == "layered satf",
                            extra={k: r.get(k) for k in ("rgb_rmse", "rgb_rmse_8x8", "alpha_bias", "maps_ms", "frame_ms",
                                                         "cpu_ms")}))
-    shown = " ".join(a[len(str(ROOT)) + 1:] if a.startswith(str(ROOT)) else a for a in args)
-    ctx.note(PART, f"benchmarks/render.py {shown}; the finest reference level is the truth (its error is 0 by definition); "
-                   "a layered frame's time is its maps plus the raster (maps_ms and the raster alone are in "
+    return figs
+
+
+def run(ctx: Context) -> list[Figure]:
+    figs, shown = [], []
+    for scene, resolution, levels in RUNS["quick" if ctx.quick else "full"]:
+        args = ["--scene", str(ROOT / scene), "--resolution", str(resolution), "--levels", *map(str, levels)]
+        doc = run_script("render.py", args, ctx.workdir / "render.json", timeout=900 if ctx.quick else 1500)
+        rows = doc.get("rows", doc.get("records", []))
+        figs += _figures(rows, levels)
+        shown.append(f"--scene {scene} --resolution {resolution} --levels {' '.join(map(str, levels))}")
+    ctx.note(PART, f"benchmarks/render.py {'; '.join(shown)}; the finest reference level is the truth (its error is 0 by "
+                   "definition); a layered frame's time is its maps plus the raster (maps_ms and the raster alone are in "
                    "results.json); the baseline is the coarsest reference level")
     return figs

@@ -37,18 +37,32 @@ def hit_kernel(o, d, ray, seg, p0, t, length, radius, sigma_t, s_lo):
     return near & valid
 
 
-def near_pairs(o, d, index: np.ndarray, per_tile: int, dev: tuple, s_lo: float):
-    """(rays, segments) of the near pairs, ordered by ray, of n tiles whose rays are ``o``, ``d`` (``RAYS``, 3) (tile i:
-    rays i·``per_tile`` … (i + 1)·``per_tile`` − 1) against their candidates ``index`` (n, M) (−1: padding)."""
-    count = (index >= 0).sum(1)
-    cand = index[index >= 0]  # each tile's candidates, tile by tile
+def tile_groups(buckets, group: int):
+    """The occupied tiles of ``_tiles.bin_boxes``' buckets, ``group`` at a time whatever their widths: (tiles (n, 2),
+    candidate counts (n,), candidates tile by tile (Σ counts,))."""
+    if not buckets:
+        return
+    tiles = np.concatenate([b.tiles for b in buckets])
+    count = np.concatenate([(b.index >= 0).sum(1) for b in buckets])
+    cand = np.concatenate([b.index[b.index >= 0] for b in buckets])
+    start = np.concatenate([[0], np.cumsum(count)])
+    for s in range(0, len(tiles), group):
+        e = min(s + group, len(tiles))
+        yield tiles[s:e], count[s:e], cand[start[s]:start[e]]
+
+
+def near_pairs(o, d, count: np.ndarray, cand: np.ndarray, per_tile: int, dev: tuple, s_lo: float):
+    """(rays, segments) of the near pairs, ordered by ray, and the number of pairs tested, of n tiles whose rays are
+    ``o``, ``d`` (``RAYS``, 3) (tile i: rays i·``per_tile`` … (i + 1)·``per_tile`` − 1) against their ``count`` (n,)
+    candidates ``cand`` (tile by tile)."""
+    count = count.astype(np.int32)
     block = per_tile * count
     total = int(block.sum())
-    tile = np.repeat(np.arange(len(index)), block)
-    q = np.arange(total) - np.repeat(np.cumsum(block) - block, block)
-    n_t = count[tile]
-    ray = (tile * per_tile + q // n_t).astype(np.int32)
-    seg = cand[(np.cumsum(count) - count)[tile] + q % n_t].astype(np.int32)
+    tile = np.repeat(np.arange(len(count), dtype=np.int32), block)
+    q = np.arange(total, dtype=np.int32) - np.repeat(np.cumsum(block, dtype=np.int32) - block, block)
+    r, j = np.divmod(q, count[tile])
+    ray = tile * np.int32(per_tile) + r
+    seg = cand.astype(np.int32)[(np.cumsum(count, dtype=np.int32) - count)[tile] + j]
     keep = []
     for s in range(0, total, PAIRS):
         r, g = ray[s:s + PAIRS], seg[s:s + PAIRS]
