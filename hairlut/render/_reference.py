@@ -35,7 +35,7 @@ import numpy as np
 from .. import errors
 from jax.scipy.special import erfc
 
-from ._hits import RAYS, Queue, batch_rows, compact, near_pairs
+from ._hits import RAYS, Queue, batch_rows, compact, near_pairs, tile_groups
 from ._strands import Z_CUT, Segments, crossings, support, tail_diff
 from ._tiles import bin_boxes
 
@@ -109,19 +109,17 @@ def shadow_grids(segs: Segments, lights, cell: float, stats: dict | None = None)
             grid[ids[good]] = tau[good, :nz]
 
         queue = Queue(lambda k: batch_rows(k * depth), run)
-        for bk in buckets:
-            for s in range(0, len(bk.tiles), group):
-                tl, ix = bk.tiles[s:s + group], bk.index[s:s + group]
-                g = tl[:, None, :] * TILE + ij[None]  # (n, 64, 2) node columns (i, j)
-                o = np.zeros((RAYS, 3), np.float32)
-                o[:g.shape[0] * g.shape[1]] = (origin + cell * (g[..., :1] * axes[0] + g[..., 1:] * axes[1])).reshape(-1, 3)
-                ray, seg, pairs = near_pairs(f32(o), d_all, ix, TILE * TILE, dev, -1e20)
-                col = (g[..., 0] * ny_p + g[..., 1]).reshape(-1)
-                for k, (rays, cand) in compact(ray, seg).items():
-                    queue.put(k, col[rays], cand, o[rays])
-                if stats is not None:
-                    stats["column_pairs"] = stats.get("column_pairs", 0) + pairs
-                    stats["column_near_pairs"] = stats.get("column_near_pairs", 0) + len(ray)
+        for tl, count, cand in tile_groups(buckets, group):
+            g = tl[:, None, :] * TILE + ij[None]  # (n, 64, 2) node columns (i, j)
+            o = np.zeros((RAYS, 3), np.float32)
+            o[:g.shape[0] * g.shape[1]] = (origin + cell * (g[..., :1] * axes[0] + g[..., 1:] * axes[1])).reshape(-1, 3)
+            ray, seg, pairs = near_pairs(f32(o), d_all, count, cand, TILE * TILE, dev, -1e20)
+            col = (g[..., 0] * ny_p + g[..., 1]).reshape(-1)
+            for k, (rays, near) in compact(ray, seg).items():
+                queue.put(k, col[rays], near, o[rays])
+            if stats is not None:
+                stats["column_pairs"] = stats.get("column_pairs", 0) + pairs
+                stats["column_near_pairs"] = stats.get("column_near_pairs", 0) + len(ray)
         queue.flush()
         out.append((grid.reshape(-1, ny_p, nz)[:nx, :ny], origin, axes))
     return out
@@ -273,21 +271,19 @@ def render_level(segs: Segments, camera, lit, lights, *, level: int, shadows: bo
     ry, rx = r // (TILE * ss * ss), (r // (ss * ss)) % TILE  # ray r's pixel in its tile (camera_rays' order)
     group = max(RAYS // per_tile, 1)
     s_lo = 0.0 if perspective else -1e20
-    for bk in buckets:
-        for s in range(0, len(bk.tiles), group):
-            tl, ix = bk.tiles[s:s + group], bk.index[s:s + group]
-            padded = np.concatenate([tl, np.repeat(tl[:1], group - len(tl), 0)])
-            o, d = camera_rays(jnp.asarray(padded, jnp.int32), cam, tile=TILE, ss=ss, perspective=perspective)
-            o, d = o.reshape(-1, 3), d.reshape(-1, 3)
-            ray, seg, pairs = near_pairs(o, d, ix, per_tile, dev, s_lo)
-            pix = ((tl[:, 1, None] * TILE + ry) * wp + tl[:, 0, None] * TILE + rx).reshape(-1)
-            o, d = np.asarray(o), np.asarray(d)
-            st["pairs"] += pairs
-            st["near_pairs"] += len(ray)
-            st["rays"] += len(tl) * per_tile
-            for k, (rays, cand) in compact(ray, seg).items():
-                queue.put(k, pix[rays], cand, o[rays], d[rays])
-                st["rays_hit"] += len(rays)
+    for tl, count, cand in tile_groups(buckets, group):
+        padded = np.concatenate([tl, np.repeat(tl[:1], group - len(tl), 0)])
+        o, d = camera_rays(jnp.asarray(padded, jnp.int32), cam, tile=TILE, ss=ss, perspective=perspective)
+        o, d = o.reshape(-1, 3), d.reshape(-1, 3)
+        ray, seg, pairs = near_pairs(o, d, count, cand, per_tile, dev, s_lo)
+        pix = ((tl[:, 1, None] * TILE + ry) * wp + tl[:, 0, None] * TILE + rx).reshape(-1)
+        o, d = np.asarray(o), np.asarray(d)
+        st["pairs"] += pairs
+        st["near_pairs"] += len(ray)
+        st["rays"] += len(tl) * per_tile
+        for k, (rays, near) in compact(ray, seg).items():
+            queue.put(k, pix[rays], near, o[rays], d[rays])
+            st["rays_hit"] += len(rays)
     queue.flush()
     per = (acc / (ss * ss)).T.reshape(hp, wp, 6).astype(np.float32)
     out = np.concatenate([per[..., :4], np.where(per[..., 5:] > 0, per[..., 4:5] / np.where(per[..., 5:] > 0, per[..., 5:], 1.0),
