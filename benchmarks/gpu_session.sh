@@ -7,7 +7,7 @@
 #   on the GPU machine (the device tool's run, with carry [".whl"] and timeout_s about budget + 40):
 #       bash benchmarks/gpu_session.sh [--budget 530]
 #   a dry run on a CPU, every size shrunk, to know the script works end to end:
-#       OUT=/tmp/gpu-dry bash benchmarks/gpu_session.sh --small [--budget 900]
+#       OUT=/tmp/gpu-dry bash benchmarks/gpu_session.sh --small [--budget 2400] [--only STEP,STEP]
 #
 # Order (each step has a cap and the whole run a deadline: a step that would pass it is cut short with
 # SIGINT, so pytest still prints what it ran; what no longer fits is skipped and said so):
@@ -26,13 +26,14 @@
 set -u
 cd "$(dirname "$0")/.."
 ROOT=$PWD
-SMALL=0; BUDGET=530; FETCH=0
+SMALL=0; BUDGET=530; FETCH=0; ONLY=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --small) SMALL=1 ;;
     --budget) BUDGET=$2; shift ;;
     --fetch-wheels) FETCH=1 ;;
-    *) echo "usage: $0 [--small] [--budget SECONDS] | --fetch-wheels" >&2; exit 2 ;;
+    --only) ONLY=",$2,"; shift ;;
+    *) echo "usage: $0 [--small] [--budget SECONDS] [--only STEP,STEP] | --fetch-wheels" >&2; exit 2 ;;
   esac
   shift
 done
@@ -95,10 +96,13 @@ for s in steps:
 PY
 }
 
-# step NAME CAP CMD...: run CMD with at most CAP seconds (less if the deadline is nearer); stdout to
-# NAME.out when the step is a bake (--json), else both streams to NAME.log
+# step NAME CAP CMD...: run CMD with at most CAP seconds (CAP_SCALE times that with --small, where a shared
+# CPU compiles slowly; less if the deadline is nearer); stdout to NAME.out when the step is a bake (--json),
+# else both streams to NAME.log
+CAP_SCALE=1; [ $SMALL = 1 ] && CAP_SCALE=4
 step() {
-  local name=$1 cap=$2; shift 2
+  local name=$1 cap=$(($2 * CAP_SCALE)); shift 2
+  [ -n "$ONLY" ] && [ "${ONLY#*,$name,}" = "$ONLY" ] && return  # --only: not this step
   local t; t=$(left); [ "$cap" -lt "$t" ] && t=$cap
   local cmd="$*"
   if [ "$t" -lt 10 ]; then
