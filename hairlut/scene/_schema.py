@@ -93,7 +93,7 @@ SCHEMA = {
                       "direct and scene: rays per pixel of each sector's projection"),
         "views": Field(64, _I, lambda x: None if 8 <= x <= 1024 and x % 2 == 0 else "an even number in [8, 1024]",
                        "scene: view angles of the per-groom table"),
-        "terms": Field(4, _I, in_range(0, 16),
+        "terms": Field(2, _I, in_range(0, 16),
                        "scene: Fourier terms of each sector's re/α ratio in θl − θv"),
         "shading_pixels": Field(8, _I, in_range(1, 8192),
                                 "scene: pixel bins of the re/α ratio (a divisor of tables.hrir trace.pixels)"),

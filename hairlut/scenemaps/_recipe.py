@@ -28,9 +28,9 @@ SCHEMA = {
     "table": {
         "views": Field(64, (int,), lambda v: None if 8 <= v <= 1024 and v % 2 == 0 else "an even number in [8, 1024]",
                        "view angles θv = 2πi/V"),
-        "lights": Field(16, (int,), lambda v: None if 1 <= v <= 1024 else "must lie in [1, 1024]",
+        "lights": Field(9, (int,), lambda v: None if 1 <= v <= 1024 else "must lie in [1, 1024]",
                         "light angles of the bake θl = 2πj/L"),
-        "terms": Field(4, (int,), lambda v: None if 0 <= v <= 16 else "must lie in [0, 16]",
+        "terms": Field(2, (int,), lambda v: None if 0 <= v <= 16 else "must lie in [0, 16]",
                        "Fourier terms K of the re/α ratio in θl − θv"),
         "shading_pixels": Field(8, (int,), lambda v: None if v >= 1 else "must be ≥ 1", "pixel bins Q of the ratio"),
         "dtype": Field("float16", (str,), lambda v: None if v in ("float16", "float32") else "use float16 or float32",
