@@ -254,9 +254,18 @@ def main(argv=None):
     ap.add_argument("--satf-views", nargs="+", type=int, default=[32], help="SATF rows: view grids (angles.views)")
     ap.add_argument("--satf-k", nargs="+", type=int, default=[4], help="SATF rows: k of the lookup")
     ap.add_argument("--satf-count", type=int, help="SATF rows: records (sectors.count) over the planner's")
+    ap.add_argument("--scene-layouts", action="store_true",
+                    help="only the scene table's layouts (terms, bins, dtype) per light grid, the groom traced once per "
+                         "grid (benchmarks/scene_layouts.py; same truth and record keys)")
+    ap.add_argument("--layout-lights", dest="lights", type=int, nargs="+", default=[16, 9, 5],
+                    help="with --scene-layouts: the bake's light grids L")
     args = ap.parse_args(argv)
     if args.convergence:
         return convergence(args)
+    if args.scene_layouts:
+        from scene_layouts import layouts
+
+        return layouts(args)
     if args.grid_study:
         return grid_study(args)
     prep_t, t_rows, t_maps, truth_s = truth(args.scene, args.quick, cache=args.truth_cache)

@@ -1,0 +1,191 @@
+"""Scene-table layouts (issue 12): accuracy, bytes and bake rate per layout, each groom traced once per light grid.
+
+    python benchmarks/scene_layouts.py --scene tables/scenes/sintel-groom.toml [--lights 16 9 5] [--json OUT]
+    python benchmarks/scene_layouts.py --paper-subset 64 [--json OUT]     # bake rate on the paper-scale model
+
+A ``scene_maps`` table's α and re rows are functions of the traced grid alone; its layout (Fourier terms
+K, shading bins Q, storage dtype) only compresses them (``hairlut.scenemaps.compress``).  So per light
+grid L this traces the groom's non-empty sectors once (``hairlut.synth.trace_view_grid`` on the scene's
+V views, what the bake runs), then, for each layout with 2K + 1 ≤ L, compresses, casts, writes the table
+(``hairlut.assets.write_table``: chunked gzip + shuffle, the bytes on disk) and fetches it with the
+scene method's own frame (``MapSource.frame``) against the converged truth of ``map_accuracy.py``.  The
+records carry map_accuracy's keys (``method``, ``re_rel_l2``, ``alpha_rel_l2``, ``coverage_rel_l2``,
+``frame_ms``, ``bake_s``, ``bytes``) plus ``terms``, ``shading_pixels``, ``dtype``, ``lights``, the
+uncompressed ``raw_bytes``, ``sectors_per_s`` of the trace and the paper-scale projections of the size
+(``paper_mb``, ``paper_raw_mb``: this groom's bytes per row × the paper model's non-empty sectors) and, with ``--paper-subset``,
+of the bake time (a measured subset of the paper model's own sectors, its own trace settings).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import emit, table  # noqa: E402
+from map_accuracy import _angles, _scene, errors_of, truth  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+#: (terms K, shading bins Q, dtype) measured for every light grid that resolves K.
+LAYOUTS = [(4, 16, "float16"), (4, 8, "float16"), (4, 8, "float32"), (3, 8, "float16"), (2, 16, "float16"),
+           (2, 8, "float16"), (4, 4, "float16"), (2, 4, "float16"), (1, 16, "float16"), (1, 8, "float16")]
+#: Non-empty sectors of the paper-scale model (benchmarks/online_frame.py: 17 clusters × 3 layers, s_t = 64,
+#: s_u = 16: 53,040 sectors, 52,888 of them holding strands).
+PAPER_LIVE = 52888
+
+
+def _write(path: Path, recipe: dict, half, coef, row) -> int:
+    from hairlut.assets import Axis, Variable, write_table
+
+    n, h, P = half.shape
+    V, Q, T = coef.shape[1:]
+    axes = [Axis("sector", np.arange(n), "1", "table row"), Axis("view_half", np.arange(h), "1", "view"),
+            Axis("view", np.arange(V), "1", "view"), Axis("pixel", np.arange(P), "1", "pixel"),
+            Axis("bin", np.arange(Q), "1", "bin"), Axis("term", np.arange(T), "1", "term"),
+            Axis("scene_sector", np.arange(len(row)), "1", "scene sector")]
+    write_table(path, "scene_maps", recipe, axes,
+                [Variable("alpha", half, ("sector", "view_half", "pixel"), "1", "α"),
+                 Variable("ratio", coef, ("sector", "view", "bin", "term"), "1", "re/α terms"),
+                 Variable("row", row, ("scene_sector",), "1", "table row")])
+    return path.stat().st_size
+
+
+def _frame(src, ix, sc, runs: int = 3):
+    src.frame(ix, sc.view, sc.lights)
+    best, out = np.inf, None
+    for _ in range(runs):
+        t0 = time.perf_counter()
+        out = src.frame(ix, sc.view, sc.lights)
+        out[0].block_until_ready()
+        best = min(best, time.perf_counter() - t0)
+    return 1e3 * best, (np.asarray(out[0]), np.asarray(out[1]))
+
+
+def layouts(args) -> list[dict]:
+    import jax.numpy as jnp
+    from hairlut.scene import scene_maps_recipe
+    from hairlut.scenemaps import SceneMaps, compress, fetch_kernel, hrir_recipe, scene_inputs
+    from hairlut.synth import MapSource, trace_view_grid
+
+    prep, t_rows, t_maps, truth_s = truth(args.scene, False, cache=args.truth_cache)
+    ix = prep.index
+    sc = _scene(args.scene, method="scene", rays=2)
+    recipe = scene_maps_recipe(sc)
+    V = recipe["table"]["views"]
+    dens, geom = scene_inputs(sc, recipe)
+    live = np.flatnonzero(dens.reshape(len(dens), -1).max(axis=1) > 0)
+    row = np.full(len(dens), -1, np.int32)
+    row[live] = np.arange(live.size, dtype=np.int32)
+    full = hrir_recipe(recipe)
+    tv, tl, _ = _angles(prep, prep.scene)
+    records = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for L in args.lights:
+            t0 = time.perf_counter()
+            a, re = trace_view_grid(dens[live], geom[live], full, views=V, lights=L)
+            trace_s = time.perf_counter() - t0
+            print(f"traced {live.size} rows on {V} views × {L} lights in {trace_s:.1f} s", flush=True)
+            for K, Q, dt in LAYOUTS:
+                if 2 * K + 1 > L or full["trace"]["pixels"] % Q:
+                    continue
+                t1 = time.perf_counter()
+                half, coef, _ = compress(a, re, V, K, Q)
+                half, coef = half.astype(dt), coef.astype(dt)
+                comp_s = time.perf_counter() - t1
+                rec = {**recipe, "table": {**recipe["table"], "lights": L, "terms": K, "shading_pixels": Q, "dtype": dt}}
+                disk = _write(Path(tmp) / "t.h5", rec, half, coef, row)
+                maps = SceneMaps(half, coef, row, rec)
+                dev = (jnp.asarray(half), jnp.asarray(coef), jnp.asarray(row))
+                ms, maps_out = _frame(MapSource("scene", "", maps.pixels, maps=maps, device=dev), ix, prep.scene)
+                ra, rr = fetch_kernel(*dev, tv, tl)
+                raw = half.nbytes + coef.nbytes + row.nbytes
+                records.append({"method": "scene", "knobs": f"views={V}, lights={L}, terms={K}, shading_pixels={Q}, {dt}",
+                                "views": V, "lights": L, "terms": K, "shading_pixels": Q, "dtype": dt,
+                                "frame_ms": ms, "bake_s": trace_s + comp_s, "bytes": disk, "raw_bytes": raw,
+                                "sectors_per_s": live.size / trace_s, "paper_mb": disk / live.size * PAPER_LIVE / 1e6,
+                                "paper_raw_mb": (half.nbytes + coef.nbytes) / live.size * PAPER_LIVE / 1e6,
+                                **errors_of(maps_out, t_maps, (np.asarray(ra), np.asarray(rr)), t_rows)})
+                print(records[-1], flush=True)
+    print(f"\n## Scene-table layouts of {args.scene.name} ({live.size} of {len(dens)} sectors live) against the "
+          f"converged truth ({truth_s:.1f} s to trace)\n")
+    print(table(records, [("lights", "L", "d"), ("terms", "K", "d"), ("shading_pixels", "Q", "d"), ("dtype", "dtype", "s"),
+                          ("re_rel_l2", "re", ".3f"), ("alpha_rel_l2", "α", ".3f"), ("coverage_rel_l2", "coverage", ".3f"),
+                          ("alpha_bias", "mean-α bias", "+.3f"), ("frame_ms", "maps ms", ".1f"),
+                          ("bytes", "bytes on disk", "d"), ("paper_mb", "paper-scale MB (disk)", ".0f"),
+                          ("paper_raw_mb", "paper-scale MB (raw)", ".0f"), ("sectors_per_s", "rows/s", ".2f")]))
+    emit(f"scene_layouts_{args.scene.stem}", {"scene": str(args.scene), "truth_seconds": truth_s, "records": records},
+         args.json)
+    return records
+
+
+def paper_subset(args) -> list[dict]:
+    """Trace rate of the bake on ``--paper-subset`` N of the paper model's own non-empty sectors (evenly spread),
+    per light grid and lax.map block, and the projected bake time of all of them."""
+    from hairlut.scene import resolve_scene, scene_maps_recipe
+    from hairlut.scenemaps import compress, hrir_recipe, scene_inputs
+    from hairlut.synth import trace_view_grid
+    from online_frame import model
+
+    base = model(17, 64, 16, 64, 400)
+    sc = resolve_scene({**base, "render": {**base["render"], "method": "scene"}})
+    recipe = scene_maps_recipe(sc)
+    full = hrir_recipe(recipe)
+    dens, geom = scene_inputs(sc, recipe)
+    live = np.flatnonzero(dens.reshape(len(dens), -1).max(axis=1) > 0)
+    pick = live[np.linspace(0, live.size - 1, args.paper_subset).astype(np.int64)]
+    V = recipe["table"]["views"]
+    records = []
+    for L in args.lights:
+        for block in args.blocks:
+            trace_view_grid(dens[pick[:8]], geom[pick[:8]], full, views=V, lights=L, block=block)  # compile
+            t0 = time.perf_counter()
+            c0 = time.process_time()
+            a, re = trace_view_grid(dens[pick], geom[pick], full, views=V, lights=L, block=block)
+            secs, cpu = time.perf_counter() - t0, time.process_time() - c0
+            records.append({"lights": L, "block": block, "rows": int(pick.size), "trace_s": secs, "cpu_s": cpu,
+                            "sectors_per_s": pick.size / secs, "paper_live": int(live.size),
+                            "paper_bake_min": live.size / (pick.size / secs) / 60,
+                            "paper_bake_cpu_min": live.size / (pick.size / cpu) / 60 / 2})
+            print(records[-1], flush=True)
+        disk = {}
+        with tempfile.TemporaryDirectory() as tmp:  # the paper model's own content: bytes on disk per row
+            for K, Q, dt in LAYOUTS:
+                if 2 * K + 1 <= L and full["trace"]["pixels"] % Q == 0 and dt == "float16":
+                    half, coef, _ = compress(a, re, V, K, Q)
+                    rec = {**recipe, "table": {**recipe["table"], "lights": L, "terms": K, "shading_pixels": Q}}
+                    nbytes = _write(Path(tmp) / "t.h5", rec, half.astype(dt), coef.astype(dt),
+                                    np.arange(pick.size, dtype=np.int32))
+                    disk[f"K={K}, Q={Q}"] = nbytes / pick.size * live.size
+        records[-1]["paper_disk_bytes"] = disk
+        print(f"L={L}: paper-scale table on disk (this subset's bytes per row × {live.size}): "
+              + ", ".join(f"{k}: {v / 1e6:.0f} MB" for k, v in disk.items()), flush=True)
+    print(f"\n## Scene-table bake rate on {pick.size} of the paper model's {live.size} non-empty sectors "
+          f"(grid {full['sectors']['grid']}, {full['trace']['steps']} steps, {full['trace']['pixels']} px, "
+          f"{full['trace']['rays_per_pixel']} rays, {V} views)\n")
+    print(table(records, [("lights", "L", "d"), ("block", "block", "d"), ("trace_s", "trace s", ".1f"),
+                          ("cpu_s", "CPU s", ".1f"), ("sectors_per_s", "rows/s", ".2f"),
+                          ("paper_bake_min", "paper-scale min (wall)", ".0f"),
+                          ("paper_bake_cpu_min", "paper-scale min (CPU / 2 cores)", ".0f")]))
+    emit("scene_bake_rate_paper", {"records": records}, args.json)
+    return records
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", type=Path, default=ROOT / "tables" / "scenes" / "sintel-groom.toml")
+    ap.add_argument("--lights", type=int, nargs="+", default=[16, 9, 5], help="light grids L of the bake")
+    ap.add_argument("--truth-cache", type=Path, help="as map_accuracy.py --truth-cache")
+    ap.add_argument("--paper-subset", type=int, metavar="N", help="only the bake rate on N paper-model sectors")
+    ap.add_argument("--blocks", type=int, nargs="+", default=[1], help="with --paper-subset: lax.map blocks")
+    ap.add_argument("--json", type=Path)
+    args = ap.parse_args(argv)
+    return paper_subset(args) if args.paper_subset else layouts(args)
+
+
+if __name__ == "__main__":
+    main()
