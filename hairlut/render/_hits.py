@@ -22,6 +22,8 @@ from ._strands import support
 #: a row (K grows by factors of ``K_STEP``: few second-pass shapes) and the elements one second-pass batch may hold.
 RAYS = 1 << 16
 PAIRS = 1 << 20
+#: Pairs whose lists the host builds at once (memory: about 20 bytes each).
+HOST_PAIRS = 1 << 23
 LEAST_K = 16
 K_STEP = 4
 BATCH = 1 << 21
@@ -54,24 +56,31 @@ def tile_groups(buckets, group: int):
 def near_pairs(o, d, count: np.ndarray, cand: np.ndarray, per_tile: int, dev: tuple, s_lo: float):
     """(rays, segments) of the near pairs, ordered by ray, and the number of pairs tested, of n tiles whose rays are
     ``o``, ``d`` (``RAYS``, 3) (tile i: rays i·``per_tile`` … (i + 1)·``per_tile`` − 1) against their ``count`` (n,)
-    candidates ``cand`` (tile by tile)."""
+    candidates ``cand`` (tile by tile).  The pair lists are built ``HOST_PAIRS`` at a time (whole tiles)."""
     count = count.astype(np.int32)
-    block = per_tile * count
-    total = int(block.sum())
-    tile = np.repeat(np.arange(len(count), dtype=np.int32), block)
-    q = np.arange(total, dtype=np.int32) - np.repeat(np.cumsum(block, dtype=np.int32) - block, block)
-    r, j = np.divmod(q, count[tile])
-    ray = tile * np.int32(per_tile) + r
-    seg = cand.astype(np.int32)[(np.cumsum(count, dtype=np.int32) - count)[tile] + j]
-    keep = []
-    for s in range(0, total, PAIRS):
-        r, g = ray[s:s + PAIRS], seg[s:s + PAIRS]
-        pad = PAIRS - len(r)
-        if pad:
-            r, g = np.concatenate([r, np.zeros(pad, np.int32)]), np.concatenate([g, np.full(pad, -1, np.int32)])
-        keep.append(s + np.flatnonzero(np.asarray(hit_kernel(o, d, r, g, *dev, s_lo))))
-    keep = np.concatenate(keep) if keep else np.zeros(0, np.int64)
-    return ray[keep], seg[keep], total
+    block = per_tile * count.astype(np.int64)
+    first = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+    rays, segs, total, t0 = [], [], int(block.sum()), 0
+    while t0 < len(count):
+        t1 = t0 + max(1, int(np.searchsorted(np.cumsum(block[t0:]), HOST_PAIRS, side="right")))
+        c, b = count[t0:t1], block[t0:t1].astype(np.int32)
+        tile = np.repeat(np.arange(t0, t1, dtype=np.int32), b)
+        q = np.arange(int(b.sum()), dtype=np.int32) - np.repeat(np.cumsum(b, dtype=np.int32) - b, b)
+        r, j = np.divmod(q, count[tile])
+        ray = tile * np.int32(per_tile) + r
+        seg = cand[first[tile] + j].astype(np.int32)
+        for s in range(0, len(ray), PAIRS):
+            rr, gg = ray[s:s + PAIRS], seg[s:s + PAIRS]
+            pad = PAIRS - len(rr)
+            if pad:
+                rr, gg = np.concatenate([rr, np.zeros(pad, np.int32)]), np.concatenate([gg, np.full(pad, -1, np.int32)])
+            keep = np.flatnonzero(np.asarray(hit_kernel(o, d, rr, gg, *dev, s_lo))[:len(ray) - s])
+            rays.append(rr[keep])
+            segs.append(gg[keep])
+        t0 = t1
+    if not rays:
+        return np.zeros(0, np.int32), np.zeros(0, np.int32), 0
+    return np.concatenate(rays), np.concatenate(segs), total
 
 
 def _width(count: np.ndarray) -> np.ndarray:

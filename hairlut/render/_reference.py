@@ -32,7 +32,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .. import errors
+from .. import budget, errors
 from jax.scipy.special import erfc
 
 from ._hits import RAYS, Queue, batch_rows, compact, near_pairs, tile_groups
@@ -174,8 +174,8 @@ def reference_kernel(o, d, cand, back, p0, t, length, radius, sigma_t, lit, grid
                      steps: int, perspective: bool, shadows: bool):
     """Premultiplied RGB, α, Σ w·depth and Σ w of N rays (``o``, ``d`` (N, 3)) through their near segments ``cand``
     (N, K) (−1: none): (N, 6) (module docstring).  ``back`` (3,) the camera's back axis; ``lit`` (S, L, 3) each
-    segment's lighting; ``grids`` (L, nx, ny, nz) the lights' optical depths with ``frames`` (L, 4, 3) (origin,
-    axes) and ``cells`` (L,)."""
+    segment's lighting; ``grids`` a tuple of L (nx, ny, nz): the lights' optical depths, with ``frames`` (L, 4, 3)
+    (origin, axes) and ``cells`` (L,)."""
     valid = cand >= 0
     ix = jnp.where(valid, cand, 0)
     seg = [a[ix] for a in (p0, t, length, radius, sigma_t)]
@@ -187,7 +187,7 @@ def reference_kernel(o, d, cand, back, p0, t, length, radius, sigma_t, lit, grid
     if shadows:
         x = o[..., None, :] + s[..., None] * d[..., None, :]  # (N, K, steps, 3)
         trans = []
-        for li in range(grids.shape[0]):
+        for li in range(len(grids)):
             g = jnp.einsum("...j,ij->...i", x - frames[li, 0], frames[li, 1:], precision=jax.lax.Precision.HIGHEST)
             trans.append(jnp.exp(-_trilinear(grids[li], g / cells[li])))
         colour = colour * jnp.stack(trans, -1)[..., None]
@@ -239,21 +239,24 @@ def render_level(segs: Segments, camera, lit, lights, *, level: int, shadows: bo
     f32 = partial(jnp.asarray, dtype=jnp.float32)
     st = {"pairs": 0, "near_pairs": 0, "rays": 0, "rays_hit": 0, "composite_seconds": 0.0}
     if shadows:
+        nodes = sum(float(np.prod(_light_frame(segs, light, cell)[2])) for light in lights)
+        budget.check("level", level, 2 * 4 * nodes, f"the shadow grids of level {level} ({nodes:.3g} nodes, float32, "
+                     "on the host and the device)")
         made = shadow_grids(segs, lights, cell, st)
-        shape = np.max([g.shape for g, _, _ in made], axis=0)
-        grids = np.zeros((len(made), *shape), np.float32)
-        for i, (g, _, _) in enumerate(made):
-            grids[i, :g.shape[0], :g.shape[1], :g.shape[2]] = g
         frames = np.stack([np.concatenate([o[None], a]) for _, o, a in made])
+        g_dev = []
+        while made:  # each light's host grid is let go once it is on the device
+            g_dev.append(f32(made.pop(0)[0]))
+        g_dev = tuple(g_dev)
     else:
-        grids, frames = np.zeros((1, 2, 2, 2), np.float32), np.zeros((1, 4, 3))
+        g_dev, frames = (f32(np.zeros((2, 2, 2))),), np.zeros((1, 4, 3))
     t1 = time.perf_counter()
     w, h = camera.width, camera.height
     wp, hp = -(-w // TILE) * TILE, -(-h // TILE) * TILE
     acc = np.zeros((6, hp * wp))
     buckets = bin_boxes(*segment_boxes(segs, camera), (w, h), TILE)
     dev, cam = segs.device(), f32(camera_array(camera))
-    g_dev, f_dev, c_dev, back = f32(grids), f32(frames), f32(np.full(len(frames), cell)), f32(camera.back)
+    f_dev, c_dev, back = f32(frames), f32(np.full(len(frames), cell)), f32(camera.back)
     perspective = camera.projection == "perspective"
 
     def run(k, ids, cand, o, d):
