@@ -187,7 +187,7 @@ KERNELS = {
         (False, lambda: ((A(2, 2, dtype=i32), A(6, 3)), dict(tile=4, ss=2, perspective=p))) for p in (True, False)],
     "hairlut.render._reference:reference_kernel": [
         (False, lambda: ((A(4, 3), A(4, 3), A(4, 5, dtype=i32), A(3), A(7, 3), A(7, 3), A(7), A(7), A(7),
-                          A(7, 2, 3), A(2, 4, 4, 4), A(2, 4, 3), A(2)),
+                          A(7, 2, 3), (A(4, 4, 4), A(3, 5, 4)), A(2, 4, 3), A(2)),
                          dict(steps=3, perspective=p, shadows=True)))
         for p in (True, False)],
     # scene tables
