@@ -40,7 +40,8 @@ PARTS: dict[str, Part] = {p.name: p for p in (
     Part("scale", "Scaling of a bake over devices and processes", _runner("_scale"), _unavailable("_scale", "unavailable")),
 )}
 
-_LAZY = {"dense_radiance": "_sh", "radiance_inputs": "_sh", "strand_transmittance": "_shadows",
+_LAZY = {"dense_radiance": "_sh", "hrir_bake_study": "_hrir", "radiance_inputs": "_sh",
+         "strand_transmittance": "_shadows",
          "needed_only_bake": "_plan", "full_bake": "_plan", "database_coverage": "_plan", "demo_runs": "_plan"}
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)
