@@ -4,7 +4,7 @@
     python benchmarks/scene_layouts.py --paper-subset 64 [--json OUT]     # bake rate on the paper-scale model
 
 A ``scene_maps`` table's α and re rows are functions of the traced grid alone; its layout (Fourier terms
-K, shading bins Q, storage dtype) only compresses them (``hairlut.scenemaps.compress``).  So per light
+K, shading bins Q, storage dtype, the ratio's view step) only compresses them (``hairlut.scenemaps.compress``).  So per light
 grid L this traces the groom's non-empty sectors once (``hairlut.synth.trace_view_grid`` on the scene's
 V views, what the bake runs), then, for each layout with 2K + 1 ≤ L, compresses, casts, writes the table
 (``hairlut.assets.write_table``: chunked gzip + shuffle, the bytes on disk) and fetches it with the
@@ -31,9 +31,10 @@ from _common import emit, table  # noqa: E402
 from map_accuracy import _angles, _scene, errors_of, truth  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-#: (terms K, shading bins Q, dtype) measured for every light grid that resolves K.
-LAYOUTS = [(4, 16, "float16"), (4, 8, "float16"), (4, 8, "float32"), (3, 8, "float16"), (2, 16, "float16"),
-           (2, 8, "float16"), (4, 4, "float16"), (2, 4, "float16"), (1, 16, "float16"), (1, 8, "float16")]
+#: (terms K, shading bins Q, dtype, ratio_step) measured for every light grid that resolves K.
+LAYOUTS = [(4, 16, "float16", 1), (4, 8, "float16", 1), (4, 8, "float32", 1), (3, 8, "float16", 1),
+           (2, 16, "float16", 1), (2, 8, "float16", 1), (4, 4, "float16", 1), (2, 4, "float16", 1), (1, 16, "float16", 1),
+           (1, 8, "float16", 1), (2, 16, "float16", 2), (2, 16, "float16", 4), (2, 8, "float16", 2)]
 #: Non-empty sectors of the paper-scale model (benchmarks/online_frame.py: 17 clusters × 3 layers, s_t = 64,
 #: s_u = 16: 53,040 sectors, 52,888 of them holding strands).
 PAPER_LIVE = 52888
@@ -90,22 +91,24 @@ def layouts(args) -> list[dict]:
             a, re = trace_view_grid(dens[live], geom[live], full, views=V, lights=L)
             trace_s = time.perf_counter() - t0
             print(f"traced {live.size} rows on {V} views × {L} lights in {trace_s:.1f} s", flush=True)
-            for K, Q, dt in LAYOUTS:
+            for K, Q, dt, step in LAYOUTS:
                 if 2 * K + 1 > L or full["trace"]["pixels"] % Q:
                     continue
                 t1 = time.perf_counter()
-                half, coef, _ = compress(a, re, V, K, Q)
+                half, coef, _ = compress(a, re, V, K, Q, step)
                 half, coef = half.astype(dt), coef.astype(dt)
                 comp_s = time.perf_counter() - t1
-                rec = {**recipe, "table": {**recipe["table"], "lights": L, "terms": K, "shading_pixels": Q, "dtype": dt}}
+                rec = {**recipe, "table": {**recipe["table"], "lights": L, "terms": K, "shading_pixels": Q, "dtype": dt,
+                                           "ratio_step": step}}
                 disk = _write(Path(tmp) / "t.h5", rec, half, coef, row)
                 maps = SceneMaps(half, coef, row, rec)
                 dev = (jnp.asarray(half), jnp.asarray(coef), jnp.asarray(row))
                 ms, maps_out = _frame(MapSource("scene", "", maps.pixels, maps=maps, device=dev), ix, prep.scene)
                 ra, rr = fetch_kernel(*dev, tv, tl)
                 raw = half.nbytes + coef.nbytes + row.nbytes
-                records.append({"method": "scene", "knobs": f"views={V}, lights={L}, terms={K}, shading_pixels={Q}, {dt}",
-                                "views": V, "lights": L, "terms": K, "shading_pixels": Q, "dtype": dt,
+                records.append({"method": "scene", "knobs": f"views={V}, lights={L}, terms={K}, shading_pixels={Q}, {dt}, "
+                                                          f"ratio_step={step}",
+                                "views": V, "lights": L, "terms": K, "shading_pixels": Q, "dtype": dt, "ratio_step": step,
                                 "frame_ms": ms, "bake_s": trace_s + comp_s, "bytes": disk, "raw_bytes": raw,
                                 "sectors_per_s": live.size / trace_s, "paper_mb": disk / live.size * PAPER_LIVE / 1e6,
                                 "paper_raw_mb": (half.nbytes + coef.nbytes) / live.size * PAPER_LIVE / 1e6,
@@ -114,6 +117,7 @@ def layouts(args) -> list[dict]:
     print(f"\n## Scene-table layouts of {args.scene.name} ({live.size} of {len(dens)} sectors live) against the "
           f"converged truth ({truth_s:.1f} s to trace)\n")
     print(table(records, [("lights", "L", "d"), ("terms", "K", "d"), ("shading_pixels", "Q", "d"), ("dtype", "dtype", "s"),
+                          ("ratio_step", "ratio step", "d"),
                           ("re_rel_l2", "re", ".3f"), ("alpha_rel_l2", "α", ".3f"), ("coverage_rel_l2", "coverage", ".3f"),
                           ("alpha_bias", "mean-α bias", "+.3f"), ("frame_ms", "maps ms", ".1f"),
                           ("bytes", "bytes on disk", "d"), ("paper_mb", "paper-scale MB (disk)", ".0f"),
@@ -154,13 +158,14 @@ def paper_subset(args) -> list[dict]:
             print(records[-1], flush=True)
         disk = {}
         with tempfile.TemporaryDirectory() as tmp:  # the paper model's own content: bytes on disk per row
-            for K, Q, dt in LAYOUTS:
+            for K, Q, dt, step in LAYOUTS:
                 if 2 * K + 1 <= L and full["trace"]["pixels"] % Q == 0 and dt == "float16":
-                    half, coef, _ = compress(a, re, V, K, Q)
-                    rec = {**recipe, "table": {**recipe["table"], "lights": L, "terms": K, "shading_pixels": Q}}
+                    half, coef, _ = compress(a, re, V, K, Q, step)
+                    rec = {**recipe, "table": {**recipe["table"], "lights": L, "terms": K, "shading_pixels": Q,
+                                               "ratio_step": step}}
                     nbytes = _write(Path(tmp) / "t.h5", rec, half.astype(dt), coef.astype(dt),
                                     np.arange(pick.size, dtype=np.int32))
-                    disk[f"K={K}, Q={Q}"] = nbytes / pick.size * live.size
+                    disk[f"K={K}, Q={Q}, ratio_step={step}"] = nbytes / pick.size * live.size
         records[-1]["paper_disk_bytes"] = disk
         print(f"L={L}: paper-scale table on disk (this subset's bytes per row × {live.size}): "
               + ", ".join(f"{k}: {v / 1e6:.0f} MB" for k, v in disk.items()), flush=True)

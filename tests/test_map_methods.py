@@ -33,6 +33,7 @@ def baked(tmp_path_factory):
     sc = resolve_scene(scene("scene", views=8, terms=2, shading_pixels=8, precision="float32"))
     recipe = scene_maps_recipe(sc)
     recipe["table"]["lights"] = 5
+    recipe["table"]["ratio_step"] = 1
     out = tmp_path_factory.mktemp("maps") / "t.h5"
     report = registry.bake("scene_maps", recipe, out, scene=sc)
     return sc, recipe, load_scene_maps(out), report
@@ -61,7 +62,8 @@ def test_scene_table_fetch_equals_the_tracer_at_grid_angles(baked):
 def _fetch_reference(alpha_t, ratio_t, row, tv, tl):
     """The fetch of ``hairlut.scenemaps._fetch``'s module docstring, element by element in float64."""
     n, half, P = alpha_t.shape
-    V, Q, T = ratio_t.shape[1:]
+    Vr, Q, T = ratio_t.shape[1:]
+    V = 2 * half
     S, L = tl.shape
     a, re = np.zeros((S, P)), np.zeros((S, L, P))
     for s in range(S):
@@ -73,7 +75,9 @@ def _fetch_reference(alpha_t, ratio_t, row, tv, tl):
         for p in range(P):
             a[s, p] = sum(wt * (alpha_t[row[s], i, p] if i < half else alpha_t[row[s], i - half, P - 1 - p])
                           for wt, i in zip((1 - w, w), views))
-        c = (1 - w) * ratio_t[row[s], views[0]].astype(np.float64) + w * ratio_t[row[s], views[1]]
+        g = (tv[s] % (2 * np.pi)) * Vr / (2 * np.pi)
+        j0, u = int(np.floor(g)) % Vr, g - np.floor(g)
+        c = (1 - u) * ratio_t[row[s], j0].astype(np.float64) + u * ratio_t[row[s], (j0 + 1) % Vr]
         for j in range(L):
             d = tl[s, j] - tv[s]
             basis = [1.0] + [fn(k * d) for k in range(1, (T - 1) // 2 + 1) for fn in (np.cos, np.sin)]
@@ -82,14 +86,14 @@ def _fetch_reference(alpha_t, ratio_t, row, tv, tl):
     return a, re
 
 
-@pytest.mark.parametrize("dtype", ["float16", "float32"])
-def test_fetch_kernel_equals_an_elementwise_reference(dtype):
+@pytest.mark.parametrize("dtype,step", [("float16", 1), ("float32", 1), ("float32", 2)])
+def test_fetch_kernel_equals_an_elementwise_reference(dtype, step):
     from hairlut.scenemaps import fetch_kernel
 
     rng = np.random.default_rng(1)
     n, V, P, Q, K, S, L = 5, 8, 16, 4, 2, 9, 2
     alpha_t = rng.random((n, V // 2, P)).astype(dtype)
-    ratio_t = (0.3 * rng.normal(size=(n, V, Q, 2 * K + 1))).astype(dtype)
+    ratio_t = (0.3 * rng.normal(size=(n, V // step, Q, 2 * K + 1))).astype(dtype)
     row = np.array([0, 4, -1, 2, 2, 1, -1, 3, 0], np.int32)
     tv = np.concatenate([rng.uniform(0, 2 * np.pi, S - 3), [0.0, np.pi, 2 * np.pi - 1e-3]])  # grid, mirror, wrap
     tl = rng.uniform(0, 2 * np.pi, (S, L))

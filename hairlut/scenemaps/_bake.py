@@ -10,7 +10,7 @@ the samples and light lookups of views θ and θ + π shared (about 1.5× faster
 * **α** (N, V/2, P): views 0 … V/2 − 1; the others by the mirror symmetry
   α(θ + π, p) = α(θ, P − 1 − p) (the same line integrals, the pixel line reversed; the largest
   violation is measured and stored as the ``mirror_error`` attribute);
-* **ratio** (N, V, Q, 2K + 1): per view and per bin of P/Q pixels, ρ(θl) = Σ_bin re / Σ_bin α
+* **ratio** (N, V/step, Q, 2K + 1): per view (every ``ratio_step``-th) and per bin of P/Q pixels, ρ(θl) = Σ_bin re / Σ_bin α
   (bounded by k_a + k_d + k_s: re is α-weighted shading), as Fourier terms in Δ = θl − θv:
   ρ(Δ) = c₀ + Σ_k a_k cos kΔ + b_k sin kΔ (from the DFT over the L light angles, each term's phase
   turned by kθv, so the coefficients are exact for any L ≥ 2K + 1 up to the aliasing of terms > K);
@@ -50,7 +50,7 @@ class SceneMaps:
 
     @property
     def views(self) -> int:
-        return self.ratio.shape[1]
+        return 2 * self.alpha.shape[1]
 
     @property
     def pixels(self) -> int:
@@ -78,9 +78,10 @@ def scene_inputs(scene, recipe: dict) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(dens), np.concatenate(geom)
 
 
-def compress(alpha, re, views: int, terms: int, bins: int) -> tuple[np.ndarray, np.ndarray, float]:
-    """(α half (n, V/2, P), ratio (n, V, Q, 2K + 1), mirror error) from traced α (n, V, P) and re
-    (n, V, L, P) on the grids θv,i = 2πi/V, θl,j = 2πj/L (module docstring), in float64."""
+def compress(alpha, re, views: int, terms: int, bins: int, step: int = 1) -> tuple[np.ndarray, np.ndarray, float]:
+    """(α half (n, V/2, P), ratio (n, V/step, Q, 2K + 1), mirror error) from traced α (n, V, P) and re
+    (n, V, L, P) on the grids θv,i = 2πi/V, θl,j = 2πj/L (module docstring), in float64; the ratio is
+    kept on every ``step``-th view."""
     a, r = np.asarray(alpha, np.float64), np.asarray(re, np.float64)
     n, V, L, P = r.shape
     half = V // 2
@@ -96,7 +97,7 @@ def compress(alpha, re, views: int, terms: int, bins: int) -> tuple[np.ndarray, 
     coef[..., 0] = d[:, :, 0].real
     coef[..., 1::2] = np.moveaxis(2 * d[:, :, 1:].real, 2, -1)
     coef[..., 2::2] = np.moveaxis(-2 * d[:, :, 1:].imag, 2, -1)
-    return a[:, :half], coef, mirror
+    return a[:, :half], coef[:, ::step], mirror
 
 
 def load_scene_maps(path) -> SceneMaps:
@@ -105,7 +106,8 @@ def load_scene_maps(path) -> SceneMaps:
     t = read_table(path, kind=KIND, required=("alpha", "ratio", "row"))
     alpha, ratio, row = t["alpha"], t["ratio"], np.asarray(t["row"], np.int64)
     n = len(alpha)
-    if ratio.shape[0] != n or alpha.shape[1] * 2 != ratio.shape[1] or (row >= n).any() or (row < -1).any():
+    if (ratio.shape[0] != n or not ratio.shape[1] or alpha.shape[1] * 2 % ratio.shape[1] or (row >= n).any()
+            or (row < -1).any()):
         raise errors.CorruptAssetError(str(path), f"inconsistent scene_maps tables: alpha {alpha.shape}, ratio "
                                        f"{ratio.shape}, rows up to {row.max(initial=-1)}")
     return SceneMaps(alpha, ratio, row, t.recipe, Path(path), dict(t.attrs))

@@ -4,7 +4,7 @@ For sector s with table row r (−1: empty, α = re = 0) and view θv: f = θv V
 i₀ = ⌊f⌋ mod V and i₁ = i₀ + 1 mod V, weight w = f − ⌊f⌋ (periodic linear interpolation, as an SATF
 row's angle interpolation).  α(p) = (1 − w) α_{i₀}(p) + w α_{i₁}(p), where a view i ≥ V/2 reads the
 stored view i − V/2 at pixel P − 1 − p (the mirror symmetry).  The ratio's terms are interpolated
-the same way and evaluated at each light's Δ = θl − θv: ρ_l(q) = c₀ + Σ_k a_k cos kΔ + b_k sin kΔ;
+the same way on their own grid of V_r = V / ratio_step views and evaluated at each light's Δ = θl − θv: ρ_l(q) = c₀ + Σ_k a_k cos kΔ + b_k sin kΔ;
 re_l(p) = α(p) ρ_l(q(p)), q(p) = ⌊p Q / P⌋.  One jitted kernel, float32 arithmetic (the contraction
 over the terms at HIGHEST precision), empty sectors masked to exactly 0.
 """
@@ -32,15 +32,18 @@ def fetch_terms(alpha_t, ratio_t, row, theta_v, theta_l, *, shade: bool = True):
     index tuple per element (several times cheaper on the CPU than the (N, V, Q, T) element gather),
     and a mirror view is its stored row reversed.  Narrow storage is converted after the gather."""
     n, half, P = alpha_t.shape
-    V, Q, T = ratio_t.shape[1:]
+    Vr, Q, T = ratio_t.shape[1:]
     K = (T - 1) // 2
     live = row >= 0
     r = jnp.where(live, row, 0)
-    f = jnp.mod(theta_v, 2 * jnp.pi) * (V / (2 * jnp.pi))
-    i0f = jnp.floor(f)
-    w = (f - i0f)[:, None]
-    i0 = jnp.mod(i0f.astype(jnp.int32), V)
-    i1 = jnp.mod(i0 + 1, V)
+
+    def grid(V):  # views i0, i1 = i0 + 1 (mod V) and weight w of θv on the grid 2πi/V
+        f = jnp.mod(theta_v, 2 * jnp.pi) * (V / (2 * jnp.pi))
+        i0f = jnp.floor(f)
+        i0 = jnp.mod(i0f.astype(jnp.int32), V)
+        return i0, jnp.mod(i0 + 1, V), (f - i0f)[:, None]
+
+    i0, i1, w = grid(2 * half)
     rows_a = alpha_t.reshape(n * half, P)
 
     def alpha_at(i):
@@ -50,12 +53,13 @@ def fetch_terms(alpha_t, ratio_t, row, theta_v, theta_l, *, shade: bool = True):
     alpha = jnp.where(live[:, None], (1 - w) * alpha_at(i0) + w * alpha_at(i1), 0.0)
     if not shade:
         return alpha, jnp.zeros((alpha.shape[0], 0, Q), jnp.float32)
-    rows_c = ratio_t.reshape(n * V, Q * T)
+    rows_c = ratio_t.reshape(n * Vr, Q * T)
+    j0, j1, u = grid(Vr)
 
     def terms_at(i):
-        return jnp.take(rows_c, r * V + i, axis=0, mode="clip").astype(jnp.float32)
+        return jnp.take(rows_c, r * Vr + i, axis=0, mode="clip").astype(jnp.float32)
 
-    c = ((1 - w) * terms_at(i0) + w * terms_at(i1)).reshape(-1, Q, T)
+    c = ((1 - u) * terms_at(j0) + u * terms_at(j1)).reshape(-1, Q, T)
     d = theta_l - theta_v[:, None]  # (S, L)
     k = jnp.arange(1, K + 1, dtype=jnp.float32)
     kd = d[..., None] * k  # (S, L, K)
@@ -67,7 +71,8 @@ def fetch_terms(alpha_t, ratio_t, row, theta_v, theta_l, *, shade: bool = True):
 @partial(jax.jit, static_argnames=("shade",))
 def fetch_kernel(alpha_t, ratio_t, row, theta_v, theta_l, *, shade: bool = True):
     """α (S, P) and re (S, L, P) of S sectors from a scene table's ``alpha_t`` (N, V/2, P) and
-    ``ratio_t`` (N, V, Q, T) (any float dtype), ``row`` (S,) int32, ``theta_v`` (S,), ``theta_l`` (S, L)."""
+    ``ratio_t`` (N, V_r, Q, T) (any float dtype; V_r divides V, its own view grid 2πi/V_r), ``row`` (S,) int32,
+    ``theta_v`` (S,), ``theta_l`` (S, L)."""
     alpha, ratio = fetch_terms(alpha_t, ratio_t, row, theta_v, theta_l, shade=shade)
     if not shade:
         return alpha, jnp.zeros((alpha.shape[0], 0, alpha.shape[1]), jnp.float32)

@@ -30,7 +30,7 @@ def estimate(recipe: dict, sectors: int = 1296, live: int | None = None) -> tupl
     t, tr = r["table"], hrir_recipe(r)["trace"]
     n = int(sectors * LIVE_FRACTION) if live is None else int(live)
     item = 2 if t["dtype"] == "float16" else 4
-    nbytes = item * n * (t["views"] // 2 * tr["pixels"] + t["views"] * t["shading_pixels"] * (2 * t["terms"] + 1))
+    nbytes = item * n * (t["views"] // 2 * tr["pixels"] + t["views"] // t["ratio_step"] * t["shading_pixels"] * (2 * t["terms"] + 1))
     work = n * t["views"] * t["lights"] * tr["pixels"] * tr["steps"] * tr["rays_per_pixel"]
     return int(nbytes + 4 * sectors), BAKE_OVERHEAD + work / TRACE_RATE
 

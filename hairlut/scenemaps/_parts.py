@@ -63,7 +63,7 @@ def _axes(recipe: dict, rows: int, start: int = 0, sectors: int | None = None) -
     views = 2 * np.pi * np.arange(V) / V
     axes = [Axis("sector", np.arange(start, start + rows), "1", "non-empty sector (table row)"),
             Axis("view_half", views[:V // 2], "rad", "view azimuth θv (half circle; α(θ+π, p) = α(θ, P−1−p))", 2 * np.pi),
-            Axis("view", views, "rad", "view azimuth θv", 2 * np.pi),
+            Axis("view", views[::t["ratio_step"]], "rad", "view azimuth θv of the ratio terms", 2 * np.pi),
             Axis("pixel", np.arange(P), "1", "pixel along the image line"),
             Axis("bin", np.arange(Q), "1", f"bin of {P // Q} pixels"),
             Axis("term", np.arange(2 * K + 1), "1", "c0, a1, b1, …: ρ(Δ) = c0 + Σ a_k cos kΔ + b_k sin kΔ, Δ = θl − θv")]
@@ -97,7 +97,7 @@ def bake_part(recipe: dict, start: int, stop: int, total: int, path, scene=None,
     def rows(s, e):  # rows [start + s, start + e): traced, compressed, cast
         a, re = trace_view_grid(density[start + s:start + e], geometry[start + s:start + e], full, views=t["views"],
                                 lights=t["lights"])
-        half, coef, mirror = compress(a, re, t["views"], t["terms"], t["shading_pixels"])
+        half, coef, mirror = compress(a, re, t["views"], t["terms"], t["shading_pixels"], t["ratio_step"])
         return half.astype(dtype), coef.astype(dtype), mirror
 
     done = map_chunks(rows, stop - start, micro=MICRO)  # every local device

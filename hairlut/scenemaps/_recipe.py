@@ -6,7 +6,9 @@ A recipe is ``{"hrir": {...}, "table": {...}, "geometry": {...}}``:
   ``sectors.density_scale``, ``trace`` and ``phong``; ``hairlut.hrir.resolve_recipe`` checks them);
 * ``table``: ``views`` V (even: α is stored on V/2 of them, the mirror symmetry gives the rest),
   ``lights`` L (the light-angle grid of the bake; L ≥ 2·terms + 1 so the kept terms do not alias),
-  ``terms`` K (Fourier terms of the re/α ratio in θl − θv: 2K + 1 coefficients), ``shading_pixels``
+  ``terms`` K (Fourier terms of the re/α ratio in θl − θv: 2K + 1 coefficients), ``ratio_step`` (the
+  terms are kept on every ratio_step-th view: V / ratio_step of them; on Sintel 32 of 64 views cost re
+  0.139 → 0.144 for half the ratio's bytes, ``benchmarks/scene_layouts.py``), ``shading_pixels``
   Q (pixel bins of the ratio, a divisor of trace.pixels), ``dtype`` (float16 or float32);
 * ``geometry``: ``sha256``, the groom's identity (:func:`geometry_key`), folded in from the keyed
   input ``scene`` (so a different groom, fit or strand set is a different asset).
@@ -32,6 +34,8 @@ SCHEMA = {
                         "light angles of the bake θl = 2πj/L"),
         "terms": Field(2, (int,), lambda v: None if 0 <= v <= 16 else "must lie in [0, 16]",
                        "Fourier terms K of the re/α ratio in θl − θv"),
+        "ratio_step": Field(2, (int,), lambda v: None if v >= 1 else "must be ≥ 1",
+                            "the re/α terms are stored on every ratio_step-th view (linear in θv between them)"),
         "shading_pixels": Field(8, (int,), lambda v: None if v >= 1 else "must be ≥ 1", "pixel bins Q of the ratio"),
         "dtype": Field("float16", (str,), lambda v: None if v in ("float16", "float32") else "use float16 or float32",
                        "storage precision"),
@@ -86,6 +90,8 @@ def resolve_recipe(given: dict | None = None, *, scene=None) -> dict:
     t, P = r["table"], full["trace"]["pixels"]
     if t["lights"] < 2 * t["terms"] + 1:
         raise errors.ValidationError("table.lights", t["lights"], f"need ≥ 2·terms + 1 = {2 * t['terms'] + 1} light angles")
+    if t["views"] % t["ratio_step"]:
+        raise errors.ValidationError("table.ratio_step", t["ratio_step"], f"must divide table.views ({t['views']})")
     if P % t["shading_pixels"]:
         raise errors.ValidationError("table.shading_pixels", t["shading_pixels"], f"must divide trace.pixels ({P})")
     if scene is not None:
