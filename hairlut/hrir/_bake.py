@@ -8,7 +8,7 @@ do not depend on how sectors are grouped, nor on how many devices or processes s
 bake.  The block loop, resume, shards, ``--distributed`` processes and the final virtual
 or copied asset are the one shard path of every kind, :mod:`hairlut.sharding`; this
 module supplies the ``hrir_db`` pieces (:func:`bake_part`, :func:`join_parts`,
-:func:`assemble_parts`, :func:`index_parts`).  A copied final file is assembled from the
+:func:`assemble_parts`; the virtual index is ``_parts``).  A copied final file is assembled from the
 part files alone, so an interrupted and an uninterrupted bake write the same bytes
 (``created`` comes from SOURCE_DATE_EPOCH, 0 when unset).
 """
@@ -26,7 +26,7 @@ from ..geometry.density import sector_density
 from ..geometry.sampler import sample_sectors
 from ..geometry.splats import SplatBatch
 from ._geometry import sector_geometry
-from ._io import PARAMS, assemble, concat, index_parts, read_shard, storage_errors, write_shard  # noqa: F401
+from ._io import PARAMS, assemble, concat, read_shard, storage_errors, write_shard  # noqa: F401
 from ._recipe import resolve_recipe, sector_space
 from ._tracer import trace_kernel
 

@@ -20,8 +20,8 @@ dtype adds to each table (0 for float32: the tracer computes in float32), the fr
 conventions and the feature names.  ``hrir_shard`` files (a bake's parts and the
 output of ``--shard``) hold the same per-sector tables for sectors [start, stop),
 in the storage dtype (with the storage errors they add), without features; :func:`assemble`
-turns the whole range into an ``hrir_db``, and :func:`index_parts` gives what a virtual
-``hrir_db`` (per-sector tables as HDF5 virtual datasets over the parts) stores itself.
+turns the whole range into an ``hrir_db`` (what a virtual ``hrir_db`` stores itself comes from
+``_parts``).
 """
 
 from __future__ import annotations
@@ -36,9 +36,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import errors
-from ..assets import Axis, Variable, open_table, read_table, write_exr, write_table
+from ..assets import Axis, Variable, read_table, write_exr, write_table
 from ..assets.h5 import HDF5_SIGNATURE, check_file, data_fault
-from ..assets.layout import layout
 from ..assets.trust import finite_fault
 from ..parts import check_virtual
 from ..geometry import angle_grid as angles
@@ -201,28 +200,6 @@ def assemble(path, recipe: dict, data: dict, epoch: int | None = None) -> Path:
     variables += _per_sector(data, np.dtype(recipe["storage"]["dtype"]))
     with _source_date(epoch):
         return write_table(path, KIND, recipe, axes, variables, attrs=attrs)
-
-
-def index_parts(recipe: dict, parts) -> tuple[list[Axis], list[Variable], dict]:
-    """What a virtual ``hrir_db`` stores besides the per-sector tables, from its parts' density and geometry.
-
-    Each part is opened lazily (:func:`hairlut.assets.open_table`: its root and objects validated) and only its
-    density, geometry columns and storage-error attributes are read, never the α and reflectance tables (the
-    bulk of a part), so writing a virtual asset costs the feature index alone, not the database's size."""
-    small = []
-    for p in parts:
-        with open_table(p, SHARD_KIND, required=("density",)) as f:
-            tables = layout(f)[1]
-            try:
-                small.append({"density": _read(p, tables["density"]),
-                              "geometry": np.stack([_read(p, tables[f"geometry/{c}"]) for c in GEOM], axis=1),
-                              "errors": {k: float(f.attrs[f"storage_max_abs_error_{k}"]) for k in ("alpha", "reflectance")}})
-            except KeyError as exc:
-                raise errors.MissingDatasetError(p, f"shard lacks {exc}") from None
-    data = {"density": np.concatenate([d["density"] for d in small]),
-            "geometry": np.concatenate([d["geometry"] for d in small]),
-            "errors": {k: max(d["errors"][k] for d in small) for k in ("alpha", "reflectance")}}
-    return _index(recipe, data, len(data["density"]))
 
 
 def _read(path, ds) -> np.ndarray:
