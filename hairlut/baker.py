@@ -40,6 +40,7 @@ offers them (``--light``, ``--block``) without naming a kind.
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
@@ -67,6 +68,15 @@ class Option:
     sets: str | None = None
     cached: bool = True
     minimum: int | None = None
+
+
+def deferred(module: str, name: str) -> Callable:
+    """``module``'s ``name`` (an absolute module path), imported on first call: a kind's declaration names its
+    bake functions without importing them, so the registry stays light (no JAX)."""
+    def call(*args, **kwargs):
+        return getattr(importlib.import_module(module), name)(*args, **kwargs)
+    call.__name__ = call.__qualname__ = name
+    return call
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..baker import Baker, Option, Units
+from ..baker import Baker, Option, Units, deferred
 from ._recipe import SCHEMA, resolve_recipe
 
 KIND = "hrir_db"
@@ -39,36 +39,6 @@ def _bake(recipe, out, *, progress=None, shard=None, block=None, keep_parts=Fals
 
 def _count(recipe, **_):
     return resolve_recipe(recipe)["sectors"]["count"]
-
-
-def _bake_part(recipe, start, stop, total, path, **inputs):
-    from ._bake import bake_part
-
-    return bake_part(recipe, start, stop, total, path, **inputs)
-
-
-def _join(recipe, parts, out):
-    from ._bake import join_parts
-
-    return join_parts(recipe, parts, out)
-
-
-def _assemble(recipe, parts, out, **inputs):
-    from ._bake import assemble_parts
-
-    return assemble_parts(recipe, parts, out)
-
-
-def _whole(recipe, parts, index=None, **inputs):
-    from ._parts import whole
-
-    return whole(recipe, parts, index)
-
-
-def _index(recipe, path, **inputs):
-    from ._parts import part_index
-
-    return part_index(recipe, path)
 
 
 def _check(recipe, path):
@@ -124,8 +94,9 @@ BAKER = Baker(
     shard_kind=SHARD_KIND,
     shard_required=("alpha", "reflectance", "density"),
     merge=_merge,
-    units=Units("sector", _count, _bake_part, _join, _assemble, _whole, block=32, check=_check,
-                budget=_budget, index=_index),
+    units=Units("sector", _count, deferred(f"{__package__}._bake", "bake_part"), deferred(f"{__package__}._bake", "join_parts"),
+                deferred(f"{__package__}._bake", "assemble_parts"), deferred(f"{__package__}._parts", "whole"), block=32,
+                check=_check, budget=_budget, index=deferred(f"{__package__}._parts", "part_index")),
     help="""HRIR database: planar ray tracing of random generalized sectors (satf §5).
 
     Resumable: finished blocks are kept in OUT.parts/; rerun the same command after an

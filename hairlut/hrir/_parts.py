@@ -22,7 +22,7 @@ from ._march import GEOM
 STORAGE = ("alpha", "reflectance")  # the tables whose storage error (float16 rounding) a part records
 
 
-def part_index(recipe: dict, path) -> dict[str, np.ndarray]:
+def part_index(recipe: dict, path, **_) -> dict[str, np.ndarray]:
     """(density, geometry, storage errors) of one part: what :func:`whole` needs of it."""
     with open_table(path, SHARD_KIND, required=("density",)) as f:
         tables = layout(f)[1]

@@ -7,7 +7,7 @@ command line ``--scene`` is the scene's TOML file.
 
 from __future__ import annotations
 
-from ..baker import Baker, Option, Units
+from ..baker import Baker, Option, Units, deferred
 from ._recipe import SCHEMA, hrir_recipe, resolve_recipe
 
 KIND = "scene_maps"
@@ -50,12 +50,7 @@ def _bake(recipe, out, *, progress=None, shard=None, scene=None, block=None, kee
 
 
 def _part(name):
-    """``_parts.<name>``, imported on first call (this module stays light)."""
-    def call(*args, **kwargs):
-        from . import _parts
-
-        return getattr(_parts, name)(*args, **kwargs)
-    return call
+    return deferred(f"{__package__}._parts", name)
 
 
 def _load(path):

@@ -233,14 +233,14 @@ def join_parts(recipe: dict, parts, out):
     return write_part(out, compact(recipe)[0], dense, light, read[0][2], read[0][3])
 
 
-def assemble_parts(recipe: dict, parts, out):
+def assemble_parts(recipe: dict, parts, out, **_):
     """Parts covering every tangent as one self-contained ``sh_tables`` (the light's coefficients from the parts)."""
     tables, info = compact(recipe)
     dense, light = concat_parts([read_part(p, recipe) for p in parts])
     return write_sh_tables(out, tables, info, dense, light)
 
 
-def whole_parts(recipe: dict, parts):
+def whole_parts(recipe: dict, parts, **_):
     """What a virtual ``sh_tables`` stores itself: the compact tables, the whole axes, the light's coefficients."""
     tables, info = compact(recipe)
     dense, light, _, total = read_part(parts[0], recipe)

@@ -9,7 +9,7 @@ path (an EXR map, projected with ``--layout``/``--up`` to the recipe's bands, or
 
 from __future__ import annotations
 
-from ..baker import Baker, Option, Units
+from ..baker import Baker, Option, Units, deferred
 from ._recipe import SCHEMA, light_bands, resolve_recipe
 
 KIND = "sh_tables"
@@ -55,30 +55,6 @@ def _bake(recipe, out, *, progress=None, shard=None, light=None, textures=None, 
 def _count(recipe, **_):
     n = resolve_recipe(recipe)["dense"]["t_resolution"]
     return 6 * n * n
-
-
-def _bake_part(recipe, start, stop, total, path, **inputs):
-    from ._bake import bake_part
-
-    return bake_part(recipe, start, stop, total, path, **inputs)
-
-
-def _join(recipe, parts, out):
-    from ._bake import join_parts
-
-    return join_parts(recipe, parts, out)
-
-
-def _assemble(recipe, parts, out, **inputs):
-    from ._bake import assemble_parts
-
-    return assemble_parts(recipe, parts, out)
-
-
-def _whole(recipe, parts, **inputs):
-    from ._bake import whole_parts
-
-    return whole_parts(recipe, parts)
 
 
 def _check(recipe, path):
@@ -139,7 +115,8 @@ BAKER = Baker(
     unit=None,  # a bake of seconds: no progress bar
     shard_kind=SHARD_KIND,
     shard_required=("dense/t_dirs",),
-    units=Units("t", _count, _bake_part, _join, _assemble, _whole, block=BLOCK, check=_check),
+    units=Units("t", _count, *(deferred(f"{__package__}._bake", f) for f in ("bake_part", "join_parts", "assemble_parts",
+                                                                         "whole_parts")), block=BLOCK, check=_check),
     assets=((LIGHT_KIND, ("a",), "SH coefficients of an environment light (xing §4)"),),
     help="""Exact SH convolution tables Rd, Rs for Kajiya–Kay hair (xing §4).
 
