@@ -27,7 +27,8 @@ _LAZY = {
     # the planar march, shared by the tracer, the direct map method and the scene table's bake
     "SHADOW_GRID": "_march", "bilerp_nodes": "_march", "front_to_back": "_march", "grid_transmittance": "_march",
     "light_depth_grid": "_march", "march": "_march", "normals": "_march", "phong_direct": "_march",
-    "sector_fields": "_march", "smooth_matrix": "_march", "view_points": "_march",
+    "reflectance": "_march", "sector_fields": "_march", "smooth_matrix": "_march", "to_pixels": "_march",
+    "view_points": "_march",
 }
 
 __all__ = ["BAKER", "BAKE_OVERHEAD", "KIND", "SHARD_KIND", "TRACE_RATE", "estimate", *sorted(_LAZY)]

@@ -138,6 +138,19 @@ def smooth_matrix(sigma_px, n_pix: int):
     return k / total
 
 
+def reflectance(alpha, direct, w, phong):
+    """Eq 5's premultiplied reflectance per lane, k_a α + Σ_k w_k · direct_k: ``alpha`` (..., lanes),
+    ``direct`` (..., L, lanes, K), ``w`` (..., lanes, K) → (..., L, lanes)."""
+    return phong[0] * alpha[..., None, :] + jnp.einsum("...lnk,...nk->...ln", direct, w, precision=HIGHEST)
+
+
+def to_pixels(x, n_pix: int, rays: int, smooth=None):
+    """Lanes (..., P · rays) to pixels (..., P): a pixel's rays averaged, then convolved with ``smooth``
+    (a :func:`smooth_matrix`) when given."""
+    x = x.reshape(*x.shape[:-1], n_pix, rays).mean(-1)
+    return x if smooth is None else jnp.matmul(x, smooth, precision=HIGHEST)
+
+
 def front_to_back(tau, eps):
     """Eq 5 in closed form: per-step weights w_k = α_k T_k (zero once T_k < ``eps``) and α = Σ_k w_k,
     from the optical depth per step ``tau`` (..., K)."""

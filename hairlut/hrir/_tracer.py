@@ -62,8 +62,8 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 
-from ._march import (GEOM, HIGHEST, SHADOW_GRID, SIGMA_PX, front_to_back, grid_transmittance, light_depth_grid, march,
-                     normals, phong_direct, sector_fields, smooth_matrix)
+from ._march import (GEOM, SHADOW_GRID, SIGMA_PX, front_to_back, grid_transmittance, light_depth_grid, march,
+                     normals, phong_direct, reflectance, sector_fields, smooth_matrix, to_pixels)
 
 __all__ = ["GEOM", "trace_kernel"]
 
@@ -81,14 +81,9 @@ def _trace_one(rho, g, views, lights, phong, *, n_pix, n_steps, rays, shadow, sm
         depth = light_depth_grid(fields, g, lights, n_steps, min(n_steps, SHADOW_GRID))  # (M, M, L)
         trans_l = grid_transmittance(depth, g, views, lanes, n_steps)  # (V, lanes, K, L)
         direct = direct * jnp.moveaxis(trans_l, -1, 1)
-    # (V, L, lanes); a dot, not a reduce fusion
-    refl = phong[0] * alpha[:, None] + jnp.einsum("vlnk,vnk->vln", direct, w, precision=HIGHEST)
-    alpha = alpha.reshape(alpha.shape[0], n_pix, rays).mean(-1)
-    refl = refl.reshape(*refl.shape[:2], n_pix, rays).mean(-1)
-    if smooth:
-        S = smooth_matrix(g[SIGMA_PX], n_pix)
-        alpha = jnp.matmul(alpha, S, precision=HIGHEST)
-        refl = jnp.matmul(refl, S, precision=HIGHEST)
+    refl = reflectance(alpha, direct, w, phong)  # (V, L, lanes); a dot, not a reduce fusion
+    S = smooth_matrix(g[SIGMA_PX], n_pix) if smooth else None
+    alpha, refl = to_pixels(alpha, n_pix, rays, S), to_pixels(refl, n_pix, rays, S)
     # Σ w telescopes to 1 − exp(−Σ τ) ≤ 1, but float32 rounding of the sum can overshoot by a few ulp
     return jnp.clip(alpha, 0.0, 1.0), refl
 

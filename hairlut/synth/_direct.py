@@ -50,10 +50,9 @@ import numpy as np
 
 from .. import errors
 from ..hrir import (GEOM, SHADOW_GRID, front_to_back, grid_transmittance, light_depth_grid, march, normals,
-                    phong_direct, sector_fields, smooth_matrix, view_points)
+                    phong_direct, reflectance, sector_fields, smooth_matrix, to_pixels, view_points)
 from ..validate import check_int
 
-HIGHEST = jax.lax.Precision.HIGHEST  # stated, not inherited: XLA would use TF32 on NVIDIA GPUs
 
 #: Sectors mapped at once inside the kernel (vmapped), by default.
 BLOCK = 64
@@ -89,10 +88,7 @@ def _direct_one(rho, g, view, lights, phong, *, n_pix, n_steps, rays, shadow, sm
     tau, gx, gy, rs, rr, inside = (x[0] for x in march(fields, g, view[None], lanes, n_steps))  # (lanes, K)
     w, alpha = front_to_back(tau, eps)
     S = smooth_matrix(g[_SIGMA_PX], n_pix) if smooth else None
-    alpha_px = alpha.reshape(n_pix, rays).mean(-1)
-    if smooth:
-        alpha_px = jnp.dot(alpha_px, S, precision=HIGHEST)
-    n_l = lights.shape[0]
+    alpha_px = to_pixels(alpha, n_pix, rays, S)
     if not shade:
         return alpha_px, jnp.zeros((1, n_pix), alpha_px.dtype)  # sliced to (0, P) outside the map
     vx, vy = jnp.cos(view), jnp.sin(view)
@@ -107,11 +103,7 @@ def _direct_one(rho, g, view, lights, phong, *, n_pix, n_steps, rays, shadow, sm
         else:  # "march": read the light march's lattice directly
             qx, qy = (q[0] for q in view_points(g, view[None], lanes, n_steps))
             direct = direct * jnp.exp(-_light_depth_at(fields, g, lights, n_steps, m, qx, qy))
-    refl = phong[0] * alpha[None] + jnp.einsum("lnk,nk->ln", direct, w, precision=HIGHEST)
-    refl = refl.reshape(n_l, n_pix, rays).mean(-1)
-    if smooth:
-        refl = jnp.dot(refl, S, precision=HIGHEST)
-    return alpha_px, refl
+    return alpha_px, to_pixels(reflectance(alpha, direct, w, phong), n_pix, rays, S)
 
 
 @partial(jax.jit, static_argnames=("n_pix", "n_steps", "rays", "shadow", "smooth", "eps", "block", "shade"))

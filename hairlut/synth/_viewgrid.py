@@ -34,8 +34,8 @@ import numpy as np
 from .. import errors
 from ..validate import check_int
 from ..hrir import (SHADOW_GRID, front_to_back, grid_transmittance, light_depth_grid, march, normals, phong_direct,
-                    sector_fields, smooth_matrix)
-from ._direct import _SIGMA_PX, HIGHEST, bucket
+                    reflectance, sector_fields, smooth_matrix, to_pixels)
+from ._direct import _SIGMA_PX, bucket
 
 
 def _grid_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, shadow, smooth, eps):
@@ -56,13 +56,9 @@ def _grid_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, shadow
         t_half = grid_transmittance(depth, g, views_half, lanes, n_steps)  # (H, lanes, K, L)
         trans_l = jnp.concatenate([t_half, flip(t_half)], axis=0)  # the mirror views read it reversed
         direct = direct * jnp.moveaxis(trans_l, -1, 1)
-    refl = phong[0] * alpha[:, None] + jnp.einsum("vlnk,vnk->vln", direct, w, precision=HIGHEST)
-    alpha = alpha.reshape(alpha.shape[0], n_pix, rays).mean(-1)
-    refl = refl.reshape(*refl.shape[:2], n_pix, rays).mean(-1)
-    if smooth:
-        S = smooth_matrix(g[_SIGMA_PX], n_pix)
-        alpha = jnp.dot(alpha, S, precision=HIGHEST)
-        refl = jnp.dot(refl, S, precision=HIGHEST)
+    refl = reflectance(alpha, direct, w, phong)
+    S = smooth_matrix(g[_SIGMA_PX], n_pix) if smooth else None
+    alpha, refl = to_pixels(alpha, n_pix, rays, S), to_pixels(refl, n_pix, rays, S)
     return alpha, refl
 
 
