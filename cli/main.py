@@ -61,20 +61,11 @@ def _register() -> None:
     from . import bake, cache, demo, hrir, inspect, plan, sh, strands, synth
     from . import bench, render, stress
 
-    cli.add_command(bake.bake_group)  # its KIND sub-commands come from hairlut.registry
-    cli.add_command(bake.merge_cmd)
-    cli.add_command(hrir.hrir_slice_cmd)
-    cli.add_command(cache.cache_group)
-    cli.add_command(demo.demo_cmd)
-    cli.add_command(inspect.inspect_cmd)
-    cli.add_command(sh.sh_group)
-    cli.add_command(strands.strands_group)
-    cli.add_command(synth.synth_cmd)
-    cli.add_command(plan.plan_cmd)
-    cli.add_command(render.render_cmd)
-    cli.add_command(render.compare_cmd)
-    cli.add_command(stress.stress_cmd)
-    cli.add_command(bench.bench_cmd)
+    for command in (bake.bake_group,  # its KIND sub-commands come from hairlut.registry
+                    bake.merge_cmd, hrir.hrir_slice_cmd, cache.cache_group, demo.demo_cmd, inspect.inspect_cmd, sh.sh_group,
+                    strands.strands_group, synth.synth_cmd, plan.plan_cmd, render.render_cmd, render.compare_cmd,
+                    stress.stress_cmd, bench.bench_cmd):
+        cli.add_command(command)
 
 
 _register()

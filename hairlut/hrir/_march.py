@@ -138,6 +138,15 @@ def smooth_matrix(sigma_px, n_pix: int):
     return k / total
 
 
+def direct_lighting(rho, gx, gy, rs, rr, inside, views, lights, phong):
+    """:func:`phong_direct` at every (view, light, lane, step) sample of a march on the views ``views`` (V,),
+    lit from ``lights`` (L,), with the :func:`normals` of that march's gradients: (V, L, lanes, K)."""
+    vx, vy = jnp.cos(views)[:, None, None], jnp.sin(views)[:, None, None]
+    nx, ny = normals(rho, gx, gy, rs, rr, inside, vx, vy)
+    lx, ly = jnp.cos(lights)[None, :, None, None], jnp.sin(lights)[None, :, None, None]
+    return phong_direct(nx[:, None], ny[:, None], vx[:, None], vy[:, None], lx, ly, phong)
+
+
 def reflectance(alpha, direct, w, phong):
     """Eq 5's premultiplied reflectance per lane, k_a α + Σ_k w_k · direct_k: ``alpha`` (..., lanes),
     ``direct`` (..., L, lanes, K), ``w`` (..., lanes, K) → (..., L, lanes)."""

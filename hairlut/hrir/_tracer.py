@@ -62,8 +62,8 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 
-from ._march import (GEOM, SHADOW_GRID, SIGMA_PX, front_to_back, grid_transmittance, light_depth_grid, march,
-                     normals, phong_direct, reflectance, sector_fields, smooth_matrix, to_pixels)
+from ._march import (GEOM, SHADOW_GRID, SIGMA_PX, direct_lighting, front_to_back, grid_transmittance, light_depth_grid, march,
+                     reflectance, sector_fields, smooth_matrix, to_pixels)
 
 __all__ = ["GEOM", "trace_kernel"]
 
@@ -73,10 +73,7 @@ def _trace_one(rho, g, views, lights, phong, *, n_pix, n_steps, rays, shadow, sm
     lanes = n_pix * rays
     tau, gx, gy, rs, rr, inside = march(fields, g, views, lanes, n_steps)  # (V, lanes, K)
     w, alpha = front_to_back(tau, eps)
-    vx, vy = jnp.cos(views)[:, None, None], jnp.sin(views)[:, None, None]
-    nx, ny = normals(rho, gx, gy, rs, rr, inside, vx, vy)
-    lx, ly = jnp.cos(lights)[None, :, None, None], jnp.sin(lights)[None, :, None, None]
-    direct = phong_direct(nx[:, None], ny[:, None], vx[:, None], vy[:, None], lx, ly, phong)  # (V, L, lanes, K)
+    direct = direct_lighting(rho, gx, gy, rs, rr, inside, views, lights, phong)  # (V, L, lanes, K)
     if shadow:
         depth = light_depth_grid(fields, g, lights, n_steps, min(n_steps, SHADOW_GRID))  # (M, M, L)
         trans_l = grid_transmittance(depth, g, views, lanes, n_steps)  # (V, lanes, K, L)

@@ -33,7 +33,7 @@ import numpy as np
 
 from .. import errors
 from ..validate import check_int
-from ..hrir import (SHADOW_GRID, front_to_back, grid_transmittance, light_depth_grid, march, normals, phong_direct,
+from ..hrir import (SHADOW_GRID, direct_lighting, front_to_back, grid_transmittance, light_depth_grid, march,
                     reflectance, sector_fields, smooth_matrix, to_pixels)
 from ._direct import _SIGMA_PX, bucket
 
@@ -47,10 +47,7 @@ def _grid_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, shadow
     tau, gx, gy, rs, rr, inside = (jnp.concatenate([x, flip(x)], axis=0) for x in half)
     views = jnp.concatenate([views_half, views_half + jnp.pi])
     w, alpha = front_to_back(tau, eps)  # eq 5 front-to-back weights (per view)
-    vx, vy = jnp.cos(views)[:, None, None], jnp.sin(views)[:, None, None]
-    nx, ny = normals(rho, gx, gy, rs, rr, inside, vx, vy)
-    lx, ly = jnp.cos(lights)[None, :, None, None], jnp.sin(lights)[None, :, None, None]
-    direct = phong_direct(nx[:, None], ny[:, None], vx[:, None], vy[:, None], lx, ly, phong)  # (V, L, lanes, K)
+    direct = direct_lighting(rho, gx, gy, rs, rr, inside, views, lights, phong)  # (V, L, lanes, K)
     if shadow:
         depth = light_depth_grid(fields, g, lights, n_steps, min(n_steps, SHADOW_GRID))  # (M, M, L)
         t_half = grid_transmittance(depth, g, views_half, lanes, n_steps)  # (H, lanes, K, L)
