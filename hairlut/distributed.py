@@ -202,7 +202,7 @@ def free_memory() -> int | None:
         try:
             stats = d.memory_stats()
         except (AttributeError, NotImplementedError, RuntimeError):
-            stats = None
+            stats = None  # a backend that keeps no allocator statistics (the CPU): the free memory is unknown
         if not stats or "bytes_limit" not in stats:
             return None
         free.append(int(stats["bytes_limit"]) - int(stats.get("bytes_in_use", 0)))
