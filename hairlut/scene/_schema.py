@@ -99,6 +99,9 @@ SCHEMA = {
                                 "scene: pixel bins of the re/α ratio (a divisor of tables.hrir trace.pixels)"),
         "precision": Field("float16", _S, one_of("float16", "float32"),
                            "scene: storage precision of the per-groom table"),
+        "layer_reads": Field("pair", _S, one_of("pair", "track"),
+                             "what a layer texel reads: pair (eq 7: its HSV's two sectors) or track (every sector "
+                             "its in-plane ray crosses in its track, on its side of the chord)"),
     },
     "camera": CAMERA,
     "lights": {

@@ -20,8 +20,16 @@ from ..hrir import interpolate, neighbours_kernel
 from ._maps import TWO_PI, SectorFrames, _bucket, _check_k, _device_db, _sample, _texel_cells, texel_offsets
 
 
-@partial(jax.tree_util.register_dataclass, data_fields=["axes", "nbr", "wgt", "dz2", "nbr_ave", "wgt_ave", "gamma", "offset"],
-         meta_fields=["grid", "layers", "rows", "cols"])
+#: Phase overlap (radians) below which a segment does not count as crossing a sector (float32 rounding at a
+#: sector border: both fragments of a chord must agree on which of them crosses it).
+EPS_PHASE = 1e-5
+#: ``[render] layer_reads``: what a layer texel reads of its track (:func:`sweep_rows` / :func:`sweep_track`).
+LAYER_READS = ("pair", "track")
+
+
+@partial(jax.tree_util.register_dataclass, data_fields=["axes", "nbr", "wgt", "dz2", "nbr_ave", "wgt_ave", "gamma", "offset",
+                                                        "track"],
+         meta_fields=["grid", "layers", "rows", "cols", "reads"])
 @dataclass(frozen=True, eq=False)
 class MapIndex:
     """§6.2.1's index: what eqs 6–7 need that does not change with the view or the lights, as
@@ -32,7 +40,9 @@ class MapIndex:
     weights for an empty sector, which holds no hair: α = re = 0).
     Per HSV: ``dz2``, eq 6's feature term Σ Δz² (∞ when one of its sectors is empty: never
     uniform); ``nbr_ave``, ``wgt_ave``, the neighbours of its averaged features.  Per texel row: ``gamma`` (n_t,), γ along the HSV.  Per texel:
-    ``offset`` (2, 2, …) of :func:`texel_offsets`."""
+    ``offset`` (2, 2, …) of :func:`texel_offsets`.  ``reads``: one of :data:`LAYER_READS`; for ``"track"``,
+    ``track`` (S, 12) per sector: its cross-section's half axes A, B and twist q, its track's radii v0, v1,
+    its centre (2), extent R, +x and +y (2 each) in the normal plane (:func:`sweep_track`)."""
 
     axes: jax.Array
     nbr: jax.Array
@@ -46,11 +56,27 @@ class MapIndex:
     layers: int
     rows: tuple
     cols: tuple
+    track: jax.Array | None = None
+    reads: str = "pair"
 
 
-def map_index(db, table, fr: SectorFrames, n_layers: int, resolution, k: int) -> MapIndex:
-    """The :class:`MapIndex` of a (multi-cluster) sector table; its neighbours are those ``fetch`` finds."""
+def _track_table(fr: SectorFrames, reads: str):
+    """:class:`MapIndex`'s ``track`` (S, 12) for ``reads = "track"`` (None for ``"pair"``); checks ``reads``."""
+    if reads not in LAYER_READS:
+        raise errors.ValidationError("render.layer_reads", reads, f"one of {', '.join(LAYER_READS)}")
+    if reads == "pair":
+        return None
+    cols = (fr.half_axes, fr.twist[:, None], fr.v_inner[:, None], fr.v_outer[:, None], fr.centre, fr.extent[:, None],
+            fr.ex, fr.ey)
+    return jnp.asarray(np.concatenate([np.asarray(c, np.float64).reshape(len(fr.extent), -1) for c in cols], 1),
+                       jnp.float32)
+
+
+def map_index(db, table, fr: SectorFrames, n_layers: int, resolution, k: int, reads: str = "pair") -> MapIndex:
+    """The :class:`MapIndex` of a (multi-cluster) sector table; its neighbours are those ``fetch`` finds;
+    ``reads``: ``[render] layer_reads`` (:data:`LAYER_READS`)."""
     _check_k(db, k)
+    track = _track_table(fr, reads)
     zdb, _, _, mean, std = _device_db(db)
     n_c, n_i, n_g, s_u = table.shape
     top = ((np.arange(n_c)[:, None] * n_i + np.arange(n_i - 1)) * n_g * s_u)[..., None] + np.arange(n_g * s_u)
@@ -73,7 +99,7 @@ def map_index(db, table, fr: SectorFrames, n_layers: int, resolution, k: int) ->
     f32 = partial(jnp.asarray, dtype=jnp.float32)
     return MapIndex(f32(axes), nbr, wgt, f32(dz2), nbr_ave, wgt_ave, f32(gamma),
                     f32(texel_offsets(table, fr, n_layers, resolution)[2]), (n_c, n_i - 1, n_g, s_u), int(n_layers),
-                    tuple(rows.tolist()), tuple(cols.tolist()))
+                    tuple(rows.tolist()), tuple(cols.tolist()), track, reads)
 
 
 def _wrap(x):
@@ -134,12 +160,113 @@ def fetch_kernel(ix: MapIndex, alpha, refl, tv, tl, uniform, nonuniform, scratch
     return interpolate(*(jnp.concatenate([a, b[nonuniform]]) for a, b in zip(q, (n2, w2, v2, l2))), alpha, refl)
 
 
+def track_window(ix: MapIndex, cs, e: int):
+    """The sectors a texel's in-plane ray crosses in its track, on its side of the chord, in cross-section ``e``
+    (0: its HSV's top, 1: bottom): per texel (C, K, n_t, n_u), for m < M = min(s_u, ⌊s_u/4⌋ + 2), the phase
+    column ``col[m]`` (0 … s_u − 1) of the m-th sector from the texel's point p inward along the ray, its weight
+    ``w[m]`` (1, ½ when the chord's other fragment crosses it too, 0 past the segment's end) and its image-line
+    coordinate ``x[m]`` = (p − c_s)·e / R_s (e the in-plane view turned +90°); and ``front`` (the ray enters the
+    track at p: m runs front to back; else back to front).
+
+    Geometry (satf eq 1: x = A v cos(q + u), y = B v sin(q + u), so in (x/A, y/B) the track is the annulus
+    v0 ≤ |·| ≤ v1 and a straight line stays straight): the camera ray through p, projected into the normal
+    plane, crosses the track in one chord (entry and exit on the layer surface v1) or, when it meets the inner
+    surface v0 > 0, in two segments.  The texel's segment runs from p inward to the inner surface, or to the
+    chord's midpoint; the chord's other fragment (the layer surface's other hit) takes the rest, so every
+    piece of the path is read once.  The polar angle is monotonic along a line and a half chord turns by at
+    most π/2, so the segment crosses a contiguous window of at most M phase columns; a column both segments
+    cross (by more than :data:`EPS_PHASE` of phase) is split between them (weight ½ each: the sector's own
+    projection counts once in all)."""
+    n_c, s_t, n_g, s_u = ix.grid
+    S = n_c * (s_t + 1) * n_g * s_u
+    n_u = ix.offset.shape[-1]
+    du = TWO_PI / s_u
+    u = (TWO_PI * (jnp.arange(n_u) + 0.5) / n_u).astype(jnp.float32)
+    sid = _texels(ix, _split(ix, jnp.arange(S, dtype=jnp.int32))[e])
+    g = ix.track[sid]
+    A, B, q, v0, v1, cx, cy, R, exx, exy, eyx, eyy = (g[..., i] for i in range(12))
+    c = cs[sid]
+    dx, dy = c[..., 0] * exx + c[..., 1] * eyx, c[..., 0] * exy + c[..., 1] * eyy  # in-plane view (toward the eye)
+    px, py = v1 * jnp.cos(q + u), v1 * jnp.sin(q + u)  # p in (x/A, y/B)
+    wx, wy = -dx / A, -dy / B  # the ray, away from the eye
+    pw = px * wx + py * wy
+    front = pw < 0
+    sgn = jnp.where(front, 1.0, -1.0)
+    wx, wy, pw = sgn * wx, sgn * wy, sgn * pw  # now inward from p: pw ≤ 0
+    ww = wx * wx + wy * wy
+    s_mid = -pw / ww
+    disc = pw * pw - ww * (v1 * v1 - v0 * v0)
+    s_end = jnp.where((disc > 0) & (v0 > 0), (-pw - jnp.sqrt(jnp.maximum(disc, 0.0))) / ww, s_mid)
+    cr = px * wy - py * wx
+    sig = jnp.where(cr >= 0, 1, -1)
+
+    def phase(s):  # unwrapped phase of p + s w: the polar angle turns by sig · atan2(|s cr|, v1² + s pw)
+        return u + sig * jnp.arctan2(jnp.abs(s * cr), v1 * v1 + s * pw)
+
+    own = (u, phase(s_end))
+    other = (phase(2 * s_mid - s_end), phase(2 * s_mid))
+
+    def crossed(j, ends):  # phase length of column j (any turn of the circle) inside the interval between ends
+        lo, hi = jnp.minimum(*ends), jnp.maximum(*ends)
+        return jnp.max(jnp.stack([jnp.minimum(hi, (j + n + 1) * du) - jnp.maximum(lo, (j + n) * du)
+                                  for n in (-s_u, 0, s_u)]), axis=0)
+
+    j0 = jnp.floor(u / du).astype(jnp.int32) + jnp.zeros_like(sig)  # unwrapped column of p
+    Px, Py, base = A * px, B * py, sid - jnp.mod(sid, s_u)
+    cols, ws, xs = [], [], []
+    for m in range(min(s_u, s_u // 4 + 2)):
+        j = j0 + sig * m
+        k = jnp.mod(j, s_u)
+        w = jnp.where(crossed(j, own) > EPS_PHASE, jnp.where(crossed(j, other) > EPS_PHASE, 0.5, 1.0), 0.0)
+        h = ix.track[base + k]
+        xs.append(((Px - h[..., 5]) * -dy + (Py - h[..., 6]) * dx) / h[..., 7])
+        cols.append(k)
+        ws.append(w)
+    return cols, ws, xs, front
+
+
+def sweep_track(ix: MapIndex, rows_re, rows_a, cs):
+    """``layer_reads = "track"``: each texel's α and re from every sector its in-plane ray crosses in its track
+    (:func:`track_window`), in both of its HSV's cross-sections, then eq 7's γ interpolation between them.  Rows:
+    HSV h's top sector's at row h, its bottom sector's at row H + h (``sweep_sectors``' layout; ``fetch_kernel``'s
+    with every HSV non-uniform).  Per cross-section, with weight w a sector's pixel gives α' = 1 − (1 − α)^w
+    (its optical depth times w) and re' = re α'/α (re is α-premultiplied), composited along the ray front to
+    back: α = 1 − Π(1 − α'), re = Σ re' Π_{before}(1 − α')."""
+    n_c, s_t, n_g, s_u = ix.grid
+    H = n_c * s_t * n_g * s_u
+    Lt, P = rows_re.shape[1:]
+    h = _texels(ix, jnp.arange(H, dtype=jnp.int32))
+    flat_re, flat_a = rows_re.reshape(-1), rows_a.reshape(-1)
+    out = []
+    for e in (0, 1):
+        cols, ws, xs, front = track_window(ix, cs, e)
+        row0 = e * H + h - jnp.mod(h, s_u)
+        acc = jnp.zeros(h.shape + (Lt,), jnp.float32)
+        trans = jnp.ones(h.shape, jnp.float32)
+        for k, w, x in zip(cols, ws, xs):
+            row, p = row0 + k, (x + 1.0) * P / 2.0 - 0.5
+            a = jnp.clip(_sample(flat_a, row, p, P), 0.0, 1.0)
+            a_w = -jnp.expm1(w * jnp.log1p(-jnp.minimum(a, 1.0 - 1e-7)))
+            scale = jnp.where(a > 0, a_w / jnp.where(a > 0, a, 1.0), 0.0)
+            re = jnp.stack([_sample(flat_re, row * Lt + j, p, P) for j in range(Lt)], -1) * scale[..., None]
+            acc = jnp.where(front[..., None], acc + trans[..., None] * re, re + (1.0 - a_w[..., None]) * acc)
+            trans = trans * (1.0 - a_w)
+        out.append((acc, 1.0 - trans))
+    g = ix.gamma[:, None]
+    re = (1 - g[..., None]) * out[0][0] + g[..., None] * out[1][0]
+    a = (1 - g) * out[0][1] + g * out[1][1]
+    return jnp.moveaxis(re, -1, 2), jnp.clip(a, 0.0, 1.0)
+
+
 @jax.jit
 def sweep_rows(ix: MapIndex, rows_re, rows_a, cs, uniform, slot):
     """Eq 7 per texel from :func:`fetch_kernel`'s rows: re (C, K, Lt, n_t, n_u), α (C, K, n_t, n_u).
 
     A texel samples its HSV's row h at x⊤ and, with weight γ, row H + ``slot[h]`` at x⊥; a
-    uniform HSV's texels sample row h twice at x̄ (module docstring)."""
+    uniform HSV's texels sample row h twice at x̄ (module docstring).  With ``ix.reads = "track"``
+    (every HSV non-uniform, ``slot[h] = h``): :func:`sweep_track`."""
+    if ix.reads == "track":
+        return sweep_track(ix, rows_re, rows_a, cs)
     H, (Lt, P) = uniform.shape[0], rows_re.shape[1:]
     c1, c2 = (_texels(ix, x) for x in _split(ix, cs))  # (C, K, n_t, n_u, 2) each
     pix = [((-c[..., 1] * o[0] + c[..., 0] * o[1]) + 1.0) * P / 2.0 - 0.5 for c, o in zip((c1, c2), ix.offset)]
@@ -169,6 +296,8 @@ def frame_rows(ix: MapIndex, db, view, lights, k_threshold: float):
     f32 = partial(np.asarray, dtype=np.float32)  # NumPy in: a jnp conversion would dispatch a kernel per argument
     tv, tl, cs, _, uni = params_kernel(ix, f32(view), f32(lights), f32(k_threshold), n_v=len(db.theta_v),
                                        n_l=len(db.theta_l))
+    if ix.reads == "track":  # the track read needs every sector's own row: no eq 6 shortcut
+        uni = jnp.zeros_like(uni)
     uniform = np.asarray(uni)
     nu = np.flatnonzero(~uniform)
     slot = np.zeros(len(uniform), np.int32)
@@ -193,10 +322,11 @@ def frame_maps(ix: MapIndex, db, view, lights, k_threshold: float):
     return (*sweep_rows(ix, *args), uniform)
 
 
-def geometry_index(table, fr: SectorFrames, n_layers: int, resolution) -> MapIndex:
+def geometry_index(table, fr: SectorFrames, n_layers: int, resolution, reads: str = "pair") -> MapIndex:
     """A :class:`MapIndex` of the geometry alone (no SATF neighbours): what :func:`params_kernel`
     (angles; eq 6's distance is then meaningless and unused) and :func:`sweep_sectors` read, for the map
-    methods that make every sector's own row (``direct``, ``scene``)."""
+    methods that make every sector's own row (``direct``, ``scene``); ``reads`` as :func:`map_index`'s."""
+    track = _track_table(fr, reads)
     n_c, n_i, n_g, s_u = table.shape
     top = ((np.arange(n_c)[:, None] * n_i + np.arange(n_i - 1)) * n_g * s_u)[..., None] + np.arange(n_g * s_u)
     if not np.array_equal(table.hsv_sectors, np.stack([top.ravel(), top.ravel() + n_g * s_u], 1)):
@@ -208,7 +338,7 @@ def geometry_index(table, fr: SectorFrames, n_layers: int, resolution) -> MapInd
     none = jnp.zeros((0, 1), jnp.int32)
     return MapIndex(f32(axes), none, f32(none), f32(np.zeros(len(table.hsv_sectors))), none, f32(none), f32(gamma),
                     f32(texel_offsets(table, fr, n_layers, resolution)[2]), (n_c, n_i - 1, n_g, s_u), int(n_layers),
-                    tuple(rows.tolist()), tuple(cols.tolist()))
+                    tuple(rows.tolist()), tuple(cols.tolist()), track, reads)
 
 
 @jax.jit

@@ -62,7 +62,8 @@ class SectorFrames:
     the 2-D normal-plane frame ``centre``, ``ex``, ``ey`` (N, 2) in (reference, binormal)
     coordinates, ``extent`` R (N,), ``half_axes`` (N, 2), ``twist`` (N,), outer radius
     ``v_outer`` (N,), the 3-D ``reference`` and ``binormal`` (N, 3) of its cross-section, and
-    ``occupied`` (N,): whether any strand crosses it (an empty sector holds no hair: α = re = 0)."""
+    ``occupied`` (N,): whether any strand crosses it (an empty sector holds no hair: α = re = 0), and its
+    track's inner radius ``v_inner`` (N,) (the track read, ``_frame.sweep_track``)."""
 
     features: np.ndarray
     centre: np.ndarray
@@ -75,6 +76,7 @@ class SectorFrames:
     reference: np.ndarray
     binormal: np.ndarray
     occupied: np.ndarray
+    v_inner: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -117,7 +119,7 @@ def sector_frames(geometry, table, db) -> SectorFrames:
     ab, q = table.half_axes, table.twist
     centre = _ellipse(ab, table.v_range.mean(axis=1), q + table.u_range.mean(axis=1))
     return SectorFrames(feats, centre, ex, ey, extent, ab, q, table.v_range[:, 1].copy(), reference, binormal,
-                        splats.mask.any(axis=1))
+                        splats.mask.any(axis=1), table.v_range[:, 0].copy())
 
 
 def sector_angles(fr: SectorFrames, view, lights) -> SectorParams:

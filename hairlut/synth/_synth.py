@@ -195,11 +195,11 @@ def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
                             for f in fields(SectorFrames)))
     stacked = {name: jnp.asarray(np.stack([getattr(pc, name) for pc in clusters]), jnp.float32)
                for name in ("tangent", "normal", "noise")}
-    res = sc.config["render"]["resolution"]
+    res, reads = sc.config["render"]["resolution"], sc.config["render"]["layer_reads"]
     if method == "satf":
-        index, source = map_index(database, table, frames, clusters[0].spec.n_layers, res, k), None
+        index, source = map_index(database, table, frames, clusters[0].spec.n_layers, res, k, reads), None
     else:
-        index = geometry_index(table, frames, clusters[0].spec.n_layers, res)
+        index = geometry_index(table, frames, clusters[0].spec.n_layers, res, reads)
         source = prepare_map_source(sc, method, why, [pc.table for pc in clusters], [pc.frames for pc in clusters], maps)
     t2 = time.perf_counter()
     env = prepare_environment(sc, sh, [s for _, s in pairs], np.stack([pc.tangent for pc in clusters]),
