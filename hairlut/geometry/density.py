@@ -17,7 +17,10 @@ common width and masked) over all sectors of all clusters, in chunks of ``chunk`
 sectors taken in order of their splat count, so that each chunk is padded only to the
 next width of 8, 12, 16, 24, 32, 48, … above its own largest count (real clusters have
 a long tail: a few sectors hold many more strands than the mean).  Chunk shapes come from a small set, so the
-compiled kernel is reused.  float32 by default; float64 under ``jax.enable_x64`` when asked.
+compiled kernel is reused.  ``chunk=1`` (the HRIR bake's: a sector's bits must not depend on
+its neighbours) pads each sector to its own width and maps the one-sector program over the
+sectors of each width inside one call, bitwise the same as one call per sector at a
+fraction of the host's cost.  float32 by default; float64 under ``jax.enable_x64`` when asked.
 """
 
 from __future__ import annotations
@@ -81,11 +84,18 @@ def _density_one(center, sigma, radius, mask, area_scale, v_range, scale, n_s, n
     return cells / _row_area(area_scale, v_range, n_s, n_r)[None, :]
 
 
-@partial(jax.jit, static_argnames=("n_s", "n_r"))
-def density_kernel(center, sigma, radius, mask, area_scale, v_range, scale, *, n_s: int, n_r: int):
-    """(N, n_s, n_r) densities of N padded sectors (the jitted kernel behind :func:`sector_density`)."""
-    one = partial(_density_one, scale=scale, n_s=n_s, n_r=n_r)
-    return jax.vmap(one)(center, sigma, radius, mask, area_scale, v_range)
+@partial(jax.jit, static_argnames=("n_s", "n_r", "each"))
+def density_kernel(center, sigma, radius, mask, area_scale, v_range, scale, *, n_s: int, n_r: int, each: bool = False):
+    """(N, n_s, n_r) densities of N padded sectors (the jitted kernel behind :func:`sector_density`).
+
+    ``each``: the sectors one after another (``lax.map`` of the one-sector batch), each computed by the
+    very program of a one-sector call, so its bits do not depend on the others: the ``chunk=1`` path
+    in one call per splat width instead of one per sector."""
+    one = jax.vmap(partial(_density_one, scale=scale, n_s=n_s, n_r=n_r))
+    args = (center, sigma, radius, mask, area_scale, v_range)
+    if each:
+        return jax.lax.map(lambda a: one(*(x[None] for x in a))[0], args)
+    return one(*args)
 
 
 def _bucket(n: int, least: int) -> int:
@@ -132,20 +142,29 @@ def sector_density(splats: SplatBatch, grid=DEFAULT_GRID, *, density_scale: floa
         center, sigma = (np.take_along_axis(a, perm[..., None], 1) for a in (center, sigma))
         radius, mask = (np.take_along_axis(a, perm, 1) for a in (radius, mask))
     counts = mask.sum(axis=1)
-    order = np.argsort(counts, kind="stable")
-    size = min(int(chunk), _bucket(n, 8))
     out = np.empty((n, n_s, n_r), dt)
     with jax.enable_x64(dt == np.float64):
         jscale = jnp.asarray(scale, dt)
-        for start in range(0, n, size):
-            idx = order[start:start + size]
+
+        def run(idx, size, width, each=False):
             rows = np.concatenate([idx, np.full(size - idx.size, idx[0])])  # fixed chunk shape
-            width = _width(int(counts[idx].max()))  # padding follows the chunk's own largest count
             args = [_columns(center[rows], width, 0.0), _columns(sigma[rows], width, 1.0),
                     _columns(radius[rows], width, 0.0), _columns(mask[rows], width, False),
                     splats.area_scale[rows], splats.v_range[rows]]
             arrs = [jnp.asarray(x, dtype=dt if x.dtype.kind == "f" else None) for x in args]
-            out[idx] = np.asarray(density_kernel(*arrs, jscale, n_s=n_s, n_r=n_r))[:idx.size]
+            out[idx] = np.asarray(density_kernel(*arrs, jscale, n_s=n_s, n_r=n_r, each=each))[:idx.size]
+
+        if int(chunk) == 1:  # each sector padded to its own width, as if alone: one call per width
+            widths = np.array([_width(int(c)) for c in counts])
+            for width in np.unique(widths):
+                idx = np.flatnonzero(widths == width)
+                run(idx, _bucket(idx.size, 8), int(width), each=True)
+            return out
+        order = np.argsort(counts, kind="stable")
+        size = min(int(chunk), _bucket(n, 8))
+        for start in range(0, n, size):
+            idx = order[start:start + size]
+            run(idx, size, _width(int(counts[idx].max())))  # padding follows the chunk's own largest count
     return out
 
 

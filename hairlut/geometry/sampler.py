@@ -62,19 +62,50 @@ def _log_uniform(rng, lo, hi, n):
     return np.exp(rng.uniform(np.log(lo), np.log(hi), n))
 
 
-def _truncnorm(rng, mu, sd, lo, hi):
-    """Normal(mu, sd) truncated to [lo, hi], by inverse CDF."""
+def _truncnorm(u, mu, sd, lo, hi):
+    """Normal(mu, sd) truncated to [lo, hi], by inverse CDF of the uniforms ``u``."""
     a, b = ndtr((lo - mu) / sd), ndtr((hi - mu) / sd)
-    q = a + rng.uniform(size=np.shape(mu)) * (b - a)
+    q = a + u * (b - a)
     return np.clip(mu + sd * ndtri(np.clip(q, 1e-300, 1 - 1e-16)), lo, hi)
 
 
 def sample_sectors(n: int, space: SectorSpace = SectorSpace(), *, seed: int = 0) -> SampledSectors:
     """``n`` random sectors from ``space`` (module docstring), deterministic by ``seed``."""
     n = check_int(n, "n", 1)
+    _check_space(space)
+    rng = np.random.default_rng(check_int(seed, "seed", 0))
+    p = _draw_params(rng, space, n)
+    w = _window(p, space)
+    return _place(p, w, space, _draw_strands(rng, w, space, n))
+
+
+def sample_each(seeds, space: SectorSpace = SectorSpace()) -> SampledSectors:
+    """One sector per seed, bitwise the concatenation of ``sample_sectors(1, space, seed=s)`` for each.
+
+    Every sector draws from its own generator exactly as ``sample_sectors`` would (same calls, same
+    arguments, same order); only the arithmetic between the draws runs once over all sectors, so a
+    block of sectors costs the host two short loops of draws instead of one full sampling per sector."""
+    _check_space(space)
+    seeds = [check_int(s, "seed", 0) for s in seeds]
+    if not seeds:
+        raise ValidationError("seeds", seeds, "give at least one seed")
+    rngs = [np.random.default_rng(s) for s in seeds]
+    drawn = [_draw_params(rng, space, 1) for rng in rngs]
+    p = {k: np.concatenate([d[k] for d in drawn]) for k in drawn[0]}
+    w = _window(p, space)
+    ends = np.cumsum(p["strands"])
+    cut = {k: np.split(v, ends[:-1]) for k, v in w["per_strand"].items()}
+    raw = [_draw_strands(rng, {"per_strand": {k: v[i] for k, v in cut.items()}}, space, 1) for i, rng in enumerate(rngs)]
+    return _place(p, w, space, {k: np.concatenate([r[k] for r in raw]) for k in raw[0]})
+
+
+def _check_space(space) -> None:
     if not isinstance(space, SectorSpace):
         raise ValidationError("space", type(space).__name__, "must be a SectorSpace")
-    rng = np.random.default_rng(check_int(seed, "seed", 0))
+
+
+def _draw_params(rng, space: SectorSpace, n: int) -> dict:
+    """The per-sector parameters, drawn in the fixed order."""
     p = {
         "strands": np.floor(_log_uniform(rng, space.strands[0] + 1, space.strands[1] + 1 + 1e-9, n)).astype(np.int64) - 1,
         "radius_rel": _log_uniform(rng, *space.radius_rel, n),
@@ -88,34 +119,57 @@ def sample_sectors(n: int, space: SectorSpace = SectorSpace(), *, seed: int = 0)
         "profile": rng.choice(3, n, p=np.asarray(space.profile_weights) / sum(space.profile_weights)),
     }
     p["strands"] = np.clip(p["strands"], space.strands[0], space.strands[1])
+    return p
+
+
+def _window(p: dict, space: SectorSpace) -> dict:
+    """Each sector's shape and the window its strands may cross: the sector plus a margin of 3σ (at its
+    centre) on every side; ``per_strand`` holds the bounds the strand draws take, one row per strand."""
     v0 = p["v_inner"]
     v1 = np.minimum(v0 + p["radial_extent"], 1.0)
     du = 2 * np.pi / p["s_u"]
     area = p["aspect"] * du * 0.5 * (v1**2 - v0**2)
     r_metric = p["radius_rel"] * np.sqrt(area)
-    # the window strands may cross: the sector plus a margin of 3σ (at its centre) on every side
     su_c, sv_c = param_sigma(SIGMA_PER_RADIUS * r_metric, 0.5 * (v0 + v1), p["phase"] + 0.5 * du, 1.0, p["aspect"])
     margin = 3.0 * np.stack([su_c / du, sv_c / (v1 - v0)], axis=1)
     lo_r = np.maximum(-margin[:, 1], -v0 / (v1 - v0))                # not inside v < 0
     hi_r = np.minimum(1.0 + margin[:, 1], (1.0 - v0) / (v1 - v0))    # nor outside the ellipse
     lo_s, hi_s = -margin[:, 0], 1.0 + margin[:, 0]
-    owner = np.repeat(np.arange(n), p["strands"])
-    m = owner.size
-    prof = p["profile"][owner]
-    # uniform in metric area over the window: s uniform, v² uniform
-    s_pos = rng.uniform(lo_s[owner], hi_s[owner])
+    owner = np.repeat(np.arange(len(v0)), p["strands"])
     va, vb = v0 + lo_r * (v1 - v0), v0 + hi_r * (v1 - v0)
-    r_pos = (np.sqrt(rng.uniform(va[owner] ** 2, vb[owner] ** 2)) - v0[owner]) / (v1 - v0)[owner]
-    centre = rng.uniform(size=(n, space.clumps[1], 2))  # blob centres; a sector uses its first `clumps`
-    pick = np.where(prof == 2, rng.integers(0, p["clumps"][owner]), 0)
-    mu = centre[owner, pick]
+    return {"v0": v0, "v1": v1, "du": du, "r_metric": r_metric, "lo_r": lo_r, "hi_r": hi_r, "lo_s": lo_s, "hi_s": hi_s,
+            "owner": owner, "per_strand": {"lo_s": lo_s[owner], "hi_s": hi_s[owner], "va2": va[owner] ** 2,
+                                           "vb2": vb[owner] ** 2, "clumps": p["clumps"][owner]}}
+
+
+def _draw_strands(rng, w: dict, space: SectorSpace, n: int) -> dict:
+    """The strand draws of ``n`` sectors (raw: the arithmetic on them is :func:`_place`'s), in the fixed order."""
+    b = w["per_strand"]
+    m = len(b["lo_s"])
+    return {"s_pos": rng.uniform(b["lo_s"], b["hi_s"]),  # uniform in metric area over the window: s uniform, v² uniform
+            "v2": rng.uniform(b["va2"], b["vb2"]),
+            "centre": rng.uniform(size=(n, space.clumps[1], 2)),  # blob centres; a sector uses its first `clumps`
+            "pick": rng.integers(0, b["clumps"]),
+            "q_s": rng.uniform(size=m), "q_r": rng.uniform(size=m)}  # the truncated normals' uniforms
+
+
+def _place(p: dict, w: dict, space: SectorSpace, raw: dict) -> SampledSectors:
+    """Strand positions and splats from the draws (module docstring: profiles, truncated normals)."""
+    v0, v1, du, owner = w["v0"], w["v1"], w["du"], w["owner"]
+    n = len(v0)
+    prof = p["profile"][owner]
+    s_pos = raw["s_pos"]
+    r_pos = (np.sqrt(raw["v2"]) - v0[owner]) / (v1 - v0)[owner]
+    pick = np.where(prof == 2, raw["pick"], 0)
+    mu = raw["centre"][owner, pick]
     sd = np.where(prof == 2, 0.5, 1.0) * p["spread"][owner]
-    blob_s = _truncnorm(rng, mu[:, 0], sd, lo_s[owner], hi_s[owner])
-    blob_r = _truncnorm(rng, mu[:, 1], sd, lo_r[owner], hi_r[owner])
+    blob_s = _truncnorm(raw["q_s"], mu[:, 0], sd, w["lo_s"][owner], w["hi_s"][owner])
+    blob_r = _truncnorm(raw["q_r"], mu[:, 1], sd, w["lo_r"][owner], w["hi_r"][owner])
     s_pos = np.where(prof == 0, s_pos, blob_s)
     r_pos = np.where(prof == 0, r_pos, blob_r)
     v = v0[owner] + r_pos * (v1 - v0)[owner]
     phi = p["phase"][owner] + s_pos * du[owner]
+    r_metric = w["r_metric"]
     sig_u, sig_v = param_sigma(SIGMA_PER_RADIUS * r_metric[owner], v, phi, 1.0, p["aspect"][owner])
     sigma = np.stack([sig_u / du[owner], sig_v / (v1 - v0)[owner]], axis=1)
     splats = pack(owner, np.stack([s_pos, r_pos], axis=1), sigma, r_metric[owner], n,

@@ -1,8 +1,9 @@
 """Baking the HRIR database: sample sectors, trace them in blocks, resume, shard, merge (satf §5).
 
-Determinism: sector i is drawn by ``sample_sectors(1, space, seed=sector_seed(seed, i))``,
-so it depends on the recipe's seed and i alone, never on blocks or shards; its density
-and its HRIRs are computed one sector at a time inside the jitted kernels (``chunk=1``),
+Determinism: sector i is drawn as by ``sample_sectors(1, space, seed=sector_seed(seed, i))``
+(``sample_each``: bitwise that, one block at a time), so it depends on the recipe's seed and i
+alone, never on blocks or shards; its density and its HRIRs are computed one sector at a time
+inside the jitted kernels (``chunk=1``: each sector by the one-sector program),
 spread over every local device by :func:`hairlut.distributed.map_units`, so the numbers
 do not depend on how sectors are grouped, nor on how many devices or processes share the
 bake.  The block loop, resume, shards, ``--distributed`` processes and the final virtual
@@ -23,7 +24,7 @@ from ..distributed import dispatch_units, free_memory
 from ..parts import parts_dir  # noqa: F401  (re-exported)
 from ..sharding import blocks_of  # noqa: F401  (re-exported)
 from ..geometry.density import sector_density
-from ..geometry.sampler import sample_sectors
+from ..geometry.sampler import sample_each
 from ..geometry.splats import SplatBatch
 from ._geometry import sector_geometry
 from ._io import PARAMS, assemble, concat, read_shard, storage_errors, write_shard  # noqa: F401
@@ -42,13 +43,11 @@ def sector_seed(seed: int, index: int) -> int:
 
 
 def sample_block(recipe: dict, start: int, stop: int) -> tuple[SplatBatch, dict]:
-    """Splats and parameters of sectors [start, stop)."""
-    space = sector_space(recipe)
-    drawn = [sample_sectors(1, space, seed=sector_seed(recipe["sectors"]["seed"], i)) for i in range(start, stop)]
-    fields = ("center", "sigma", "radius", "mask", "area_scale", "v_range")
-    splats = SplatBatch(*(np.concatenate([getattr(d.splats, f) for d in drawn]) for f in fields))
-    params = {k: np.concatenate([d.params[k] for d in drawn]) for k in (*PARAMS, "v_range")}
-    return splats, params
+    """Splats and parameters of sectors [start, stop): each sector from its own seed, bitwise
+    ``sample_sectors(1, space, seed=sector_seed(seed, i))``, the arithmetic done once for the block."""
+    seed = recipe["sectors"]["seed"]
+    drawn = sample_each([sector_seed(seed, i) for i in range(start, stop)], sector_space(recipe))
+    return drawn.splats, {k: drawn.params[k] for k in (*PARAMS, "v_range")}
 
 
 def trace_sectors(density, geometry, recipe: dict, *, views=None, lights=None, **overrides):
