@@ -204,6 +204,8 @@ def test_geometry_keys_the_table():
                                           ({"method": "direct", "views": 64}, "render.views"),
                                           ({"method": "scene", "views": 63}, "render.views"),
                                           ({"method": "scene", "precision": "int8"}, "render.precision"),
+                                          ({"method": "scene", "ratio_step": 0}, "render.ratio_step"),
+                                          ({"method": "direct", "ratio_step": 2}, "render.ratio_step"),
                                           ({"rays": 0}, "render.rays")])
 def test_bad_method_or_knob_is_rejected_by_name(render, field):
     s = scene()
@@ -217,6 +219,14 @@ def test_shading_pixels_must_divide_the_pixels():
     with pytest.raises(errors.ValidationError) as exc:
         scene_maps_recipe(resolve_scene(scene("scene", shading_pixels=3)))
     assert exc.value.field == "render.shading_pixels"
+
+
+def test_ratio_step_comes_from_the_scene_file():
+    assert scene_maps_recipe(resolve_scene(scene("scene")))["table"]["ratio_step"] == 2  # the default
+    assert scene_maps_recipe(resolve_scene(scene("scene", views=16, ratio_step=4)))["table"]["ratio_step"] == 4
+    with pytest.raises(errors.ValidationError) as exc:
+        scene_maps_recipe(resolve_scene(scene("scene", views=16, ratio_step=3)))
+    assert exc.value.field == "render.ratio_step" and exc.value.value == 3
 
 
 def test_scene_without_its_table_names_the_command():

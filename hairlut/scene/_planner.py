@@ -204,7 +204,8 @@ def _transmittance_step(scene) -> Step:
 SCENE_MEMORY_SHARE = 0.25
 #: ``[render]`` knob of each scene_maps recipe key (for error messages).
 _MAP_FIELDS = {"table.views": "render.views", "table.terms": "render.terms", "table.lights": "render.terms",
-               "table.shading_pixels": "render.shading_pixels", "table.dtype": "render.precision"}
+               "table.shading_pixels": "render.shading_pixels", "table.ratio_step": "render.ratio_step",
+               "table.dtype": "render.precision"}
 
 
 def direct_recipe(scene) -> dict:
@@ -223,8 +224,8 @@ def direct_recipe(scene) -> dict:
 
 def scene_maps_recipe(scene) -> dict:
     """The ``scene_maps`` recipe of a scene (its groom's geometry key folded in): the trace settings of
-    :func:`direct_recipe` and the table layout from ``render.views``, ``terms``, ``shading_pixels`` and
-    ``precision`` (light angles: 4·terms + 1; on Sintel the re error at 2 terms was 0.147 at 9 and 16
+    :func:`direct_recipe` and the table layout from ``render.views``, ``terms``, ``shading_pixels``,
+    ``ratio_step`` and ``precision`` (light angles: 4·terms + 1; on Sintel the re error at 2 terms was 0.147 at 9 and 16
     light angles and 0.149 at 5, ``benchmarks/scene_layouts.py``)."""
     from ..scenemaps import resolve_recipe
 
@@ -233,7 +234,8 @@ def scene_maps_recipe(scene) -> dict:
     given = {"hrir": {"sectors": {k: rec["sectors"][k] for k in ("grid", "density_scale")},
                       "trace": rec["trace"], "phong": rec["phong"]},
              "table": {"views": r["views"], "lights": 4 * r["terms"] + 1, "terms": r["terms"],
-                       "shading_pixels": r["shading_pixels"], "dtype": r["precision"]}}
+                       "shading_pixels": r["shading_pixels"], "ratio_step": r["ratio_step"],
+                       "dtype": r["precision"]}}
     try:
         return resolve_recipe(given, scene=sc)
     except errors.ValidationError as exc:

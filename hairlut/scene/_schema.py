@@ -68,8 +68,9 @@ SHADOW_KEYS = {"smap": (), "none": (), "light_oriented": ("resolution", "kappa",
 #: ``[render] method``: how the online re- and α-maps are made.
 MAP_METHODS = ("auto", "direct", "scene", "satf")
 #: The ``[render]`` knobs each map method reads (``auto`` accepts them all: the planner picks the method).
-MAP_KEYS = {"direct": ("rays",), "scene": ("rays", "views", "terms", "shading_pixels", "precision"), "satf": ()}
-MAP_KNOBS = ("rays", "views", "terms", "shading_pixels", "precision")
+MAP_KEYS = {"direct": ("rays",), "scene": ("rays", "views", "terms", "shading_pixels", "ratio_step", "precision"),
+            "satf": ()}
+MAP_KNOBS = ("rays", "views", "terms", "shading_pixels", "ratio_step", "precision")
 
 
 def _kappa(x):
@@ -97,6 +98,8 @@ SCHEMA = {
                        "scene: Fourier terms of each sector's re/α ratio in θl − θv"),
         "shading_pixels": Field(8, _I, in_range(1, 8192),
                                 "scene: pixel bins of the re/α ratio (a divisor of tables.hrir trace.pixels)"),
+        "ratio_step": Field(2, _I, in_range(1, 1024),
+                            "scene: the re/α terms are kept on every ratio_step-th view (a divisor of views)"),
         "precision": Field("float16", _S, one_of("float16", "float32"),
                            "scene: storage precision of the per-groom table"),
         "layer_reads": Field("pair", _S, one_of("pair", "track"),
