@@ -181,18 +181,26 @@ KERNELS = {
         (False, lambda: ((A(2, 2, 4, 5, 4), A(20, dtype=i32), A(20, 2), A(192, dtype=i32)), dict(slabs=(10, 6, 4))))],
     "hairlut.render._hits:hit_kernel": [
         (False, lambda: ((A(6, 3), A(6, 3), A(9, dtype=i32), A(9, dtype=i32), A(7, 3), A(7, 3), A(7), A(7), A(7), 0.0), {}))],
-    "hairlut.render._reference:shadow_kernel": [
+    "hairlut.render._light:shadow_kernel": [
         (False, lambda: ((A(2, 3), A(3), A(2, 5, dtype=i32), A(), A(7, 3), A(7, 3), A(7), A(7), A(7)), dict(depth=4)))],
     "hairlut.render._reference:camera_rays": [
         (False, lambda: ((A(2, 2, dtype=i32), A(6, 3)), dict(tile=4, ss=2, perspective=p))) for p in (True, False)],
     "hairlut.render._reference:reference_kernel": [
         (False, lambda: ((A(4, 3), A(4, 3), A(4, 5, dtype=i32), A(3), A(7, 3), A(7, 3), A(7), A(7), A(7),
-                          A(7, 2, 3), (A(4, 4, 4), A(3, 5, 4)), A(2, 4, 3), A(2)),
-                         dict(steps=3, perspective=p, shadows=True)))
+                          A(7, 2, 3), A(4, 5, 3, 2)), dict(steps=3, perspective=p)))
+        for p in (True, False)],
+    "hairlut.render._reference:step_points": [
+        (False, lambda: ((A(4, 3), A(4, 3), A(4, 5, dtype=i32), A(7, 3), A(7, 3), A(7), A(7), A(7)),
+                         dict(steps=3, perspective=p)))
         for p in (True, False)],
     # scene tables
     "hairlut.scenemaps._fetch:fetch_kernel": [
         (False, lambda: ((A(5, 4, 16), A(5, 8, 4, 5), A(3, dtype=i32), A(3), A(3, 2)), dict(shade=True)))],
+    "hairlut.scenemaps._fetch:index_kernel": [(False, lambda: ((A(3, dtype=i32), A(3)), dict(half=4, views=8)))],
+    "hairlut.scenemaps._fetch:terms_kernel": [
+        (False, lambda: ((A(5, 4, 16), A(5, 8, 4, 5), {k: A(3, dtype=i32) for k in ("ia0", "ia1", "ic0", "ic1")}
+                          | {k: A(3, dtype=bool) for k in ("mirror0", "mirror1", "live")} | {"w": A(3), "u": A(3)},
+                          A(3), A(3, 2)), {}))],
     # spherical harmonics
     "hairlut.sh._basis:real_sh_kernel": [(False, lambda: ((A(10, 3),), dict(lmax=4))),
                                          (True, lambda: ((A(10, 3, dtype=f64),), dict(lmax=4)))],
@@ -244,8 +252,7 @@ KERNELS = {
     "hairlut.synth._frame:sweep_rows": [
         (False, lambda: ((_map_index(), A(12, 2, 16), A(12, 16), A(12, 2), A(8, dtype=bool), A(8, dtype=i32)), {}))],
     "hairlut.synth._methods:scene_frame_kernel": [
-        (False, lambda: ((_map_index(neighbours=False), A(5, 4, 16), A(5, 8, 4, 5), A(12, dtype=i32), A(12), A(12, 2),
-                          A(12, 2)), {}))],
+        (False, lambda: ((_map_index(neighbours=False), A(12, 16), A(12, 2, 4), A(12, 2)), {}))],
     "hairlut.synth._frame:sweep_sectors": [
         (False, lambda: ((_map_index(neighbours=False), A(12, 16), A(12, 2, 16), A(12, 2)), {}))],
     "hairlut.synth._maps:sweep_kernel": [

@@ -162,3 +162,52 @@ def test_inside_clusters_splits_strand_length_by_where_the_sectors_see_it():
     assert sum(frac.values()) == pytest.approx(1.0)
     p = kept[0].points
     assert np.all((p[:, 1] > -0.03) & (p[:, 1] < 1.03)) and np.allclose(p[:, 0], 0.1)
+
+
+def _slab(r=0.25, h=0.2, n_z=6, half=4.0):
+    """Parallel strands along x, spaced ``h`` in y and z: n_z layers from z = 0 up, y in [−half, half]."""
+    lines = [np.stack([np.linspace(-6.0, 6.0, 7), np.full(7, y), np.full(7, k * h)], 1)
+             for k in range(n_z) for y in np.arange(-half, half + 1e-9, h)]
+    return Strands.from_list(lines, thickness=[np.full(7, 2 * r)] * len(lines))
+
+
+def test_shadow_through_a_uniform_slab_is_beer_lambert():
+    """Points under a slab of strands, light at 30° to its normal: τ = σ_t ρ L with ρ = π r²/h² the slab's mean
+    density and L = n_z h / cos 30° the path through it (the layers' Gaussians sum to a constant to e^−(π r/h)²)."""
+    from hairlut.render import light_index, point_depths
+
+    r, h, n_z, kappa = 0.25, 0.2, 6, 0.02
+    segs = segments_of(_slab(r, h, n_z), kappa)
+    theta = math.radians(30.0)
+    light = np.array([0.0, math.sin(theta), math.cos(theta)])
+    rng = np.random.default_rng(3)
+    pts = np.stack([rng.uniform(-3, 3, 40), rng.uniform(-1.5, 0.5, 40), np.full(40, -2.0)], 1)
+    tau = point_depths(light_index(segs, light), pts, segs.device())
+    expected = (kappa / r) * (math.pi * r * r / (h * h)) * (n_z * h / math.cos(theta))
+    assert 0.2 < math.exp(-expected) < 0.9
+    assert np.abs(np.exp(-tau) - math.exp(-expected)).max() < 1e-4
+    # above the slab (and beyond its tubes' cut) the light meets nothing
+    assert np.abs(point_depths(light_index(segs, light), pts + [0, 0, 4.0], segs.device())).max() < 1e-6
+
+
+def test_point_shadows_equal_the_grid_at_its_nodes():
+    """The exact per-point shadow rays (``point_depths``) against the light-aligned grid (``shadow_grid``, each
+    node column one ray integrated from every node): the same integral at every node, to float32 rounding."""
+    from hairlut.render import light_index, point_depths, shadow_grid
+
+    rng = np.random.default_rng(7)
+    lines = []
+    for _ in range(40):  # curly strands in a 2 × 2 × 2 box
+        start = rng.uniform(-1, 1, 3)
+        steps = np.cumsum(rng.normal(0, 0.15, (12, 3)) + [0.0, -0.12, 0.0], 0)
+        lines.append(np.concatenate([start[None], start + steps]))
+    strands = Strands.from_list(lines, thickness=[np.full(13, 0.08)] * len(lines))
+    segs = segments_of(strands, 2 / math.pi)
+    light = np.array([0.3, 0.8, 0.4])
+    grid, origin, axes = shadow_grid(segs, light, 0.05)
+    idx = np.stack([rng.integers(0, n, 3000) for n in grid.shape], 1)
+    pts = origin + 0.05 * idx @ axes
+    tau = point_depths(light_index(segs, light), pts, segs.device())
+    g = grid[idx[:, 0], idx[:, 1], idx[:, 2]]
+    assert g.max() > 1.0 and (g > 0.01).mean() > 0.1  # the nodes see real shadow
+    assert np.abs(tau - g).max() < 1e-4 * max(1.0, g.max())

@@ -67,20 +67,28 @@ def near_pairs(o, d, count: np.ndarray, cand: np.ndarray, per_tile: int, dev: tu
         tile = np.repeat(np.arange(t0, t1, dtype=np.int32), b)
         q = np.arange(int(b.sum()), dtype=np.int32) - np.repeat(np.cumsum(b, dtype=np.int32) - b, b)
         r, j = np.divmod(q, count[tile])
-        ray = tile * np.int32(per_tile) + r
-        seg = cand[first[tile] + j].astype(np.int32)
-        for s in range(0, len(ray), PAIRS):
-            rr, gg = ray[s:s + PAIRS], seg[s:s + PAIRS]
-            pad = PAIRS - len(rr)
-            if pad:
-                rr, gg = np.concatenate([rr, np.zeros(pad, np.int32)]), np.concatenate([gg, np.full(pad, -1, np.int32)])
-            keep = np.flatnonzero(np.asarray(hit_kernel(o, d, rr, gg, *dev, s_lo))[:len(ray) - s])
-            rays.append(rr[keep])
-            segs.append(gg[keep])
+        kept = keep_near(o, d, tile * np.int32(per_tile) + r, cand[first[tile] + j].astype(np.int32), dev, s_lo)
+        rays.append(kept[0])
+        segs.append(kept[1])
         t0 = t1
     if not rays:
         return np.zeros(0, np.int32), np.zeros(0, np.int32), 0
     return np.concatenate(rays), np.concatenate(segs), total
+
+
+def keep_near(o, d, ray: np.ndarray, seg: np.ndarray, dev: tuple, s_lo: float) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs (``ray``, ``seg``) (int32, (P,)) of rays ``o``, ``d`` (R, 3) that can gather optical depth
+    (:func:`hit_kernel`, ``PAIRS`` at a time), in their order."""
+    rays, segs = [np.zeros(0, np.int32)], [np.zeros(0, np.int32)]
+    for s in range(0, len(ray), PAIRS):
+        rr, gg = ray[s:s + PAIRS], seg[s:s + PAIRS]
+        pad = PAIRS - len(rr)
+        if pad:
+            rr, gg = np.concatenate([rr, np.zeros(pad, np.int32)]), np.concatenate([gg, np.full(pad, -1, np.int32)])
+        keep = np.flatnonzero(np.asarray(hit_kernel(o, d, rr, gg, *dev, s_lo))[:len(ray) - s])
+        rays.append(rr[keep])
+        segs.append(gg[keep])
+    return np.concatenate(rays), np.concatenate(segs)
 
 
 def _width(count: np.ndarray) -> np.ndarray:

@@ -30,9 +30,10 @@ def _bucket_width(n: int, least: int = 8) -> int:
     return 1 << (max(int(n), least) - 1).bit_length()
 
 
-def bin_boxes(x0, x1, y0, y1, shape: tuple[int, int], tile: int) -> list[Bucket]:
-    """Buckets of (tile, candidate primitives) for boxes [x0, x1] × [y0, y1] in pixel units on a frame of
-    ``shape`` = (w, h) pixels cut into ``tile`` × ``tile`` tiles; boxes wholly off the frame are dropped."""
+def bin_sorted(x0, x1, y0, y1, shape: tuple[int, int], tile: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every (tile, primitive) overlap of boxes [x0, x1] × [y0, y1] (pixel units) on a frame of ``shape`` = (w, h)
+    pixels cut into ``tile`` × ``tile`` tiles, boxes wholly off the frame dropped: (tile ids ty·nx + tx, primitive
+    indices), both (E,), sorted by tile id (stably: primitives in index order within a tile)."""
     w, h = shape
     nx, ny = -(-w // tile), -(-h // tile)
     x0, x1, y0, y1 = (np.asarray(a, np.float64) for a in (x0, x1, y0, y1))
@@ -44,15 +45,20 @@ def bin_boxes(x0, x1, y0, y1, shape: tuple[int, int], tile: int) -> list[Bucket]
     ty1 = np.clip(np.floor(y1[prim] / tile), 0, ny - 1).astype(np.int64)
     cw, ch = tx1 - tx0 + 1, ty1 - ty0 + 1
     count = cw * ch
-    if count.sum() == 0:
-        return []
     owner = np.repeat(np.arange(prim.size), count)
     k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    tx = tx0[owner] + k % cw[owner]
-    ty = ty0[owner] + k // cw[owner]
-    tile_id = ty * nx + tx
+    tile_id = (ty0[owner] + k // cw[owner]) * nx + tx0[owner] + k % cw[owner]
     order = np.argsort(tile_id, kind="stable")
-    tile_id, cand = tile_id[order], prim[owner[order]]
+    return tile_id[order], prim[owner[order]]
+
+
+def bin_boxes(x0, x1, y0, y1, shape: tuple[int, int], tile: int) -> list[Bucket]:
+    """Buckets of (tile, candidate primitives) for boxes [x0, x1] × [y0, y1] in pixel units on a frame of
+    ``shape`` = (w, h) pixels cut into ``tile`` × ``tile`` tiles; boxes wholly off the frame are dropped."""
+    nx = -(-shape[0] // tile)
+    tile_id, cand = bin_sorted(x0, x1, y0, y1, shape, tile)
+    if tile_id.size == 0:
+        return []
     ids, start, n = np.unique(tile_id, return_index=True, return_counts=True)
     widths = np.array([_bucket_width(c) for c in n])
     out = []
