@@ -66,7 +66,13 @@ def demo_cmd(out_dir, scenes, cache_root, no_progress, as_json):
             click.echo(f"  camera {w} x {h}: layered ({lay['map_method']} maps) frame {1e3 * lay['seconds']['raster']:.0f} ms "
                        f"+ maps {1e3 * lay['seconds']['maps']:.0f} ms; reference level {ref['level']} "
                        f"({ref['samples_per_pixel']} spp, {ref['steps_per_crossing']} steps per crossing; a fixed level, "
-                       f"not checked for convergence, environment {ref['environment']}) {ref['seconds']['frame']:.1f} s")
+                       f"not converged, environment {ref['environment']}) {ref['seconds']['frame']:.1f} s")
+            pr = ref.get("convergence_probe")
+            if pr:
+                ch = pr["change_to_next"]
+                click.echo(f"  reference level {pr['level']} -> {pr['next_level']} at {pr['resolution'][0]} x "
+                           f"{pr['resolution'][1]} (same camera): RGB RMSE {ch['rgb_rmse']:.4f}, alpha RMSE "
+                           f"{ch['alpha_rmse']:.4f} ({pr['cpu_seconds']:.1f} CPU-s)")
             click.echo(f"  layered vs reference: FLIP {f['flip_mean']:.3f}, mean-alpha bias {f['alpha_bias']:+.4f} "
                        f"({f['alpha_bias_relative']:+.1%}), RGB RMSE {f['rgb_rmse']:.4f}, 8x8 RGB RMSE {f['rgb_rmse_8x8']:.4f}")
             click.echo(f"  side by side (layered | reference | FLIP): {cam['files']['side_by_side']}")

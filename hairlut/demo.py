@@ -6,7 +6,8 @@ For each scene file: :func:`hairlut.plan.plan` decides what it needs and why,
 blending, and the environment light through the SH tables with voxel SH self-shadowing
 when the scene has one), and the EXR/PNG outputs land in ``out_dir/<scene>/``.  A scene with a
 groom is also rendered through its camera with the layered model and with the strand reference
-(``hairlut.render.layered_vs_reference``, at :data:`REFERENCE_LEVEL`), side by side with the FLIP map
+(``hairlut.render.layered_vs_reference``, at :data:`REFERENCE_LEVEL`, with that level's change to the next
+measured at :data:`PROBE_SIZE` pixels and stored in reference.exr), side by side with the FLIP map
 in ``out_dir/<scene>/camera/side_by_side.png``.  The
 report keeps the plan, what was baked or reused, the times and accuracy figures: the
 SATF lookup's self-check at stored records, the SH tables' Chebyshev tail and specular
@@ -25,8 +26,12 @@ from .assets import write_exr
 from .envlight import SKY, sky_radiance
 
 #: The strand reference's level in the demo (2^ℓ × 2^ℓ samples per pixel, 2^(ℓ+1) steps per crossing): a fixed,
-#: stated level, not the converged one, to keep the demo's run time reasonable on a 2-core CPU.
+#: stated level, not the converged one, to keep the demo's run time reasonable on a 2-core CPU (at 768 × 768 on
+#: Sintel each level costs about 8× the one before).  How far it is from converged is measured beside it
+#: (:func:`reference_probe`) and stored in reference.exr.
 REFERENCE_LEVEL = 0
+#: The frame's longer side at which :func:`reference_probe` renders the demo's level and the next one.
+PROBE_SIZE = 128
 
 
 def sky(height: int = 128) -> dict[str, np.ndarray]:
@@ -53,6 +58,24 @@ def _sh_figures(path) -> dict:
         return {k: float(f.attrs[k]) for k in keys if k in f.attrs}
 
 
+def reference_probe(scene, level: int = REFERENCE_LEVEL, size: int = PROBE_SIZE) -> dict:
+    """How far the strand reference's ``level`` is from converged: the scene's camera (same framing) at ``size``
+    pixels on its longer side, rendered at ``level`` and ``level`` + 1 (``hairlut.render.render_reference``), and
+    the change between them (RMSE of premultiplied RGB and of α: what a convergence bound is compared with)."""
+    from .render import render_reference, scene_strands
+    from .scene import make_camera
+
+    cfg = scene.config["camera"]
+    w, h = cfg["resolution"]
+    small = [size, max(1, round(size * h / w))] if w >= h else [max(1, round(size * w / h)), size]
+    strands = scene_strands(scene)
+    cam = make_camera({**cfg, "resolution": small}, np.concatenate([s.points for s in strands]))
+    t0 = time.process_time()
+    f = render_reference(scene, cam, levels=[level, level + 1], strands=strands)
+    return {"level": level, "next_level": level + 1, "resolution": small,
+            "change_to_next": f.info["levels"][-1]["change_from_previous"], "cpu_seconds": time.process_time() - t0}
+
+
 def run_scene(scene_path, out_dir, cache_root=None, progress=None) -> dict:
     """Plan, bake (through the cache) and synthesise one scene; its report."""
     from .scene import bake, plan
@@ -72,9 +95,11 @@ def run_scene(scene_path, out_dir, cache_root=None, progress=None) -> dict:
     if p.scene.groom_path is not None:  # a real groom: the layered model beside its strand reference
         from .render import layered_vs_reference
 
+        probe = reference_probe(p.scene)
         camera = layered_vs_reference(p.scene, Path(out_dir) / "camera", db=assets.get("hrir_db", {}).get("path"),
                                       sh=assets.get("sh_tables", {}).get("path"),
-                                      maps=assets.get("scene_maps", {}).get("path"), level=REFERENCE_LEVEL)
+                                      maps=assets.get("scene_maps", {}).get("path"), level=REFERENCE_LEVEL,
+                                      reference_info={"convergence_probe": probe})
     accuracy = {"hrir_query_self_check": _hrir_self_check(assets["hrir_db"]["path"])} if "hrir_db" in assets else {}
     if "sh_tables" in assets:
         accuracy.update(_sh_figures(assets["sh_tables"]["path"]))

@@ -211,3 +211,26 @@ def test_point_shadows_equal_the_grid_at_its_nodes():
     g = grid[idx[:, 0], idx[:, 1], idx[:, 2]]
     assert g.max() > 1.0 and (g > 0.01).mean() > 0.1  # the nodes see real shadow
     assert np.abs(tau - g).max() < 1e-4 * max(1.0, g.max())
+
+
+def test_demo_probe_is_the_change_between_the_two_levels():
+    """The demo states how far its reference level is from the next (``hairlut.demo.reference_probe``): the same
+    camera at a smaller size, with the aspect kept; the change is the RMSE between the two levels rendered apart."""
+    import tomllib
+
+    from hairlut.demo import reference_probe
+    from hairlut.render import render_reference, scene_strands
+    from hairlut.scene import make_camera, resolve_scene
+    from tests.test_render_layered import TINY
+
+    cfg = tomllib.loads(TINY.replace("radius = 0.006", "radius = 0.025"))
+    cfg["shadows"] = {"method": "none"}
+    sc = resolve_scene(cfg, None)
+    pr = reference_probe(sc, level=0, size=24)
+    assert pr["resolution"] == [24, 20] and pr["next_level"] == 1
+    pts = np.concatenate([s.points for s in scene_strands(sc)])
+    cam = make_camera({**sc.config["camera"], "resolution": [24, 20]}, pts)
+    a, b = (render_reference(sc, cam, levels=[lv]).rgba for lv in (0, 1))
+    assert pr["change_to_next"]["alpha_rmse"] == pytest.approx(np.sqrt(np.mean((a[..., 3] - b[..., 3]) ** 2)), rel=1e-5)
+    assert pr["change_to_next"]["rgb_rmse"] == pytest.approx(np.sqrt(np.mean((a[..., :3] - b[..., :3]) ** 2)), rel=1e-5)
+    assert pr["change_to_next"]["alpha_rmse"] > 1e-4  # the levels differ: the test can see a wrong pair

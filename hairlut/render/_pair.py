@@ -32,10 +32,11 @@ def panels(*images8, gap: int = GAP) -> np.ndarray:
 
 
 def layered_vs_reference(scene, out_dir, *, db=None, sh=None, maps=None, level: int | None = None,
-                         bound: float = BOUND, max_level: int = 3, prepared=None) -> dict:
+                         bound: float = BOUND, max_level: int = 3, prepared=None, reference_info=None) -> dict:
     """Render ``scene`` with the layered model and with the strand reference (converged to ``bound``, or exactly
     ``level`` when given: no convergence claim), write ``layered.exr``, ``reference.exr``, ``flip.png`` and
-    ``side_by_side.png`` (layered | reference | FLIP) under ``out_dir``; returns the figures, times and paths."""
+    ``side_by_side.png`` (layered | reference | FLIP) under ``out_dir``; returns the figures, times and paths.
+    ``reference_info``: entries added to the reference's info (stored in reference.exr and returned)."""
     from ..scene import as_scene
 
     sc = as_scene(scene) if prepared is None else prepared.scene
@@ -47,6 +48,7 @@ def layered_vs_reference(scene, out_dir, *, db=None, sh=None, maps=None, level: 
     ref = (render_reference(sc, lay.camera, levels=[level]) if level is not None else
            render_reference(sc, lay.camera, bound=bound, max_level=max_level))
     t2 = time.perf_counter()
+    ref.info.update(reference_info or {})
     figures, heat = compare(lay, ref)
     files = {"layered": write_frame(lay, out / "layered.exr")["exr"], "reference": write_frame(ref, out / "reference.exr")["exr"]}
     heat8 = np.round(np.clip(heat, 0, 1) * 255).astype(np.uint8)
@@ -60,4 +62,5 @@ def layered_vs_reference(scene, out_dir, *, db=None, sh=None, maps=None, level: 
             "reference": {"level": last["level"], "samples_per_pixel": last.get("samples_per_pixel"),
                           "steps_per_crossing": last.get("steps_per_crossing"), "converged": ref.info["converged"],
                           "bound": ref.info["bound"], "change_from_previous": last.get("change_from_previous"),
-                          "environment": ref.info.get("environment"), "seconds": ref.info["seconds"], "wall_s": t2 - t1}}
+                          "environment": ref.info.get("environment"), "seconds": ref.info["seconds"], "wall_s": t2 - t1,
+                          **(reference_info or {})}}
