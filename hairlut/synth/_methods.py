@@ -51,25 +51,28 @@ class MapSource:
                                            np.asarray(tl, np.float64), self.recipe)
             alpha, re = jnp.asarray(alpha), jnp.asarray(re)
         else:
-            re_map, a_map = scene_frame_kernel(ix, *self.device, tv, tl, cs)
+            from ..scenemaps import index_kernel, terms_kernel
+
+            alpha_t, ratio_t, row = self.device
+            index = index_kernel(row, tv, half=alpha_t.shape[1], views=ratio_t.shape[1])
+            re_map, a_map = scene_frame_kernel(ix, *terms_kernel(alpha_t, ratio_t, index, tv, tl), cs)
             return re_map, a_map, np.zeros(int(np.prod(ix.grid)), bool)
         re_map, a_map = sweep_sectors(ix, alpha, re, cs)
         return re_map, a_map, np.zeros(int(np.prod(ix.grid)), bool)
 
 
 @jax.jit
-def scene_frame_kernel(ix: MapIndex, alpha_t, ratio_t, row, tv, tl, cs):
-    """The ``scene`` method's maps in one kernel: every sector's α (S, P) and re/α ratio ρ (S, Lt, Q)
-    read from its table row at its exact angles (``hairlut.scenemaps.fetch_terms``), then eq 7 per
-    texel as :func:`~hairlut.synth.sweep_sectors` (the HSV's top sector at x⊤, with weight γ its bottom
-    sector at x⊥, linear in the pixel), sampling re = α ρ at the two pixels it interpolates instead
-    of a materialised (S, Lt, P) re row: the same numbers as ``sweep_sectors(fetch_kernel(...))``
-    (each sampled re is the same float32 product α(p) ρ(⌊pQ/P⌋)), without writing and re-reading
-    the rows or concatenating the HSVs' two sectors.  ``tv`` (S,), ``tl`` (S, Lt), ``cs`` (S, 2)
-    from :func:`params_kernel`; re (C, K, Lt, n_t, n_u), α (C, K, n_t, n_u)."""
-    from ..scenemaps import fetch_terms
-
-    alpha, ratio = fetch_terms(alpha_t, ratio_t, row, tv, tl)
+def scene_frame_kernel(ix: MapIndex, alpha, ratio, cs):
+    """The ``scene`` method's eq 7 from every sector's α (S, P) and re/α ratio ρ (S, Lt, Q), read from its
+    table row at its exact angles (``hairlut.scenemaps.index_kernel`` then ``terms_kernel``: separate
+    kernels, because fused into this one XLA:CPU recomputes the rows' gathers and index arithmetic per
+    texel; the paper-scale frame measured 44 → 27 CPU-ms on 2 cores).  Per texel as
+    :func:`~hairlut.synth.sweep_sectors` (the HSV's top sector at x⊤, with weight γ its bottom sector at
+    x⊥, linear in the pixel), sampling re = α ρ at the two pixels it interpolates instead of a
+    materialised (S, Lt, P) re row: the same numbers as ``sweep_sectors(fetch_kernel(...))`` (each
+    sampled re is the same float32 product α(p) ρ(⌊pQ/P⌋)), without writing and re-reading the rows or
+    concatenating the HSVs' two sectors.  ``cs`` (S, 2) from :func:`params_kernel`;
+    re (C, K, Lt, n_t, n_u), α (C, K, n_t, n_u)."""
     (S, P), (Lt, Q) = alpha.shape, ratio.shape[1:]
     top, bot = (_texels(ix, x) for x in _split(ix, jnp.arange(S, dtype=jnp.int32)))
     c1, c2 = (_texels(ix, x) for x in _split(ix, cs))
