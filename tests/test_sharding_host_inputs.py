@@ -92,3 +92,24 @@ def test_sample_block_draws_each_sector_from_its_own_seed():
         np.testing.assert_array_equal(getattr(splats, f), ref_splats[f], err_msg=f)
     for k, v in params.items():
         np.testing.assert_array_equal(v, ref_params[k], err_msg=k)
+
+
+def test_storage_error_in_float32_is_the_float64_one():
+    """The float16 rounding error of float32 data, differenced in float32 (write_shard's host work), equals the
+    float64 difference on every value: random, float16-subnormal, tiny, near and past float16's largest."""
+    from hairlut.hrir._io import storage_errors
+
+    rng = np.random.default_rng(4)
+    f16 = np.finfo(np.float16)
+    pools = [rng.random(5000), rng.random(5000) * 6e-5, rng.random(5000) * 1e-7, 65504 - rng.random(5000) * 40,
+             np.array([0.0, 1e-45, 2.0**-25, 2.0**-24 * 1.5, float(f16.max), float(f16.max) + 15.0, 65519.99])]
+    recipe = {"storage": {"dtype": "float16"}}
+    for pool in pools:
+        x = (pool * rng.choice([-1.0, 1.0], pool.size)).astype(np.float32)
+        for i in range(0, x.size, 997):
+            part = x[i:i + 997]
+            got = storage_errors(recipe, {"alpha": part, "reflectance": part[::-1].copy()})
+            ref = float(np.max(np.abs(part.astype(np.float16).astype(np.float64) - part)))
+            assert got["alpha"] == ref and got["reflectance"] == ref
+    with np.errstate(over="ignore"):  # past float16's range: an infinite error either way
+        assert storage_errors(recipe, {"alpha": np.float32([7e4]), "reflectance": np.float32([1.0])})["alpha"] == np.inf

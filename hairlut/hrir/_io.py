@@ -83,9 +83,9 @@ def _axes(recipe: dict, n: int, *, sector0: int = 0) -> list[Axis]:
 def _per_sector(data: dict, dtype) -> list[Variable]:
     n, V, L, P = data["reflectance"].shape
     out = [
-        Variable("alpha", data["alpha"].astype(dtype), ("sector", "theta_v", "pixel"), "1",
+        Variable("alpha", data["alpha"].astype(dtype, copy=False), ("sector", "theta_v", "pixel"), "1",
                  "accumulated opacity (eq 5), Gaussian-smoothed", chunks=(min(n, 16), V, P)),
-        Variable("reflectance", data["reflectance"].astype(dtype), ("sector", "theta_v", "theta_l", "pixel"), "1",
+        Variable("reflectance", data["reflectance"].astype(dtype, copy=False), ("sector", "theta_v", "theta_l", "pixel"), "1",
                  "accumulated reflectance (eq 5, alpha-premultiplied), Gaussian-smoothed", chunks=(1, V, L, P)),
         Variable("density", data["density"].astype(np.float32), ("sector", "s", "r"), "1",
                  "sector density grid (area fraction times density_scale)", chunks=(min(n, 64), *data["density"].shape[1:])),
@@ -96,10 +96,19 @@ def _per_sector(data: dict, dtype) -> list[Variable]:
     return out
 
 
-def storage_errors(recipe: dict, data: dict) -> dict:
-    """The largest absolute error the recipe's storage dtype adds to the float32 α and reflectance."""
+def storage_errors(recipe: dict, data: dict, stored: dict | None = None) -> dict:
+    """The largest absolute error the recipe's storage dtype adds to the float32 α and reflectance (``stored``: the
+    tables already cast).  A float32 value less its float16 rounding is exact in float32 (Sterbenz; 0 and ±inf
+    aside), so float32 data is differenced in float32: the same maxima as in float64, a third of the host's time."""
     dtype = np.dtype(recipe["storage"]["dtype"])
-    return {k: float(np.max(np.abs(data[k].astype(dtype).astype(np.float64) - data[k]))) for k in ("alpha", "reflectance")}
+    stored = stored or {}
+    out = {}
+    for k in ("alpha", "reflectance"):
+        x = data[k]
+        cast = stored[k] if k in stored else x.astype(dtype)
+        wide = np.float32 if x.dtype == np.float32 else np.float64
+        out[k] = float(np.max(np.abs(cast.astype(wide) - x)))
+    return out
 
 
 def write_shard(path, recipe: dict, data: dict, start: int, total: int, epoch: int | None = None,
@@ -108,10 +117,11 @@ def write_shard(path, recipe: dict, data: dict, start: int, total: int, epoch: i
 
     ``errors_``: the storage errors of data already cast (else measured here from float32 data)."""
     n = len(data["alpha"])
-    err = storage_errors(recipe, data) if errors_ is None else errors_
+    dtype = np.dtype(recipe["storage"]["dtype"])
+    stored = {k: data[k].astype(dtype, copy=False) for k in ("alpha", "reflectance")}  # cast once
+    err = storage_errors(recipe, data, stored) if errors_ is None else errors_
     with _source_date(epoch):
-        return write_table(path, SHARD_KIND, recipe, _axes(recipe, n, sector0=start),
-                           _per_sector(data, np.dtype(recipe["storage"]["dtype"])),
+        return write_table(path, SHARD_KIND, recipe, _axes(recipe, n, sector0=start), _per_sector({**data, **stored}, dtype),
                            attrs={"sector_start": np.int64(start), "sector_stop": np.int64(start + n),
                                   "sector_total": np.int64(total),
                                   "storage_max_abs_error_alpha": err["alpha"],
@@ -154,6 +164,11 @@ def _row_areas(data: dict, n_s: int, n_r: int) -> np.ndarray:
     return (col["aspect"] * col["du"])[:, None] / n_s * 0.5 * np.diff(edges**2, axis=1)
 
 
+#: Sectors per feature chunk: the index's features are computed in chunks aligned at multiples of this (of fewer for a
+#: smaller database), so a process computes its own parts' features bit for bit as the whole (``_parts.part_features``).
+FEATURE_CHUNK = 256
+
+
 def _index(recipe: dict, data: dict, n: int) -> tuple[list[Axis], list[Variable], dict]:
     """The whole-database part of an ``hrir_db``: axes, the feature index (satf §5.2) and root attributes."""
     n_s, n_r = recipe["sectors"]["grid"]
@@ -169,7 +184,8 @@ def _index(recipe: dict, data: dict, n: int) -> tuple[list[Axis], list[Variable]
                           "principal components of the projection profiles (zero rows pad a small database)")]
         extra_attrs = {"projection": json.dumps(projection_settings(recipe))}
     else:
-        feats = sector_features(data["density"], _row_areas(data, n_s, n_r), names)
+        feats = data["features"] if "features" in data else sector_features(
+            data["density"], _row_areas(data, n_s, n_r), names, chunk=FEATURE_CHUNK)
         if n >= 2:
             stats = FeatureStats.fit(feats, names)
         else:
