@@ -1,6 +1,7 @@
 """Light-oriented shadow map (bertails §2–3) against a per-vertex NumPy ray march.
 
     python benchmarks/light_oriented.py [--resolutions 32 64 128] [--reference 256] [--kappa 0.05] [--quick]
+    python benchmarks/light_oriented.py --footprints [64 128 256 512 1024]
 
 On the Sintel groom (tables/grooms/sintel_lite.tfx), for each resolution N:
 - hairlut: ``light_oriented_map`` (jitted, float64: density + transmittance in the light
@@ -11,6 +12,10 @@ On the Sintel groom (tables/grooms/sintel_lite.tfx), for each resolution N:
 Errors are max and RMS |ΔT| over the vertices against the NumPy ray march at ``--reference``
 cells (step a quarter cell).  "vs NumPy" is hairlut against the baseline at the same N.
 The storage lines give the error that float32 / float16 storage of the transmittance grid adds.
+
+``--footprints``: instead, the ``shadows`` bench part's maps against its strand-level reference at
+footprints σ = extent / d (``hairlut.bench.footprint_study``): RMS and mean signed ΔT per map and σ,
+and the reference's τ split into each point's own strand and the others; writes light_footprints.json.
 
 The measurements are ``hairlut.bench.light_oriented_study``; this script prints them and writes
 benchmarks/results/light_oriented.json.
@@ -25,7 +30,20 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import save, table  # noqa: E402
 
-from hairlut.bench import light_oriented_study  # noqa: E402
+from hairlut.bench import footprint_study, light_oriented_study  # noqa: E402
+
+
+def footprints(divisors) -> None:
+    d = footprint_study(divisors)
+    print(f"{d['groom']}: {d['points']} vertices (every second), κ = {d['kappa']}; RMS |ΔT| (mean signed ΔT) "
+          f"against the strand-level reference at σ = extent / d, extent {d['extent']:.3g}\n")
+    rows = [{"map": k, "cell": f"extent/{d['extent'] / r['cell']:.0f}",
+             **{f"d{x}": f"{e:.4f} ({b:+.3f})" for x, e, b in zip(d["divisors"], r["rms"], r["bias"])}}
+            for k, r in d["maps"].items()]
+    print(table(rows, [("map", "map", "s"), ("cell", "cell", "s"), *[(f"d{x}", f"σ = 1/{x}", "s") for x in d["divisors"]]]))
+    print("\nreference mean τ = −ln T, own strand / other strands: "
+          + "; ".join(f"1/{x}: {o:.3f} / {r:.3f}" for x, o, r in zip(d["divisors"], d["tau_own"], d["tau_others"])))
+    print(f"\nwrote {save('light_footprints', d)}")
 
 
 def main(argv=None) -> None:
@@ -34,7 +52,11 @@ def main(argv=None) -> None:
     ap.add_argument("--reference", type=int, default=256)
     ap.add_argument("--kappa", type=float, default=0.05, help="fibre blocking width (scene units)")
     ap.add_argument("--quick", action="store_true", help="resolutions 32 64, reference 128")
+    ap.add_argument("--footprints", type=int, nargs="*", metavar="D",
+                    help="the shadows part's maps against the strand reference at σ = extent / D (default 64 … 1024)")
     args = ap.parse_args(argv)
+    if args.footprints is not None:
+        return footprints(args.footprints or [64, 128, 256, 512, 1024])
     if args.quick:
         args.resolutions, args.reference = [32, 64], 128
     d = light_oriented_study(args.resolutions, args.reference, args.kappa)

@@ -63,3 +63,15 @@ def test_a_maps_footprint_is_half_its_cell(res):
     rms = {c: np.sqrt(np.mean((t - strand_transmittance(strands, LIGHT, pts, KAPPA, c * m.spacing)) ** 2))
            for c in (0.25, 0.5, 1.0)}
     assert rms[0.5] < 0.8 * min(rms[0.25], rms[1.0]), rms
+
+
+def test_footprint_study_finer_maps_rank_better_against_a_narrower_beam():
+    """The check behind the part's footprint: against σ = extent/256 the 128-cell map beats the 64-cell one,
+    against extent/128 the reverse; a point's own strand's share of τ doubles as σ halves, the others' holds."""
+    from hairlut.bench import footprint_study
+
+    d = footprint_study((128, 256), every=8)
+    lo64, lo128 = d["maps"]["light-oriented map, 64 cells"]["rms"], d["maps"]["light-oriented map, 128 cells"]["rms"]
+    assert lo64[0] < lo128[0] and lo128[1] < lo64[1], (lo64, lo128)
+    assert 1.7 < d["tau_own"][1] / d["tau_own"][0] < 2.3, d["tau_own"]
+    assert abs(d["tau_others"][1] / d["tau_others"][0] - 1) < 0.1, d["tau_others"]

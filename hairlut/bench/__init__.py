@@ -43,6 +43,7 @@ PARTS: dict[str, Part] = {p.name: p for p in (
 _LAZY = {"dense_radiance": "_sh", "hrir_bake_study": "_hrir", "radiance_inputs": "_sh",
          "strand_transmittance": "_shadows", "light_oriented_study": "_shadow_studies",
          "opacity_maps_study": "_shadow_studies", "numpy_opacity_maps": "_shadow_studies",
+         "footprint_study": "_shadow_studies",
          "needed_only_bake": "_plan", "full_bake": "_plan", "database_coverage": "_plan", "demo_runs": "_plan"}
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

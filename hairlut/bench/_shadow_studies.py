@@ -166,3 +166,36 @@ def opacity_maps_study(kappa: float = 0.05, quick: bool = False) -> dict:
                      "max_cross": float(np.abs(dx).max()), "mean_tau": float(tau_j.mean())})
     return {**_header(strands, OSM_LIGHT, kappa), "reference": {"n_slices": ref_setting[0], "resolution": ref_setting[1]},
             "quick": quick, "repeat": repeat, "rows": rows}
+
+
+def footprint_study(divisors=(64, 128, 256, 512, 1024), every: int = 2) -> dict:
+    """The shadows part's maps (its full sweep of light-oriented cells and opacity-map settings) against the
+    strand-level reference at footprints σ = extent / d for each d of ``divisors``, at every ``every``-th
+    vertex: RMS and mean signed ΔT per map and footprint, each map's cell, and the reference's mean
+    τ = −ln T split into the points' own strands and the others (``strand_transmittance(exclude=)``)."""
+    from hairlut.geometry import read_strands
+    from hairlut.shadows import light_frame, light_oriented_map, opacity_shadow_maps
+
+    from ._shadows import KAPPA, LOM_CELLS, OSM_SETTINGS, strand_transmittance
+
+    strands = read_strands(GROOM)
+    pts = np.asarray(strands.points, np.float64)[::every]
+    owner = np.repeat(np.arange(strands.n_strands), np.asarray(strands.counts))[::every]
+    span = float(np.ptp(np.asarray(strands.points, np.float64) @ light_frame(LIGHT).T, axis=0).max())
+    maps = {f"light-oriented map, {n} cells": light_oriented_map(strands, LIGHT, resolution=n, kappa=KAPPA)
+            for n in LOM_CELLS}
+    maps.update({f"opacity maps, {s} slices × {n}": opacity_shadow_maps(strands, LIGHT, n_slices=s, resolution=n,
+                                                                         kappa=KAPPA, width=1.0) for s, n in OSM_SETTINGS})
+    got = {k: m.at(pts) for k, m in maps.items()}
+    rows = {k: {"cell": float(m.spacing), "rms": [], "bias": []} for k, m in maps.items()}
+    own, others = [], []
+    for d in divisors:
+        ref = strand_transmittance(strands, LIGHT, pts, KAPPA, span / d)
+        rest = strand_transmittance(strands, LIGHT, pts, KAPPA, span / d, exclude=owner)
+        own.append(float(np.mean(np.log(rest) - np.log(ref))))
+        others.append(float(np.mean(-np.log(rest))))
+        for k, t in got.items():
+            rows[k]["rms"].append(_rms(t - ref))
+            rows[k]["bias"].append(float(np.mean(t - ref)))
+    return {**_header(strands, LIGHT, KAPPA), "points": len(pts), "extent": span, "divisors": list(divisors),
+            "tau_own": own, "tau_others": others, "maps": rows}

@@ -44,6 +44,9 @@ KAPPA = 0.05
 #: The reference's footprint σ is the hair's extent across the light over FOOTPRINT: half the cell of the
 #: paper's 128-cell light-oriented map (a cell's box deposit and trilinear lookup have standard deviation ds/2).
 FOOTPRINT = 256
+#: The full sweep's light-oriented map cells and opacity-map (slices, texels).
+LOM_CELLS = (16, 32, 64, 128, 256)
+OSM_SETTINGS = ((8, 32), (16, 64), (32, 128), (64, 128), (64, 256))
 
 
 def strand_transmittance(strands, light, points, kappa: float, sigma: float, *, exclude=None) -> np.ndarray:
@@ -143,7 +146,7 @@ def run(ctx: Context) -> list[Figure]:
     for res in (base_res,) if ctx.quick else (32, 64):
         sec, t = timed(lambda: ray_march(pts, LIGHT, KAPPA, strands, res), repeat=1 if ctx.quick else 2)
         add(f"NumPy ray march, {res} cells", sec, t, {"cells": res}, voxelize(strands, res).size, baseline=res == base_res)
-    for res in (32, 64, 128) if ctx.quick else (16, 32, 64, 128, 256):
+    for res in (32, 64, 128) if ctx.quick else LOM_CELLS:
         light_oriented_map(strands, LIGHT, resolution=res, kappa=KAPPA).at(pts)  # compile
         sec, t = timed(lambda: light_oriented_map(strands, LIGHT, resolution=res, kappa=KAPPA).at(pts), repeat=3)
         m = light_oriented_map(strands, LIGHT, resolution=res, kappa=KAPPA)
@@ -151,7 +154,7 @@ def run(ctx: Context) -> list[Figure]:
         if res == 128:
             figs.append(Figure(PART, TABLE, "light-oriented map, 128 cells, stored as float16", None,
                                _err(stored(m, np.float16).at(pts), ref), name, {"cells": res, "storage": "float16"}))
-    for slices, res in [(8, 32), (16, 64)] if ctx.quick else [(8, 32), (16, 64), (32, 128), (64, 128), (64, 256)]:
+    for slices, res in OSM_SETTINGS[:2] if ctx.quick else OSM_SETTINGS:
         opacity_shadow_maps(strands, LIGHT, n_slices=slices, resolution=res, kappa=KAPPA, width=1.0).at(pts)
         sec, t = timed(lambda: opacity_shadow_maps(strands, LIGHT, n_slices=slices, resolution=res, kappa=KAPPA,
                                                    width=1.0).at(pts), repeat=3)
