@@ -15,7 +15,7 @@ def unavailable() -> str | None:
 
 
 def run(ctx: Context) -> list[Figure]:
-    args = (["--sectors", "16", "--repeat", "1", "--sizes", "64", "--blocks", "4,16"] if ctx.quick else
+    args = (["--sectors", "16", "--repeat", "1", "--sizes", "64", "--blocks", "4,16", "--no-projection"] if ctx.quick else
             ["--sectors", "64", "--repeat", "2", "--sizes", "256", "--blocks", "4,16,64"])
     doc = run_script("scaling.py", args, ctx.workdir / "scaling.json", timeout=900 if ctx.quick else 1500)
     figs = []
