@@ -252,7 +252,8 @@ KERNELS = {
     "hairlut.synth._frame:sweep_rows": [
         (False, lambda: ((_map_index(), A(12, 2, 16), A(12, 16), A(12, 2), A(8, dtype=bool), A(8, dtype=i32)), {}))],
     "hairlut.synth._methods:scene_frame_kernel": [
-        (False, lambda: ((_map_index(neighbours=False), A(12, 16), A(12, 2, 4), A(12, 2)), {}))],
+        (False, lambda: ((_map_index(neighbours=False), A(12, 16), A(12, 2, 4), A(12, 2), A(1, 2, 4, 4, dtype=i32),
+                          A(1, 2, 4, 4, dtype=i32)), {}))],
     "hairlut.synth._frame:sweep_sectors": [
         (False, lambda: ((_map_index(neighbours=False), A(12, 16), A(12, 2, 16), A(12, 2)), {}))],
     "hairlut.synth._maps:sweep_kernel": [
