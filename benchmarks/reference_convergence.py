@@ -42,7 +42,6 @@ def main(argv=None):
     ap.add_argument("--resolution", type=int, default=128)
     ap.add_argument("--frames", default=None, help="folder to keep each level's RGBA (.npy), to extend a run later")
     args = ap.parse_args(argv)
-    rows = json.loads(OUT.read_text())["rows"] if OUT.exists() else []
     for name in args.scene:
         path = next(s for s in SCENES if name in s.stem)
         sc = with_config(load_scene(path), camera={"resolution": [args.resolution, args.resolution]})
@@ -62,6 +61,7 @@ def main(argv=None):
                 prev = folder / f"{path.stem}_{args.resolution}_L{lv - 1}.npy"
                 if prev.exists():
                     row["change_from_previous"] = change(f.rgba, np.load(prev))
+            rows = json.loads(OUT.read_text())["rows"] if OUT.exists() else []  # another run may have added rows
             rows = [r for r in rows if (r["scene"], r["resolution"], r["level"]) != (path.stem, args.resolution, lv)]
             rows.append(row)
             print(json.dumps(row), flush=True)

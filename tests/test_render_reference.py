@@ -190,19 +190,25 @@ def test_shadow_through_a_uniform_slab_is_beer_lambert():
     assert np.abs(point_depths(light_index(segs, light), pts + [0, 0, 4.0], segs.device())).max() < 1e-6
 
 
+def _curls():
+    """40 curly strands from a 2 × 2 × 2 box (radius 0.04): polylines and their segments (κ = 2/π)."""
+    rng = np.random.default_rng(7)
+    lines = []
+    for _ in range(40):
+        start = rng.uniform(-1, 1, 3)
+        steps = np.cumsum(rng.normal(0, 0.15, (12, 3)) + [0.0, -0.12, 0.0], 0)
+        lines.append(np.concatenate([start[None], start + steps]))
+    strands = Strands.from_list(lines, thickness=[np.full(13, 0.08)] * len(lines))
+    return lines, segments_of(strands, 2 / math.pi)
+
+
 def test_point_shadows_equal_the_grid_at_its_nodes():
     """The exact per-point shadow rays (``point_depths``) against the light-aligned grid (``shadow_grid``, each
     node column one ray integrated from every node): the same integral at every node, to float32 rounding."""
     from hairlut.render import light_index, point_depths, shadow_grid
 
     rng = np.random.default_rng(7)
-    lines = []
-    for _ in range(40):  # curly strands in a 2 × 2 × 2 box
-        start = rng.uniform(-1, 1, 3)
-        steps = np.cumsum(rng.normal(0, 0.15, (12, 3)) + [0.0, -0.12, 0.0], 0)
-        lines.append(np.concatenate([start[None], start + steps]))
-    strands = Strands.from_list(lines, thickness=[np.full(13, 0.08)] * len(lines))
-    segs = segments_of(strands, 2 / math.pi)
+    _, segs = _curls()
     light = np.array([0.3, 0.8, 0.4])
     grid, origin, axes = shadow_grid(segs, light, 0.05)
     idx = np.stack([rng.integers(0, n, 3000) for n in grid.shape], 1)
@@ -234,3 +240,29 @@ def test_demo_probe_is_the_change_between_the_two_levels():
     assert pr["change_to_next"]["alpha_rmse"] == pytest.approx(np.sqrt(np.mean((a[..., 3] - b[..., 3]) ** 2)), rel=1e-5)
     assert pr["change_to_next"]["rgb_rmse"] == pytest.approx(np.sqrt(np.mean((a[..., :3] - b[..., :3]) ** 2)), rel=1e-5)
     assert pr["change_to_next"]["alpha_rmse"] > 1e-4  # the levels differ: the test can see a wrong pair
+
+
+def test_rendered_grid_shadows_converge_to_the_shadow_rays(monkeypatch):
+    """A frame's shadows from the grid (cell 4 r̄ / 2^ℓ, trilinear) against the exact shadow ray per step: α is the
+    same, the colours differ by the grid's interpolation, which falls at second order from level 0 to 1 (measured
+    0.067 → 0.015 RMSE, against a shadow effect of 0.19)."""
+    import hairlut.render._reference as ref
+
+    lines, segs = _curls()
+    cam = _camera(np.concatenate(lines), resolution=[32, 32])
+    lit = jnp.ones((segs.n, 1, 3), jnp.float32)
+    light = np.array([[0.3, 0.8, 0.4]]) / np.linalg.norm([0.3, 0.8, 0.4])
+    diff = []
+    for level in (0, 1):
+        st = {}
+        grid = render_level(segs, cam, lit, light, level=level, shadows=True, stats=st)
+        assert st["shadow_source"] == "grid"
+        monkeypatch.setattr(ref, "GRID_NODES", 0)
+        rays = render_level(segs, cam, lit, light, level=level, shadows=True, stats=st)
+        assert st["shadow_source"] == "rays"
+        monkeypatch.undo()
+        assert np.abs(grid[..., 3] - rays[..., 3]).max() < 1e-6
+        diff.append(float(np.sqrt(np.mean((grid[..., :3] - rays[..., :3]) ** 2))))
+    unshadowed = render_level(segs, cam, lit, light, level=1, shadows=False)
+    assert np.sqrt(np.mean((unshadowed[..., :3] - rays[..., :3]) ** 2)) > 0.1
+    assert diff[1] < diff[0] / 3, diff

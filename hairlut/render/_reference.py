@@ -45,8 +45,9 @@ BACKGROUND_DEPTH = 1e10
 #: weigh less than SEEN together, so a pixel's colour moves by less than SEEN × its brightest lighting.
 SEEN = 1e-5
 #: A level's shadows come from the lights' grids (``_light.shadow_grids``, cell 4 r̄ / 2^ℓ) while they hold at most
-#: this many nodes in all (256 MiB of float32), else from an exact shadow ray per step (``_light.point_depths``).
-GRID_NODES = 1 << 26
+#: this many nodes in all (2 GiB of float32: Sintel's level 3, 4.2e8 nodes), else from an exact shadow ray per step
+#: (``_light.point_depths``; Ratboy from level 1 on, 1e9 nodes).
+GRID_NODES = 1 << 29
 
 
 @partial(jax.jit, static_argnames=("tile", "ss", "perspective"))
