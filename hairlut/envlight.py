@@ -295,3 +295,41 @@ def load_light(path: str | os.PathLike, lmax: int, layout: str = "auto", up: str
     if light.lmax < lmax:
         raise errors.ValidationError("light", str(path), f"holds bands up to l={light.lmax}; l={lmax} needed")
     return light
+
+
+# ----------------------------------------------------------------------------- the radiance reference
+
+
+def hair_radiance(coeffs, b, tangent, theta_v, kd=1.0, ks=1.0, p: float = 49.0, *, height: int = 96,
+                  block: int = 256) -> np.ndarray:
+    """xing eq 2 by brute-force quadrature, the reference the SH tables are measured against:
+
+        E_k = ∫ L_k(ω) V(ω) (kd_k sin θ + ks_k max(0, −cos(θ + θ′))^p) dω,   θ = ∠(ω, t),
+
+    L_k = Σ_i coeffs[i, k] Y_i (any number of columns k), V = Σ_j b_j Y_j the texel's transmittance,
+    on a z-up lat-long midpoint grid ``height`` × 2·``height`` with exact solid angles, float64.
+    ``b`` (N, n), ``tangent`` (N, 3), ``theta_v`` (N,); ``kd``, ``ks`` scalars or (K,).  Returns (N, K)."""
+    c = np.asarray(coeffs, np.float64)
+    b = np.asarray(b, np.float64)
+    t = np.asarray(tangent, np.float64)
+    tv = np.asarray(theta_v, np.float64)
+    n_trans, k = b.shape[-1], c.shape[-1]
+    if len(t) != len(b) or len(tv) != len(b):
+        raise errors.ValidationError("tangent", t.shape, f"b, tangent and theta_v need one row per texel ({len(b)})")
+    dirs, omega = latlong_samples(height, 2 * height)
+    dirs, omega = dirs.reshape(-1, 3), omega.reshape(-1)
+    bands = int(round(np.sqrt(max(c.shape[0], n_trans))))
+    y = np.asarray(real_sh(bands - 1, dirs), np.float64)
+    light = y[:, : c.shape[0]] @ c  # (M, K)
+    g = (omega[:, None, None] * y[:, :n_trans, None] * light[:, None, :]).reshape(len(dirs), n_trans * k)
+    kd, ks = np.broadcast_to(np.asarray(kd, np.float64), (k,)), np.broadcast_to(np.asarray(ks, np.float64), (k,))
+    out = np.empty((len(b), k))
+    for s in range(0, len(b), block):
+        cos = np.clip(t[s : s + block] @ dirs.T, -1.0, 1.0)  # (n, M)
+        sin = np.sqrt(1.0 - cos * cos)
+        ctv, stv = np.cos(tv[s : s + block, None]), np.sin(tv[s : s + block, None])
+        spec = np.maximum(0.0, -(cos * ctv - sin * stv)) ** float(p)
+        yd = (sin @ g).reshape(-1, n_trans, k)
+        ys = (spec @ g).reshape(-1, n_trans, k)
+        out[s : s + block] = np.einsum("nj,njk->nk", b[s : s + block], kd * yd + ks * ys)
+    return out
