@@ -105,6 +105,32 @@ def test_fetch_kernel_equals_an_elementwise_reference(dtype, step):
     assert not a[row < 0].any() and not r[row < 0].any()
 
 
+def test_frame_fetch_kernels_equal_the_reference_at_edge_angles():
+    """index_kernel then terms_kernel (a frame's fetch) at grid views, the mirror seam, 2π − ε, 0 and
+    negative angles: the element-wise reference, and bitwise fetch_kernel's α and ratio terms."""
+    import jax
+    import jax.numpy as jnp
+
+    from hairlut.scenemaps import fetch_terms, index_kernel, terms_kernel
+
+    rng = np.random.default_rng(2)
+    n, V, P, Q, K, L = 4, 8, 16, 4, 2, 2
+    alpha_t = rng.random((n, V // 2, P)).astype("float16")
+    ratio_t = (0.3 * rng.normal(size=(n, V // 2, Q, 2 * K + 1))).astype("float16")
+    tv = np.array([0.0, np.pi, 2 * np.pi - 1e-7, -1e-7, np.pi - 1e-6, 3 * np.pi / 4, -np.pi, 5.0, 2 * np.pi],
+                  np.float32)
+    row = np.array([0, 1, 2, 3, -1, 1, 2, 0, 3], np.int32)
+    tl = rng.uniform(0, 2 * np.pi, (len(tv), L)).astype(np.float32)
+    index = index_kernel(jnp.asarray(row), jnp.asarray(tv), half=V // 2, views=V // 2)
+    a, rho = (np.asarray(x) for x in terms_kernel(alpha_t, ratio_t, index, tv, tl))
+    a_ref, r_ref = _fetch_reference(alpha_t, ratio_t, row, tv.astype(np.float64), tl.astype(np.float64))
+    np.testing.assert_allclose(a, a_ref, atol=2e-6, rtol=0)
+    np.testing.assert_allclose(a[:, None, :] * np.repeat(rho, P // Q, axis=-1), r_ref, atol=1e-5, rtol=0)
+    a2, rho2 = (np.asarray(x) for x in jax.jit(fetch_terms)(alpha_t, ratio_t, row, tv, tl))
+    assert np.array_equal(a, a2) and np.array_equal(rho, rho2)
+    assert not a[row < 0].any()  # an empty sector: α = 0, hence re = α ρ = 0
+
+
 def test_scene_frame_kernel_equals_fetch_then_sweep(baked):
     """The scene method's one-kernel frame gives the maps of fetch_kernel's rows swept by sweep_sectors."""
     import jax.numpy as jnp

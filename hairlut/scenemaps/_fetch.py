@@ -7,6 +7,10 @@ stored view i − V/2 at pixel P − 1 − p (the mirror symmetry).  The ratio's
 the same way on their own grid of V_r = V / ratio_step views and evaluated at each light's Δ = θl − θv: ρ_l(q) = c₀ + Σ_k a_k cos kΔ + b_k sin kΔ;
 re_l(p) = α(p) ρ_l(q(p)), q(p) = ⌊p Q / P⌋.  One jitted kernel, float32 arithmetic (the contraction
 over the terms at HIGHEST precision), empty sectors masked to exactly 0.
+
+A frame (the ``scene`` map method, ``hairlut.synth``) runs the same fetch as two kernels,
+:func:`index_kernel` (each sector's rows and weights) then :func:`terms_kernel` (the gathers), so that
+the row indices are materialised before the row copies that use them.
 """
 
 from __future__ import annotations
