@@ -22,7 +22,8 @@ _LAZY = {
     "MARGIN": "_sectors", "SceneSectors": "_sectors", "grid_coverage": "_sectors", "restricted_space": "_sectors",
     "scene_sectors": "_sectors",
     "Plan": "_planner", "Step": "_planner", "bake": "_planner", "environment_light": "_lighting",
-    "environment_bands": "_lighting", "window_factors": "_envbands", "window_coeffs": "_envbands",
+    "environment_bands": "_lighting", "reference_light": "_lighting", "REFERENCE_BANDS": "_envbands",
+    "window_factors": "_envbands", "window_coeffs": "_envbands",
     "find_assets": "_planner", "scene_assets": "_planner", "plan": "_planner", "sh_bands": "_lighting", "sh_recipe": "_lighting",
     "direct_recipe": "_planner", "map_method": "_planner", "scene_maps_recipe": "_planner",
 }

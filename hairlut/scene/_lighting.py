@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 
-def _reference_light(scene):
+def reference_light(scene):
     """The scene's environment light (intensity applied) at the reference's bands (``_envbands``)."""
     from ..envlight import EnvLight, load_env_light, sky_light
     from ._envbands import REFERENCE_BANDS
@@ -45,7 +45,7 @@ def environment_bands(scene) -> dict:
     key = (env["map"], stat and (stat.st_size, stat.st_mtime_ns), env["layout"], env["up"], env["intensity"],
            env["bands"], env["tolerance"], env["window"], kd, ks, m["p_I"])
     if key not in _BANDS:
-        light = _reference_light(scene)
+        light = reference_light(scene)
         terms = band_radiance(light.coeffs, kd, ks, m["p_I"], tangents=1024, theta_v=17)
         rule = specular_band_rule(m["p_I"])
         if env["bands"] == "auto":
@@ -85,10 +85,12 @@ def sh_bands(scene) -> int:
 
 
 def sh_recipe(scene) -> dict | None:
-    """The SH-table recipe of a scene's environment light (None when nothing is needed)."""
+    """The SH-table recipe of a scene's environment light (None when nothing is needed).  Rd gets the
+    light's chosen bands too (at least 3): the band choice measures the diffuse lobe at all of them, and
+    at the recipe's old 3 the sky demo's radiance was 1.69 % RMS from 30 bands, not the 1.21 % chosen."""
     fx, m = scene.effects, scene.material
     diffuse, specular = fx["diffuse"], fx["primary"] or fx["secondary"]
     if scene.environment is None or not (diffuse or specular):
         return None
     return {"kernel": {"p": float(m["p_I"]), "diffuse": bool(diffuse), "specular": bool(specular)},
-            "bands": {"light_specular": sh_bands(scene)}}
+            "bands": {"light_specular": sh_bands(scene), "light_diffuse": max(3, sh_bands(scene))}}
