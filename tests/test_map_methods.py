@@ -34,6 +34,7 @@ def baked(tmp_path_factory):
     recipe = scene_maps_recipe(sc)
     recipe["table"]["lights"] = 5
     recipe["table"]["ratio_step"] = 1
+    recipe["table"].update(alpha_grid=0, shade_rays=0, shade_steps=0)  # the bake's exact settings: the tracer's arrays
     out = tmp_path_factory.mktemp("maps") / "t.h5"
     report = registry.bake("scene_maps", recipe, out, scene=sc)
     return sc, recipe, load_scene_maps(out), report

@@ -16,6 +16,7 @@ from ._kind import BAKER, KIND
 _LAZY = {
     "SCHEMA": "_recipe", "geometry_key": "_recipe", "resolve_recipe": "_recipe", "hrir_recipe": "_recipe",
     "SceneMaps": "_bake", "bake": "_parts", "load_scene_maps": "_bake", "scene_inputs": "_bake", "compress": "_bake",
+    "ratio_terms": "_bake",
     "fetch_kernel": "_fetch", "fetch_rows": "_fetch", "fetch_terms": "_fetch", "fetch_index": "_fetch",
     "fetch_gathered": "_fetch", "index_kernel": "_fetch", "terms_kernel": "_fetch",
 }

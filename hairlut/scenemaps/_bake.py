@@ -4,12 +4,16 @@
 order: the order ``hairlut.synth.prepare`` concatenates them in) become tracer inputs by
 ``hairlut.synth.scene_sector_inputs`` (the metric extent the texels read).  Every non-empty sector
 is traced on V views θv,i = 2πi/V and L lights θl,j = 2πj/L (satf eqs 4–5; float32) by
-``hairlut.synth.trace_view_grid``: ``hairlut.hrir.trace_sectors``' arrays to float32 rounding, with
-the samples and light lookups of views θ and θ + π shared (about 1.5× faster), then, in float64:
+``hairlut.synth.bake_view_grid``, which computes only what is stored: α on views 0 … V/2 − 1 (through
+the recipe's ``alpha_grid`` Cartesian resampling, one matrix product for every view, or with
+alpha_grid 0 the tracer's own march) and the per-bin α and re on the kept views (the tracer's march
+with ``shade_rays`` and ``shade_steps``).  With alpha_grid, shade_rays and shade_steps 0 these are
+``hairlut.synth.trace_view_grid``'s (``hairlut.hrir.trace_sectors``') arrays to float32 rounding,
+binned (:func:`compress` takes that reference path's full arrays); then, in float64:
 
 * **α** (N, V/2, P): views 0 … V/2 − 1; the others by the mirror symmetry
-  α(θ + π, p) = α(θ, P − 1 − p) (the same line integrals, the pixel line reversed; the largest
-  violation is measured and stored as the ``mirror_error`` attribute);
+  α(θ + π, p) = α(θ, P − 1 − p) (the same line integrals, the pixel line reversed; :func:`compress`
+  measures the largest violation of the reference's arrays as ``mirror_error``);
 * **ratio** (N, V/step, Q, 2K + 1): per view (every ``ratio_step``-th) and per bin of P/Q pixels, ρ(θl) = Σ_bin re / Σ_bin α
   (bounded by k_a + k_d + k_s: re is α-weighted shading), as Fourier terms in Δ = θl − θv:
   ρ(Δ) = c₀ + Σ_k a_k cos kΔ + b_k sin kΔ (from the DFT over the L light angles, each term's phase
@@ -86,18 +90,26 @@ def compress(alpha, re, views: int, terms: int, bins: int, step: int = 1) -> tup
     n, V, L, P = r.shape
     half = V // 2
     mirror = float(np.abs(a[:, half:] - a[:, :half, ::-1]).max(initial=0.0))
-    ab = a.reshape(n, V, bins, P // bins).sum(-1)
-    rb = r.reshape(n, V, L, bins, P // bins).sum(-1)
-    ratio = np.where(ab[:, :, None] > 1e-12, rb / np.where(ab > 1e-12, ab, 1.0)[:, :, None], 0.0)  # (n, V, L, Q)
+    ab = a[:, ::step].reshape(n, -1, bins, P // bins).sum(-1)
+    rb = r[:, ::step].reshape(n, -1, L, bins, P // bins).sum(-1)
+    return a[:, :half], ratio_terms(ab, rb, views, terms, step), mirror
+
+
+def ratio_terms(ab, rb, views: int, terms: int, step: int = 1) -> np.ndarray:
+    """The ratio's Fourier terms (n, Vr, Q, 2K + 1), float64, from per-bin α (n, Vr, Q) and re (n, Vr, L, Q) on
+    the views θv,i = 2πi/V, i = 0, step, 2·step, … (Vr = V/step) and the lights θl,j = 2πj/L (module docstring)."""
+    ab, rb = np.asarray(ab, np.float64), np.asarray(rb, np.float64)
+    n, Vr, L, Q = rb.shape
+    ratio = np.where(ab[:, :, None] > 1e-12, rb / np.where(ab > 1e-12, ab, 1.0)[:, :, None], 0.0)  # (n, Vr, L, Q)
     c = np.fft.fft(ratio, axis=2) / L  # ρ(θl) = Σ_k c_k e^{ikθl}
     k = np.arange(terms + 1)
-    tv = 2 * np.pi * np.arange(V) / V
+    tv = 2 * np.pi * np.arange(0, views, step)[:Vr] / views
     d = c[:, :, :terms + 1] * np.exp(1j * k[None, None, :, None] * tv[None, :, None, None])  # in Δ = θl − θv
-    coef = np.empty((n, V, bins, 2 * terms + 1))
+    coef = np.empty((n, Vr, Q, 2 * terms + 1))
     coef[..., 0] = d[:, :, 0].real
     coef[..., 1::2] = np.moveaxis(2 * d[:, :, 1:].real, 2, -1)
     coef[..., 2::2] = np.moveaxis(-2 * d[:, :, 1:].imag, 2, -1)
-    return a[:, :half], coef[:, ::step], mirror
+    return coef
 
 
 def load_scene_maps(path) -> SceneMaps:

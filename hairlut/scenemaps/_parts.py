@@ -4,14 +4,15 @@ A unit is one non-empty sector of the scene (one table row, in ``prepare``'s ord
 (``scene_shard``) holds rows [start, stop): their ``alpha`` and ``ratio`` (the storage dtype),
 ``scene_index`` (the scene sector each row traces, the inverse of the asset's ``row``), and the
 root attributes ``sector_start``/``sector_stop``/``sector_total``, ``sectors`` (the scene's sector
-count) and ``mirror_error`` (the part's largest mirror-symmetry violation).  So the whole asset is
+count) and ``mirror_error`` (the part's largest mirror-symmetry violation: 0 since the bake computes α on
+V/2 views only, the other half being their mirror by construction; tables baked before kept the measured one).  So the whole asset is
 built from its parts alone (no scene needed: ``hairlut merge`` joins ``--shard`` files), and a row's
 numbers depend on its own sector alone: a sharded, resumed, distributed or virtual bake holds the
 same data as a one-shot bake.
 
 The scene's sector inputs (:func:`hairlut.scenemaps.scene_inputs`) are built once per process and
 recipe (:func:`scene_rows`) and shared by its blocks.  Within a block, rows are traced
-(``hairlut.synth.trace_view_grid``) :data:`MICRO` at a time on every local device
+(``hairlut.synth.bake_view_grid``: α on V/2 views, the re/α bins on the kept views only) :data:`MICRO` at a time on every local device
 (:func:`hairlut.distributed.map_chunks`); across processes, ``--distributed`` shares the blocks.
 """
 
@@ -26,7 +27,7 @@ from .. import errors
 from ..distributed import map_chunks
 from ..assets import Axis, Variable, open_table, read_table, recipe_hash, write_table
 from ..assets.layout import layout
-from ._bake import compress, scene_inputs
+from ._bake import ratio_terms, scene_inputs
 from ._kind import BAKER, KIND, SHARD_KIND
 from ._recipe import geometry_key, hrir_recipe, resolve_recipe
 
@@ -88,17 +89,18 @@ def _write_part(path, recipe: dict, alpha, ratio, index, start: int, total: int,
 
 def bake_part(recipe: dict, start: int, stop: int, total: int, path, scene=None, **_) -> Path:
     """Trace table rows [start, stop) of the scene and write them as the ``scene_shard`` part ``path``."""
-    from ..synth import trace_view_grid
+    from ..synth import bake_view_grid
 
     density, geometry, live, sectors = scene_rows(recipe, scene)
     t, full = recipe["table"], hrir_recipe(recipe)
     dtype = np.dtype(t["dtype"])
 
-    def rows(s, e):  # rows [start + s, start + e): traced, compressed, cast
-        a, re = trace_view_grid(density[start + s:start + e], geometry[start + s:start + e], full, views=t["views"],
-                                lights=t["lights"])
-        half, coef, mirror = compress(a, re, t["views"], t["terms"], t["shading_pixels"], t["ratio_step"])
-        return half.astype(dtype), coef.astype(dtype), mirror
+    def rows(s, e):  # rows [start + s, start + e): traced (α on V/2 views, re/α only where kept), compressed, cast
+        half, ab, rb = bake_view_grid(density[start + s:start + e], geometry[start + s:start + e], full, views=t["views"],
+                                      lights=t["lights"], ratio_step=t["ratio_step"], bins=t["shading_pixels"],
+                                      alpha_grid=t["alpha_grid"], shade_rays=t["shade_rays"] or None,
+                                      shade_steps=t["shade_steps"] or None)
+        return half.astype(dtype), ratio_terms(ab, rb, t["views"], t["terms"], t["ratio_step"]).astype(dtype), 0.0
 
     done = map_chunks(rows, stop - start, micro=MICRO)  # every local device
     return _write_part(path, recipe, np.concatenate([d[0] for d in done]), np.concatenate([d[1] for d in done]),

@@ -9,7 +9,12 @@ A recipe is ``{"hrir": {...}, "table": {...}, "geometry": {...}}``:
   ``terms`` K (Fourier terms of the re/α ratio in θl − θv: 2K + 1 coefficients), ``ratio_step`` (the
   terms are kept on every ratio_step-th view: V / ratio_step of them; on Sintel 32 of 64 views cost re
   0.139 → 0.144 for half the ratio's bytes, ``benchmarks/scene_layouts.py``), ``shading_pixels``
-  Q (pixel bins of the ratio, a divisor of trace.pixels), ``dtype`` (float16 or float32);
+  Q (pixel bins of the ratio, a divisor of trace.pixels), ``dtype`` (float16 or float32), and how the
+  bake computes them (``hairlut.synth.bake_view_grid``): ``alpha_grid`` m (α projected through an m × m
+  Cartesian resampling of each sector's density, one matrix product for every view; 0: the tracer's
+  own march per view, ``hairlut.synth.trace_view_grid``, the reference), ``shade_rays`` and
+  ``shade_steps`` (the re/α march's rays per pixel and steps; 0: the trace's; with alpha_grid 0 the
+  trace's always);
 * ``geometry``: ``sha256``, the groom's identity (:func:`geometry_key`), folded in from the keyed
   input ``scene`` (so a different groom, fit or strand set is a different asset).
 
@@ -39,6 +44,12 @@ SCHEMA = {
         "shading_pixels": Field(8, (int,), lambda v: None if v >= 1 else "must be ≥ 1", "pixel bins Q of the ratio"),
         "dtype": Field("float16", (str,), lambda v: None if v in ("float16", "float32") else "use float16 or float32",
                        "storage precision"),
+        "alpha_grid": Field(0, (int,), lambda v: None if v == 0 or 2 <= v <= 256 else "0 or in [2, 256]",
+                            "side m of the Cartesian node grid α is projected through (0: the tracer's march per view)"),
+        "shade_rays": Field(0, (int,), lambda v: None if 0 <= v <= 64 else "must lie in [0, 64]",
+                            "rays per pixel of the re/α march (0: trace.rays_per_pixel)"),
+        "shade_steps": Field(0, (int,), lambda v: None if v == 0 or 2 <= v <= 4096 else "0 or in [2, 4096]",
+                             "steps of the re/α march (0: trace.steps)"),
     },
     "geometry": {"sha256": Field("", (str,), None, "the groom's geometry key (hairlut.scenemaps.geometry_key)")},
 }

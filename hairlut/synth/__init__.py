@@ -28,7 +28,8 @@ _LAZY = {
     "sector_extent": "_direct",
     "geometry_index": "_frame", "params_kernel": "_frame", "sweep_sectors": "_frame",
     "MapSource": "_methods", "prepare_map_source": "_methods",
-    "trace_view_grid": "_viewgrid", "view_grid_kernel": "_viewgrid",
+    "trace_view_grid": "_viewgrid", "view_grid_kernel": "_viewgrid", "bake_view_grid": "_viewgrid",
+    "bake_grid_kernel": "_viewgrid", "projection_matrix": "_viewgrid",
 }
 
 __all__ = sorted(_LAZY)

@@ -37,6 +37,8 @@ from ..hrir import (SHADOW_GRID, direct_lighting, front_to_back, grid_transmitta
                     reflectance, sector_fields, smooth_matrix, to_pixels)
 from ._direct import _SIGMA_PX, bucket
 
+HIGHEST = jax.lax.Precision.HIGHEST
+
 
 def _grid_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, shadow, smooth, eps):
     """α (V, P) and premultiplied re (V, L, P) of one sector on the views θ (V/2,) and θ + π."""
@@ -113,3 +115,151 @@ def trace_view_grid(density, geometry, recipe: dict, *, views: int, lights: int,
         if progress:
             progress(min(start + CALL, live.size), live.size)
     return alpha, re
+
+
+# ---------------------------------------------------------------------------------------------
+# the bake's fast path: α by one matrix product, re only where the table keeps it
+
+
+def projection_matrix(m: int, views: int, lanes: int, n_steps: int) -> np.ndarray:
+    """(m², V/2 · lanes) float32: the tracer's midpoint march (lanes × ``n_steps`` steps over [−R, R], the
+    views θi = 2πi/V, i < V/2) through the bilinear interpolant of an m × m Cartesian node grid on the
+    sector's [−R, R]² box (nodes at cell centres, zero outside the box), summed over the steps.  It
+    does not depend on the sector: R scales out.  Float32 (each entry a sum of ≤ 4·steps weights in [0, 1])."""
+    th = 2 * np.pi * np.arange(views // 2) / views
+    dx, dy = np.cos(th)[:, None, None], np.sin(th)[:, None, None]
+    t = (-1 + (np.arange(lanes) + 0.5) * (2 / lanes))[None, :, None]
+    z = (1 - (np.arange(n_steps) + 0.5) * (2 / n_steps))[None, None, :]
+    fi, fj = ((-dy * t + dx * z) + 1) / 2 * m - 0.5, ((dx * t + dy * z) + 1) / 2 * m - 0.5  # view_points / R
+    i0, j0 = np.floor(fi).astype(np.int64), np.floor(fj).astype(np.int64)
+    a, b = fi - i0, fj - j0
+    col = np.broadcast_to(np.arange(views // 2 * lanes).reshape(views // 2, lanes, 1), fi.shape)
+    out = np.zeros((m * m, views // 2 * lanes), np.float32)
+    for di, dj, w in ((0, 0, (1 - a) * (1 - b)), (1, 0, a * (1 - b)), (0, 1, (1 - a) * b), (1, 1, a * b)):
+        i, j = i0 + di, j0 + dj
+        ok = (i >= 0) & (i < m) & (j >= 0) & (j < m)
+        np.add.at(out, ((i * m + j)[ok], col[ok]), w[ok])
+    return out
+
+
+def _shade_one(rho, g, views_kept, lights, phong, *, n_pix, n_steps, rays, shadow, smooth, eps, mirror, bins):
+    """Per-bin α (Vr, Q) and premultiplied re (Vr, L, Q) of one sector on the kept views (the ratio's):
+    ``views_kept`` then, with ``mirror``, the same + π (their samples shared, as :func:`_grid_one`)."""
+    fields = sector_fields(rho)
+    lanes = n_pix * rays
+    flip = (lambda x: jnp.concatenate([x, jnp.flip(x, axis=(1, 2))], axis=0)) if mirror else (lambda x: x)  # noqa: E731
+    tau, gx, gy, rs, rr, inside = (flip(x) for x in march(fields, g, views_kept, lanes, n_steps))
+    views = jnp.concatenate([views_kept, views_kept + jnp.pi]) if mirror else views_kept
+    w, alpha = front_to_back(tau, eps)
+    direct = direct_lighting(rho, gx, gy, rs, rr, inside, views, lights, phong)  # (Vr, L, lanes, K)
+    if shadow:
+        depth = light_depth_grid(fields, g, lights, n_steps, min(n_steps, SHADOW_GRID))
+        direct = direct * jnp.moveaxis(flip(grid_transmittance(depth, g, views_kept, lanes, n_steps)), -1, 1)
+    S = smooth_matrix(g[_SIGMA_PX], n_pix) if smooth else None
+    a, r = to_pixels(alpha, n_pix, rays, S), to_pixels(reflectance(alpha, direct, w, phong), n_pix, rays, S)
+    return a.reshape(*a.shape[:-1], bins, -1).sum(-1), r.reshape(*r.shape[:-1], bins, -1).sum(-1)
+
+
+@partial(jax.jit, static_argnames=("n_views", "n_pix", "n_steps", "rays", "m", "shade_rays", "shade_steps", "shadow", "smooth",
+                                   "eps", "mirror", "bins"))
+def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int, n_pix: int, n_steps: int, rays: int, m: int,
+                     shade_rays: int, shade_steps: int, shadow: bool = True, smooth: bool = True, eps: float = 1e-4,
+                     mirror: bool = True, bins: int = 8):
+    """The scene bake's arrays of B sectors: α (B, V/2, P) on the views 2πi/V, i < V/2, and per bin of P/Q
+    pixels α (B, Vr, Q) and premultiplied re (B, Vr, L, Q) on the ratio's views (:func:`bake_view_grid`).
+
+    α (eq 4), with ``m`` > 0: each sector's density sampled on an m × m Cartesian node grid of its [−R, R]²
+    box (the exact bilinear (s, r) interpolant at m² points), then every view's march at once as one
+    product with ``proj`` (:func:`projection_matrix`, precision HIGHEST): τ = σ_t Δs Σ_k ρ(q_k),
+    α = 1 − e^−τ (eq 5's Σ_k w_k without the ``eps`` cut-off, which changes α by < eps), rays averaged,
+    smoothed; with ``m`` = 0, the tracer's march per view (eq 5's Σ_k w_k; ``proj`` unused).
+    re (eq 5): the tracer's own march (:func:`_grid_one`'s steps) with ``shade_rays`` rays per pixel
+    and ``shade_steps`` steps, on the kept views only."""
+    lanes = n_pix * rays
+    half = n_views // 2
+
+    if m:
+        def nodes(r, g):  # σ_t ρ 2R/m at the m × m node grid (x major): the view-0 march's samples, x reversed
+            return jnp.flip(march(sector_fields(r), g, jnp.zeros(1, rho.dtype), m, m)[0][0], axis=1).T.reshape(-1)
+
+        tau_nodes = jax.lax.map(lambda a: nodes(a[0], a[1]), (rho, geom))  # (B, m²)
+        tau = jnp.matmul(tau_nodes, proj, precision=HIGHEST).reshape(-1, half, lanes) * (m / n_steps)
+        alpha = -jnp.expm1(-tau)
+    else:  # the tracer's march on the V/2 views, eq 5's Σ_k w_k with its cut-off
+        views = 2 * jnp.pi * jnp.arange(half, dtype=rho.dtype) / (2 * half)
+        alpha = jax.lax.map(lambda a: front_to_back(march(sector_fields(a[0]), a[1], views, lanes, n_steps)[0], eps)[1],
+                            (rho, geom))
+    alpha = to_pixels(alpha, n_pix, rays)
+    if smooth:
+        S = jax.vmap(lambda s: smooth_matrix(s, n_pix))(geom[:, _SIGMA_PX])
+        alpha = jnp.einsum("bvp,bpq->bvq", alpha, S, precision=HIGHEST)
+    shade = partial(_shade_one, n_pix=n_pix, n_steps=shade_steps, rays=shade_rays, shadow=shadow, smooth=smooth,
+                    eps=eps, mirror=mirror, bins=bins)
+    ab, rb = jax.lax.map(lambda a: shade(a[0], a[1], views_kept, lights, phong), (rho, geom))
+    return alpha, ab, rb
+
+
+_PROJ: dict[tuple, jax.Array] = {}  # one entry: (m, V, lanes, steps) → projection_matrix on the device
+
+
+def bake_view_grid(density, geometry, recipe: dict, *, views: int, lights: int, ratio_step: int = 1, bins: int,
+                   alpha_grid: int, shade_rays: int | None = None, shade_steps: int | None = None,
+                   progress=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What the scene table stores, computed directly: α (N, V/2, P) on θv,i = 2πi/V, i < V/2, and per bin
+    of P/``bins`` pixels α (N, Vr, Q) and premultiplied re (N, Vr, L, Q) on the ratio's views θv,i,
+    i = 0, ``ratio_step``, 2·ratio_step, … (Vr = V/ratio_step) and θl,j = 2πj/L (:func:`bake_grid_kernel`).
+
+    Against :func:`trace_view_grid` (the reference: every view and light per pixel, then binned): α
+    through an ``alpha_grid`` × ``alpha_grid`` Cartesian resampling of each sector's density (one
+    matrix product for all views instead of a polar-coordinate march per view; its error falls with
+    ``alpha_grid``: tests/test_view_grid.py states the bound), re on the kept views only and, when
+    ``shade_rays`` / ``shade_steps`` are given, with those rays per pixel and march steps instead
+    of the recipe's.  All-zero sectors give 0 and are not traced."""
+    from ._direct import _check_inputs, _settings
+
+    V, L = check_int(views, "views", 2), check_int(lights, "lights", 1)
+    if V % 2:
+        raise errors.ValidationError("views", V, "an even number of views (θ and θ + π share their samples)")
+    step = check_int(ratio_step, "ratio_step", 1)
+    if V % step:
+        raise errors.ValidationError("ratio_step", step, f"must divide views ({V})")
+    m = check_int(alpha_grid, "alpha_grid", 0)
+    if m == 1:
+        raise errors.ValidationError("alpha_grid", m, "0 (the tracer's march) or a node grid side ≥ 2")
+    cfg, phong = _settings(recipe, None, {}, "grid")
+    P, Q = cfg["n_pix"], check_int(bins, "bins", 1)
+    if P % Q:
+        raise errors.ValidationError("bins", Q, f"must divide the pixels ({P})")
+    sr = cfg["rays"] if shade_rays is None else check_int(shade_rays, "shade_rays", 1)
+    sk = cfg["n_steps"] if shade_steps is None else check_int(shade_steps, "shade_steps", 2)
+    n = len(np.asarray(density))
+    rho, g, _, _ = _check_inputs(density, geometry, np.zeros(n), np.zeros((n, 1)))
+    key = (m, V, P * cfg["rays"], cfg["n_steps"])
+    if not m:
+        _PROJ[key] = jnp.zeros((1, 1), jnp.float32)  # unused: α by the tracer's march
+    elif key not in _PROJ:
+        _PROJ.clear()
+        _PROJ[key] = jnp.asarray(projection_matrix(*key))
+    mirror = (V // 2) % step == 0  # the kept views' mirrors are kept views too: march V/(2·step), read both
+    kept = np.arange(0, V // 2 if mirror else V, step)
+    Vr = V // step
+    alpha, ab, rb = np.zeros((n, V // 2, P), np.float32), np.zeros((n, Vr, Q), np.float32), np.zeros((n, Vr, L, Q), np.float32)
+    live = np.flatnonzero(rho.reshape(n, -1).max(axis=1, initial=0.0) > 0) if n else np.zeros(0, np.int64)
+    vk = jnp.asarray(2 * np.pi * kept / V, jnp.float32)
+    lt = jnp.asarray(2 * np.pi * np.arange(L) / L, jnp.float32)
+    ph = jnp.asarray(phong, jnp.float32)
+    settings = dict(n_views=V, n_pix=P, n_steps=cfg["n_steps"], rays=cfg["rays"], m=m, shade_rays=sr, shade_steps=sk,
+                    shadow=bool(cfg["shadow"]), smooth=cfg["smooth"], eps=cfg["eps"], mirror=mirror, bins=Q)
+    for start in range(0, live.size, CALL):
+        idx = live[start:start + CALL]
+        size = bucket(idx.size, 1) if idx.size < CALL else idx.size
+        rows = np.concatenate([idx, np.full(size - idx.size, idx[0])])
+        out = bake_grid_kernel(jnp.asarray(rho[rows], jnp.float32), jnp.asarray(g[rows], jnp.float32), _PROJ[key], vk,
+                               lt, ph, **settings)
+        a, b, r = (np.asarray(x)[:idx.size] for x in out)
+        if not (np.isfinite(a).all() and np.isfinite(b).all() and np.isfinite(r).all()):
+            raise errors.HairlutError("bake_view_grid: the kernel produced non-finite maps (check the density scale)")
+        alpha[idx], ab[idx], rb[idx] = a, b, r
+        if progress:
+            progress(min(start + CALL, live.size), live.size)
+    return alpha, ab, rb
