@@ -75,3 +75,21 @@ def test_footprint_study_finer_maps_rank_better_against_a_narrower_beam():
     assert lo64[0] < lo128[0] and lo128[1] < lo64[1], (lo64, lo128)
     assert 1.7 < d["tau_own"][1] / d["tau_own"][0] < 2.3, d["tau_own"]
     assert abs(d["tau_others"][1] / d["tau_others"][0] - 1) < 0.1, d["tau_others"]
+
+
+def test_the_part_at_its_quick_size(tmp_path):
+    """Two tables (the common footprint, each setting's own), one baseline each, the same settings in both; the
+    paper's 128-cell map is the most accurate light-oriented row against the common footprint (1/256)."""
+    from hairlut.bench import PARTS, run_bench
+    from hairlut.bench._shadows import TABLE, TABLE_OWN
+
+    res = run_bench(tmp_path, registry=PARTS, only=["shadows"], quick=True)
+    assert res["parts"]["shadows"]["status"] == "ok", res["parts"]["shadows"]
+    figs = res["figures"]
+    by = {t: [f for f in figs if f["table"] == t] for t in (TABLE, TABLE_OWN)}
+    for rows in by.values():
+        assert sum(f["baseline"] for f in rows) == 1 and all(np.isfinite(f["error"]) for f in rows)
+    assert {f["label"] for f in by[TABLE_OWN]} <= {f["label"] for f in by[TABLE]}
+    lom = {f["knobs"]["cells"]: f["error"] for f in by[TABLE] if f["label"].startswith("light-oriented")
+           and "storage" not in f["knobs"]}
+    assert min(lom, key=lom.get) == 128, lom
