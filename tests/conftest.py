@@ -1,5 +1,7 @@
 import os
+import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -13,6 +15,36 @@ settings.register_profile("ci", deadline=None, derandomize=True, print_blob=True
 settings.load_profile("ci" if os.environ.get("CI") else "dev")
 
 ROOT = Path(__file__).resolve().parents[1]
+
+_OWN_XLA_CACHE = None
+
+
+def pytest_configure(config):
+    """One persistent XLA compilation cache for the whole test session, in a fresh temporary folder.
+
+    Many tests build the same kernels again (a new ``jax.jit`` of the same function and shapes, a CLI
+    subprocess, a forked bake): with the cache they load the compiled code instead of compiling it once
+    more. The folder is new for each session, so nothing is read from a developer's ``~/.cache`` and a
+    test never depends on an earlier run; subprocesses (``hairlut ...``) inherit it through
+    ``JAX_COMPILATION_CACHE_DIR``, which ``hairlut_cli.main`` honours. ``HAIRLUT_TEST_XLA_CACHE=0`` turns
+    it off (to measure what it saves). A pytest-xdist worker finds the variable set by the controller
+    and shares its folder."""
+    global _OWN_XLA_CACHE
+    if os.environ.get("HAIRLUT_TEST_XLA_CACHE", "1") == "0":
+        return
+    if not os.environ.get("JAX_COMPILATION_CACHE_DIR"):
+        _OWN_XLA_CACHE = tempfile.mkdtemp(prefix="hairlut-test-xla-")
+        os.environ["JAX_COMPILATION_CACHE_DIR"] = _OWN_XLA_CACHE
+    import jax
+
+    jax.config.update("jax_compilation_cache_dir", os.environ["JAX_COMPILATION_CACHE_DIR"])
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)  # as hairlut_cli.main sets it
+
+
+def pytest_unconfigure(config):
+    if _OWN_XLA_CACHE is not None:
+        shutil.rmtree(_OWN_XLA_CACHE, ignore_errors=True)
+        os.environ.pop("JAX_COMPILATION_CACHE_DIR", None)
 
 
 GROOMS = ROOT / "tables" / "grooms"  # the example grooms kept in the repository (tables/grooms/README.md)
@@ -38,3 +70,28 @@ def hairlut_exe() -> str:
     if not exe.exists():
         pytest.skip(f"console script not installed beside {sys.executable}")
     return str(exe)
+
+
+_CPU_LOG = os.environ.get("HAIRLUT_TEST_CPU_LOG")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """With HAIRLUT_TEST_CPU_LOG=PATH, append per test (setup + call + teardown) its wall time and the
+    CPU seconds it used, this process's and its children's (subprocesses it waited for), as
+    tab-separated lines: on a machine shared with other work, CPU time is the measure that holds."""
+    if not _CPU_LOG:
+        yield
+        return
+    import resource
+    import time
+
+    def cpu():
+        return time.process_time() + resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime + \
+            resource.getrusage(resource.RUSAGE_CHILDREN).ru_stime
+
+    wall0, cpu0 = time.perf_counter(), cpu()
+    yield
+    wall, used = time.perf_counter() - wall0, cpu() - cpu0
+    with open(_CPU_LOG, "a") as f:
+        f.write(f"{item.nodeid}\t{wall:.3f}\t{used:.3f}\t{os.getloadavg()[0]:.2f}\n")
