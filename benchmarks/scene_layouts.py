@@ -1,7 +1,7 @@
 """Scene-table layouts (issue 12): accuracy, bytes and bake rate per layout, each groom traced once per light grid.
 
     python benchmarks/scene_layouts.py --scene tables/scenes/sintel-groom.toml [--lights 16 9 5] [--json OUT]
-    python benchmarks/scene_layouts.py --paper-subset 64 [--json OUT]     # bake rate on the paper-scale model
+    python benchmarks/scene_layouts.py --paper-subset 64 [--fast 128 1 0] [--json OUT]  # bake CPU, paper-scale model
 
 A ``scene_maps`` table's α and re rows are functions of the traced grid alone; its layout (Fourier terms
 K, shading bins Q, storage dtype, the ratio's view step) only compresses them (``hairlut.scenemaps.compress``).  So per light
@@ -128,11 +128,16 @@ def layouts(args) -> list[dict]:
 
 
 def paper_subset(args) -> list[dict]:
-    """Trace rate of the bake on ``--paper-subset`` N of the paper model's own non-empty sectors (evenly spread),
-    per light grid and lax.map block, and the projected bake time of all of them."""
+    """Bake CPU time on ``--paper-subset`` N of the paper model's own non-empty sectors (evenly spread), per light grid:
+    the reference tracer (``trace_view_grid`` then ``compress``) and the bake's own path (``bake_view_grid`` then
+    ``ratio_terms``) at the recipe's knobs and each ``--fast`` setting, in the same run (warm: compiled on the timed
+    shapes first), with their differences from the reference and the projected paper-scale bake; also how many
+    of the model's sectors are live and how many are exact duplicates (density and geometry bytes)."""
+    import hashlib
+
     from hairlut.scene import resolve_scene, scene_maps_recipe
-    from hairlut.scenemaps import compress, hrir_recipe, scene_inputs
-    from hairlut.synth import trace_view_grid
+    from hairlut.scenemaps import compress, hrir_recipe, ratio_terms, scene_inputs
+    from hairlut.synth import bake_view_grid, trace_view_grid
     from online_frame import model
 
     base = model(17, 64, 16, 64, 400)
@@ -141,41 +146,55 @@ def paper_subset(args) -> list[dict]:
     full = hrir_recipe(recipe)
     dens, geom = scene_inputs(sc, recipe)
     live = np.flatnonzero(dens.reshape(len(dens), -1).max(axis=1) > 0)
+    unique = len({hashlib.sha256(dens[i].tobytes() + geom[i].tobytes()).digest() for i in live})
+    print(f"paper model: {len(dens)} sectors, {live.size} live, {unique} distinct live (density + geometry bytes)")
     pick = live[np.linspace(0, live.size - 1, args.paper_subset).astype(np.int64)]
-    V = recipe["table"]["views"]
+    t = recipe["table"]
+    V, Q, K, step = t["views"], t["shading_pixels"], t["terms"], t["ratio_step"]
+    settings = [dict(alpha_grid=t["alpha_grid"], shade_rays=t["shade_rays"], shade_steps=t["shade_steps"])]
+    settings += [dict(zip(("alpha_grid", "shade_rays", "shade_steps"), f)) for f in args.fast]
+
+    def cpu(fn):
+        fn()  # compile on the timed shapes
+        c0, t0 = time.process_time(), time.perf_counter()
+        out = fn()
+        return out, time.process_time() - c0, time.perf_counter() - t0
+
+    rel = lambda x, y: float(np.linalg.norm(x - y) / np.linalg.norm(y))  # noqa: E731
     records = []
     for L in args.lights:
-        for block in args.blocks:
-            trace_view_grid(dens[pick[:8]], geom[pick[:8]], full, views=V, lights=L, block=block)  # compile
-            t0 = time.perf_counter()
-            c0 = time.process_time()
-            a, re = trace_view_grid(dens[pick], geom[pick], full, views=V, lights=L, block=block)
-            secs, cpu = time.perf_counter() - t0, time.process_time() - c0
-            records.append({"lights": L, "block": block, "rows": int(pick.size), "trace_s": secs, "cpu_s": cpu,
-                            "sectors_per_s": pick.size / secs, "paper_live": int(live.size),
-                            "paper_bake_min": live.size / (pick.size / secs) / 60,
-                            "paper_bake_cpu_min": live.size / (pick.size / cpu) / 60 / 2})
+        (a, re), c_ref, w_ref = cpu(lambda: trace_view_grid(dens[pick], geom[pick], full, views=V, lights=L))
+        half_ref, coef_ref, _ = compress(a, re, V, K, Q, step)
+        rows = [("reference (trace_view_grid)", c_ref, w_ref, 0.0, 0.0)]
+        for j, kw in enumerate(settings):
+            (half, ab, rb), c, w = cpu(lambda: bake_view_grid(dens[pick], geom[pick], full, views=V, lights=L,
+                                                              ratio_step=step, bins=Q, **{k: v or None for k, v in kw.items()
+                                                                                          if k != "alpha_grid"},
+                                                              alpha_grid=kw["alpha_grid"]))
+            coef = ratio_terms(ab, rb, V, K, step)
+            rows.append((", ".join(f"{k}={v}" for k, v in kw.items()), c, w, rel(half, half_ref), rel(coef, coef_ref)))
+            if j == 0:  # the recipe's own table: bytes on disk per row (gzip) × the live sectors
+                with tempfile.TemporaryDirectory() as tmp:
+                    disk = _write(Path(tmp) / "t.h5", recipe, half.astype(t["dtype"]), coef.astype(t["dtype"]),
+                                  np.arange(pick.size, dtype=np.int32))
+                print(f"paper-scale table ({t['dtype']}, {Q} bins, ratio_step {step}): {disk / pick.size * live.size / 1e6:.0f} MB "
+                      f"on disk (this subset's bytes per row × {live.size}), "
+                      f"{(half.size + coef.size) * np.dtype(t['dtype']).itemsize / pick.size * live.size / 1e6:.0f} MB raw",
+                      flush=True)
+        for name, c, w, ea, er in rows:
+            records.append({"lights": L, "path": name, "rows": int(pick.size), "cpu_s": c, "wall_s": w,
+                            "cpu_s_per_1000": 1000 * c / pick.size, "speedup": c_ref / c, "alpha_rel": ea, "ratio_rel": er,
+                            "paper_live": int(live.size), "paper_unique": unique,
+                            "paper_bake_cpu_min": live.size * c / pick.size / 60,
+                            "paper_bake_min_2_cores": live.size * c / pick.size / 60 / 2})
             print(records[-1], flush=True)
-        disk = {}
-        with tempfile.TemporaryDirectory() as tmp:  # the paper model's own content: bytes on disk per row
-            for K, Q, dt, step in LAYOUTS:
-                if 2 * K + 1 <= L and full["trace"]["pixels"] % Q == 0 and dt == "float16":
-                    half, coef, _ = compress(a, re, V, K, Q, step)
-                    rec = {**recipe, "table": {**recipe["table"], "lights": L, "terms": K, "shading_pixels": Q,
-                                               "ratio_step": step}}
-                    nbytes = _write(Path(tmp) / "t.h5", rec, half.astype(dt), coef.astype(dt),
-                                    np.arange(pick.size, dtype=np.int32))
-                    disk[f"K={K}, Q={Q}, ratio_step={step}"] = nbytes / pick.size * live.size
-        records[-1]["paper_disk_bytes"] = disk
-        print(f"L={L}: paper-scale table on disk (this subset's bytes per row × {live.size}): "
-              + ", ".join(f"{k}: {v / 1e6:.0f} MB" for k, v in disk.items()), flush=True)
-    print(f"\n## Scene-table bake rate on {pick.size} of the paper model's {live.size} non-empty sectors "
-          f"(grid {full['sectors']['grid']}, {full['trace']['steps']} steps, {full['trace']['pixels']} px, "
-          f"{full['trace']['rays_per_pixel']} rays, {V} views)\n")
-    print(table(records, [("lights", "L", "d"), ("block", "block", "d"), ("trace_s", "trace s", ".1f"),
-                          ("cpu_s", "CPU s", ".1f"), ("sectors_per_s", "rows/s", ".2f"),
-                          ("paper_bake_min", "paper-scale min (wall)", ".0f"),
-                          ("paper_bake_cpu_min", "paper-scale min (CPU / 2 cores)", ".0f")]))
+    print(f"\n## Scene-table bake CPU on {pick.size} of the paper model's {live.size} non-empty sectors "
+          f"({unique} distinct; grid {full['sectors']['grid']}, {full['trace']['steps']} steps, {full['trace']['pixels']} px, "
+          f"{full['trace']['rays_per_pixel']} rays, {V} views, ratio_step {step}, {Q} bins)\n")
+    print(table(records, [("lights", "L", "d"), ("path", "path", "s"), ("cpu_s_per_1000", "CPU-s / 1000 live", ".1f"),
+                          ("speedup", "× (same run)", ".1f"), ("alpha_rel", "α rel-L2 vs ref", ".4f"),
+                          ("ratio_rel", "terms rel-L2 vs ref", ".4f"), ("paper_bake_cpu_min", "paper-scale CPU-min", ".1f"),
+                          ("paper_bake_min_2_cores", "paper-scale min on 2 cores", ".1f")]))
     emit("scene_bake_rate_paper", {"records": records}, args.json)
     return records
 
@@ -186,7 +205,8 @@ def main(argv=None):
     ap.add_argument("--lights", type=int, nargs="+", default=[16, 9, 5], help="light grids L of the bake")
     ap.add_argument("--truth-cache", type=Path, help="as map_accuracy.py --truth-cache")
     ap.add_argument("--paper-subset", type=int, metavar="N", help="only the bake rate on N paper-model sectors")
-    ap.add_argument("--blocks", type=int, nargs="+", default=[1], help="with --paper-subset: lax.map blocks")
+    ap.add_argument("--fast", type=int, nargs=3, action="append", default=[], metavar=("ALPHA_GRID", "RAYS", "STEPS"),
+                    help="with --paper-subset: also time bake_view_grid at these table.alpha_grid, shade_rays, shade_steps")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
     return paper_subset(args) if args.paper_subset else layouts(args)

@@ -14,10 +14,13 @@ KIND = "scene_maps"
 SHARD_KIND = "scene_shard"
 #: Table rows (non-empty sectors) per resumable part (``OUT.parts/``).
 BLOCK = 64
-#: Throughput of the bake's tracer (``hairlut.synth.trace_view_grid``: sector · view · light · pixel · step · ray
-#: per CPU second, self-shadowed), measured on 32 Sintel sectors at 64 views × 16 lights × 64 px × 64 steps ×
-#: 2 rays: 9.7e7 (``trace_sectors``, which the bake used before: 5.4e7; the estimate had assumed 1.47e8).
-TRACE_RATE = 9.7e7
+#: Throughputs of the bake (``hairlut.synth.bake_view_grid``), measured on 64 of the paper model's sectors
+#: (benchmarks/scene_layouts.py --paper-subset, 2-core CPU under load): re/α shading samples (kept view · light
+#: · lane · step, self-shadowed) per CPU second, α march samples (view · lane · step, V/2 views) per CPU second,
+#: and the α projection's multiply-adds (2 · m² · V/2 · lanes with table.alpha_grid m) per CPU second.
+SHADE_RATE = 7.9e7
+MARCH_RATE = 2.4e7
+PROJECT_RATE = 6.7e10
 BAKE_OVERHEAD = 8.0
 #: Non-empty sectors assumed per sector when the count is unknown (Sintel: 793 of 1,296; ratboy 2,217 of 2,592).
 LIVE_FRACTION = 0.75
@@ -25,14 +28,17 @@ LIVE_FRACTION = 0.75
 
 def estimate(recipe: dict, sectors: int = 1296, live: int | None = None) -> tuple[int, float]:
     """(bytes, seconds) of a bake of ``sectors`` sectors, ``live`` of them non-empty (by default
-    :data:`LIVE_FRACTION` of them); the bytes are uncompressed (an upper bound)."""
+    :data:`LIVE_FRACTION` of them); the bytes are uncompressed (an upper bound), the seconds CPU seconds."""
     r = resolve_recipe(recipe)
     t, tr = r["table"], hrir_recipe(r)["trace"]
     n = int(sectors * LIVE_FRACTION) if live is None else int(live)
     item = 2 if t["dtype"] == "float16" else 4
     nbytes = item * n * (t["views"] // 2 * tr["pixels"] + t["views"] // t["ratio_step"] * t["shading_pixels"] * (2 * t["terms"] + 1))
-    work = n * t["views"] * t["lights"] * tr["pixels"] * tr["steps"] * tr["rays_per_pixel"]
-    return int(nbytes + 4 * sectors), BAKE_OVERHEAD + work / TRACE_RATE
+    lanes, m = tr["pixels"] * tr["rays_per_pixel"], t["alpha_grid"]
+    shade = t["views"] // t["ratio_step"] * t["lights"] * tr["pixels"] * (t["shade_rays"] or tr["rays_per_pixel"]) \
+        * (t["shade_steps"] or tr["steps"]) / SHADE_RATE
+    alpha = 2 * m * m * t["views"] // 2 * lanes / PROJECT_RATE if m else t["views"] // 2 * lanes * tr["steps"] / MARCH_RATE
+    return int(nbytes + 4 * sectors), BAKE_OVERHEAD + n * (shade + alpha)
 
 
 def _load_scene(value, recipe, options):
@@ -66,7 +72,8 @@ def describe(report: dict) -> list[str]:
     return [f"wrote {report['out']} ({report['kind']}, {rows}{report['bytes'] / 2**20:.1f} MiB) in {report['seconds']:.1f} s",
             f"  {report['live']} of {report['sectors']} sectors are table rows: traced {report['computed']}, resumed "
             f"{report['resumed']}, on {t['views']} views × {t['lights']} lights; {2 * t['terms'] + 1} ratio terms × "
-            f"{t['shading_pixels']} bins ({t['dtype']}); mirror symmetry holds to {report['mirror_error']:.1e}"]
+            f"{t['shading_pixels']} bins ({t['dtype']}) on 1 view in {t['ratio_step']}; alpha "
+            + (f"through a {t['alpha_grid']}² node grid" if t["alpha_grid"] else "by the tracer's march")]
 
 
 BAKER = Baker(
