@@ -15,9 +15,16 @@ camera ray crosses.  Two figures per phase count s_u, side by side:
 
 A ray near a layer's silhouette or through the innermost (pie-slice) track crosses several sectors and reads two:
 the model loses optical depth the more sectors a track has; with few sectors the entry and exit fall in the same
-sector and count its chord twice.
+sector and count its chord twice.  ``[render] layer_reads = "track"`` reads every sector the ray crosses in the
+track instead (``hairlut.synth.sweep_sectors``); on the idealised disc it reads the whole chord by construction (the
+tests check it against the analytic depth), so only the measured figures are given for it.  Per s_u and read the
+rows also hold the 8 × 8-block RGB RMSE, the FLIP mean and the maps stage's wall and CPU seconds (the frame's
+``maps`` time, one warm frame after the render's own).
 
-Usage: python benchmarks/layer_reads.py [--scene S.toml] [--su 4 8 16] [--resolution 128] [--no-render]
+With ``--paper``: only the maps stage's cost per read on the paper-scale model (:func:`paper_cost`).
+
+Usage: python benchmarks/layer_reads.py [--scene S.toml] [--su 4 8 16] [--reads pair track] [--resolution 128]
+[--no-render] [--paper]
 """
 
 from __future__ import annotations
@@ -35,6 +42,7 @@ from render import with_config  # noqa: E402
 
 from hairlut.render import compare, render_layered, render_reference  # noqa: E402
 from hairlut.scene import load_scene  # noqa: E402
+from hairlut.synth import prepare, render  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -67,13 +75,66 @@ def geometric_bias(s_u: int, layer_radii, tau: float, rays: int = 1500, steps: i
     return float(model.mean() / truth.mean() - 1.0)
 
 
+def _best(fn, n: int):
+    """Best wall and process seconds of ``n`` calls of ``fn`` (after one untimed warm-up call)."""
+    import jax
+
+    jax.block_until_ready(fn())
+    wall, cpu = [], []
+    for _ in range(n):
+        w0, c0 = time.perf_counter(), time.process_time()
+        jax.block_until_ready(fn())
+        wall.append(time.perf_counter() - w0)
+        cpu.append(time.process_time() - c0)
+    return min(wall), min(cpu)
+
+
+def paper_cost(frames: int = 5) -> list[dict]:
+    """The part of the maps stage the read changes on the paper-scale model (benchmarks/online_frame.py's: 17
+    clusters × 3 layers, s_t 64, s_u 16, 64² texels): the sweep from every sector's rows to the texels
+    (``sweep_sectors`` on fixed random rows of 32 pixels), best of ``frames``, wall and process time.  The rows
+    themselves (the direct method's trace, the scene table's fetch) are the same for both reads."""
+    import jax.numpy as jnp
+    from online_frame import model
+
+    from hairlut.scene import resolve_scene
+    from hairlut.synth import params_kernel, sweep_sectors
+
+    rows = []
+    for reads in ("pair", "track"):
+        cfg = model(17, 64, 16, 64, 200)
+        cfg["render"].update(method="direct", layer_reads=reads)
+        prep = prepare(resolve_scene(cfg, "paper-scale model"))
+        ix, sc = prep.index, prep.scene
+        f32 = np.float32
+        _, _, cs, _, _ = params_kernel(ix, sc.view.astype(f32), sc.lights.astype(f32), f32(0.0), n_v=1, n_l=1)
+        S, Lt = int(np.prod(ix.grid[:1]) * (ix.grid[1] + 1) * ix.grid[2] * ix.grid[3]), len(sc.lights)
+        rng = np.random.default_rng(0)
+        alpha = jnp.asarray(rng.uniform(0, 0.5, (S, 32)), jnp.float32)
+        re = jnp.asarray(rng.uniform(0, 0.2, (S, Lt, 32)), jnp.float32)
+        wall, cpu = _best(lambda: sweep_sectors(ix, alpha, re, cs), frames)
+        row = {"scene": "paper-scale", "reads": reads, "sweep_ms": 1e3 * wall, "sweep_cpu_ms": 1e3 * cpu,
+               "texels": int(np.prod(ix.offset.shape[2:])), "sectors": S}
+        rows.append(row)
+        print(row, flush=True)
+    return rows
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default=str(ROOT / "tables" / "scenes" / "sintel-groom.toml"))
     ap.add_argument("--su", type=int, nargs="+", default=[4, 8, 16])
+    ap.add_argument("--reads", nargs="+", default=["pair", "track"], choices=["pair", "track"])
     ap.add_argument("--resolution", type=int, default=128)
     ap.add_argument("--no-render", action="store_true", help="the geometric figures only")
+    ap.add_argument("--paper", action="store_true", help="only the maps stage's cost on the paper-scale model")
     args = ap.parse_args()
+    if args.paper:
+        rows = paper_cost()
+        print(table(rows, [("scene", "model", "s"), ("reads", "reads", "s"), ("sweep_ms", "sweep ms", ".1f"),
+                           ("sweep_cpu_ms", "sweep CPU ms", ".1f")]))
+        save("layer_reads_paper", {"rows": rows})
+        return
     sc = load_scene(args.scene)
     sc = with_config(sc, camera={"resolution": [args.resolution] * 2}, shadows={"method": "none"})
     radii = sc.config["groom"]["layer_radii"] if "groom" in sc.config else [0.5, 0.75, 1.0]
@@ -84,20 +145,30 @@ def main():
         print(f"reference level 0: {time.perf_counter() - t0:.0f} s")
     rows = []
     for s_u in args.su:
-        row = {"scene": Path(args.scene).stem, "s_u": s_u, "layer_radii": list(radii),
-               "geometric_tau_0.5": geometric_bias(s_u, radii, 0.5), "geometric_tau_2": geometric_bias(s_u, radii, 2.0)}
-        if truth is not None:
-            t0 = time.perf_counter()
-            f = render_layered(with_config(sc, groom={"s_u": s_u}, render={"method": "direct"}), camera=truth.camera)
-            figs = compare(f, truth, flip=False)[0]
-            row.update(alpha_bias=figs["alpha_bias_relative"], alpha_rmse_8x8=figs["alpha_rmse_8x8"],
-                       seconds=time.perf_counter() - t0)
-        rows.append(row)
-        print(row, flush=True)
-    print(table(rows, [("scene", "scene", "s"), ("s_u", "s_u", "d"), ("alpha_bias", "measured mean-α bias", "+.1%"),
-                       ("alpha_rmse_8x8", "8×8 α RMSE", ".3f"), ("geometric_tau_0.5", "geometric (τ 0.5)", "+.1%"),
+        geo = {"geometric_tau_0.5": geometric_bias(s_u, radii, 0.5), "geometric_tau_2": geometric_bias(s_u, radii, 2.0)}
+        for reads in args.reads:
+            row = {"scene": Path(args.scene).stem, "s_u": s_u, "reads": reads, "layer_radii": list(radii),
+                   **(geo if reads == "pair" else {})}
+            if truth is not None:
+                t0 = time.perf_counter()
+                layered = with_config(sc, groom={"s_u": s_u}, render={"method": "direct", "layer_reads": reads})
+                prep = prepare(layered)
+                f = render_layered(layered, camera=truth.camera, prepared=prep)
+                figs = compare(f, truth, flip=True)[0]
+                w0, c0 = time.perf_counter(), time.process_time()
+                timing = render(prep).stats["seconds"]  # one more (warm) frame: its maps stage
+                row.update(alpha_bias=figs["alpha_bias_relative"], alpha_rmse_8x8=figs["alpha_rmse_8x8"],
+                           rgb_rmse_8x8=figs["rgb_rmse_8x8"], flip_mean=figs["flip_mean"],
+                           maps_s=timing["maps"], frame_cpu_s=time.process_time() - c0,
+                           frame_wall_s=time.perf_counter() - w0, seconds=time.perf_counter() - t0)
+            rows.append(row)
+            print(row, flush=True)
+    print(table(rows, [("scene", "scene", "s"), ("s_u", "s_u", "d"), ("reads", "reads", "s"),
+                       ("alpha_bias", "measured mean-α bias", "+.1%"), ("alpha_rmse_8x8", "8×8 α RMSE", ".3f"),
+                       ("rgb_rmse_8x8", "8×8 RGB RMSE", ".4f"), ("flip_mean", "FLIP", ".3f"),
+                       ("maps_s", "maps s (warm)", ".2f"), ("geometric_tau_0.5", "geometric (τ 0.5)", "+.1%"),
                        ("geometric_tau_2", "geometric (τ 2)", "+.1%")]))
-    save("layer_reads", {"resolution": args.resolution, "rows": rows})
+    save(f"layer_reads_{Path(args.scene).stem}_{args.resolution}", {"resolution": args.resolution, "rows": rows})
 
 
 if __name__ == "__main__":

@@ -47,12 +47,13 @@ def _disc(s_u, core=0.0, n_u=1024, reads="track"):
     t = np.linspace(-1.0, 1.0, 8001)
     dt = t[1] - t[0]
     alpha = np.empty((S, P))
-    for s in range(S):  # each pixel's line through the sector, sampled along its length
+    for s in range(G * s_u):  # each pixel's line through the sector, sampled along its length (cross-section 0)
         b = centre[s] @ e + x  # the line's offset from the disc centre
         px, py = b[:, None] * e[0] + t * view[0], b[:, None] * e[1] + t * view[1]
         r, ph = np.hypot(px, py), np.mod(np.arctan2(py, px), 2 * np.pi)
         inside = (r >= v0[s]) & (r < v1[s]) & (np.minimum((ph // du).astype(int), s_u - 1) == k[s])
         alpha[s] = 1 - np.exp(-RHO * inside.sum(1) * dt)
+    alpha[G * s_u:] = alpha[:G * s_u]  # cross-section 1 is the same
     return ix, alpha.astype(np.float32), cs.astype(np.float32)
 
 
@@ -119,3 +120,30 @@ def test_layer_reads_is_validated_by_name():
         resolve_scene(s)
     with pytest.raises(errors.ValidationError, match="render.layer_reads"):
         _disc(4, reads="both")
+
+
+def test_satf_track_read_sweeps_every_sectors_own_fetch():
+    """The ``satf`` path with the track read (every HSV fetched as non-uniform) gives the maps of every sector's own
+    row fetched by the reference k-NN lookup (``_maps.fetch``) swept by ``sweep_sectors``."""
+    from hairlut.synth import params_kernel, prepare
+    from hairlut.synth._frame import frame_maps
+    from hairlut.synth._maps import fetch, sector_angles
+
+    from ._synth_fixtures import synthetic_db
+
+    db = synthetic_db()
+    given = base_scene()
+    given["render"] = {**given["render"], "method": "satf", "layer_reads": "track"}
+    prep = prepare(given, db)
+    sc, ix = prep.scene, prep.index
+    re, alpha, uniform = frame_maps(ix, db, sc.view, sc.lights, sc.material["k_threshold"])
+    assert ix.reads == "track" and not uniform.any()
+    sp = sector_angles(prep.frames, sc.view, sc.lights)
+    r_ref, a_ref = fetch(db, sp.features, sp.theta_v, sp.theta_l, sc.config["render"]["neighbours"])
+    occ = np.asarray(prep.frames.occupied, bool)
+    f32 = np.float32
+    cs = params_kernel(ix, sc.view.astype(f32), sc.lights.astype(f32), f32(0.0), n_v=1, n_l=1)[2]
+    re_ref, alpha_ref = sweep_sectors(ix, a_ref * occ[:, None], r_ref * occ[:, None, None], cs)
+    np.testing.assert_allclose(np.asarray(alpha), np.asarray(alpha_ref), atol=2e-5)
+    np.testing.assert_allclose(np.asarray(re), np.asarray(re_ref), atol=2e-5)
+    assert np.asarray(alpha).max() > 0.1

@@ -4,6 +4,12 @@
 or the lights; :func:`frame_maps` runs :func:`params_kernel` (angles, eq 6),
 :func:`fetch_kernel` (the SATF rows, non-uniform HSVs compacted on the host) and
 :func:`sweep_rows` (eq 7).  Conventions and the reference implementation: ``_maps``.
+
+``[render] layer_reads = "track"`` replaces eq 7's two reads per texel (its HSV's top and bottom sector at the
+texel's pixel) by :func:`sweep_track`: in each of the two cross-sections, every sector the texel's in-plane ray
+crosses in its track on its side of the chord (:func:`track_window`), so that a ray's fragments together read
+the whole path through the cluster once; then the same γ interpolation.  It needs every sector's own row (no
+eq 6 shortcut on the ``satf`` path).
 """
 
 from __future__ import annotations
@@ -164,7 +170,7 @@ def track_window(ix: MapIndex, cs, e: int):
     """The sectors a texel's in-plane ray crosses in its track, on its side of the chord, in cross-section ``e``
     (0: its HSV's top, 1: bottom): per texel (C, K, n_t, n_u), for m < M = min(s_u, ⌊s_u/4⌋ + 2), the phase
     column ``col[m]`` (0 … s_u − 1) of the m-th sector from the texel's point p inward along the ray, its weight
-    ``w[m]`` (1, ½ when the chord's other fragment crosses it too, 0 past the segment's end) and its image-line
+    ``w[m]`` (1; ½ when the chord's other fragment crosses it too; 0 past the segment's end) and its image-line
     coordinate ``x[m]`` = (p − c_s)·e / R_s (e the in-plane view turned +90°); and ``front`` (the ray enters the
     track at p: m runs front to back; else back to front).
 
@@ -206,20 +212,23 @@ def track_window(ix: MapIndex, cs, e: int):
     own = (u, phase(s_end))
     other = (phase(2 * s_mid - s_end), phase(2 * s_mid))
 
+    turns = (-s_u, 0, s_u) if s_u == 1 else (0,)  # from s_u = 2 on, the chord's columns never wrap onto each other
+
     def crossed(j, ends):  # phase length of column j (any turn of the circle) inside the interval between ends
         lo, hi = jnp.minimum(*ends), jnp.maximum(*ends)
-        return jnp.max(jnp.stack([jnp.minimum(hi, (j + n + 1) * du) - jnp.maximum(lo, (j + n) * du)
-                                  for n in (-s_u, 0, s_u)]), axis=0)
+        over = [jnp.minimum(hi, (j + n + 1) * du) - jnp.maximum(lo, (j + n) * du) for n in turns]
+        return over[0] if len(over) == 1 else jnp.max(jnp.stack(over), axis=0)
 
     j0 = jnp.floor(u / du).astype(jnp.int32) + jnp.zeros_like(sig)  # unwrapped column of p
     Px, Py, base = A * px, B * py, sid - jnp.mod(sid, s_u)
+    frame = ix.track[:, 5:8]  # centre, extent
     cols, ws, xs = [], [], []
     for m in range(min(s_u, s_u // 4 + 2)):
         j = j0 + sig * m
         k = jnp.mod(j, s_u)
         w = jnp.where(crossed(j, own) > EPS_PHASE, jnp.where(crossed(j, other) > EPS_PHASE, 0.5, 1.0), 0.0)
-        h = ix.track[base + k]
-        xs.append(((Px - h[..., 5]) * -dy + (Py - h[..., 6]) * dx) / h[..., 7])
+        h = frame[base + k]
+        xs.append(((Px - h[..., 0]) * -dy + (Py - h[..., 1]) * dx) / h[..., 2])
         cols.append(k)
         ws.append(w)
     return cols, ws, xs, front
@@ -239,14 +248,16 @@ def sweep_track(ix: MapIndex, rows_re, rows_a, cs):
     flat_re, flat_a = rows_re.reshape(-1), rows_a.reshape(-1)
     out = []
     for e in (0, 1):
-        cols, ws, xs, front = track_window(ix, cs, e)
+        # materialised: XLA:CPU would otherwise recompute the window's geometry inside every gather that reads it
+        cols, ws, xs, front = jax.lax.optimization_barrier(tuple(jnp.stack(a) if isinstance(a, list) else a
+                                                                 for a in track_window(ix, cs, e)))
         row0 = e * H + h - jnp.mod(h, s_u)
         acc = jnp.zeros(h.shape + (Lt,), jnp.float32)
         trans = jnp.ones(h.shape, jnp.float32)
         for k, w, x in zip(cols, ws, xs):
             row, p = row0 + k, (x + 1.0) * P / 2.0 - 0.5
             a = jnp.clip(_sample(flat_a, row, p, P), 0.0, 1.0)
-            a_w = -jnp.expm1(w * jnp.log1p(-jnp.minimum(a, 1.0 - 1e-7)))
+            a_w = jnp.where(w == 1.0, a, jnp.where(w == 0.0, 0.0, 1.0 - jnp.sqrt(1.0 - a)))  # 1 − (1 − α)^w
             scale = jnp.where(a > 0, a_w / jnp.where(a > 0, a, 1.0), 0.0)
             re = jnp.stack([_sample(flat_re, row * Lt + j, p, P) for j in range(Lt)], -1) * scale[..., None]
             acc = jnp.where(front[..., None], acc + trans[..., None] * re, re + (1.0 - a_w[..., None]) * acc)

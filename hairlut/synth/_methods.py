@@ -89,6 +89,8 @@ def scene_frame_kernel(ix: MapIndex, alpha, ratio, cs, top, bot):
     (C, K, n_t, n_u) each texel's two sectors (:meth:`MapSource.sectors_of`); re (C, K, Lt, n_t, n_u),
     α (C, K, n_t, n_u)."""
     (S, P), (Lt, Q) = alpha.shape, ratio.shape[1:]
+    if ix.reads == "track":  # [render] layer_reads: every sector's re row, re(p) = α(p) ρ(⌊pQ/P⌋), for sweep_track
+        return sweep_sectors(ix, alpha, alpha[:, None] * jnp.repeat(ratio, P // Q, axis=-1), cs)
     c1, c2 = cs[top], cs[bot]
     pix = [((-c[..., 1] * o[0] + c[..., 0] * o[1]) + 1.0) * P / 2.0 - 0.5 for c, o in zip((c1, c2), ix.offset)]
     fa, fr = alpha.reshape(-1), ratio.reshape(-1)
