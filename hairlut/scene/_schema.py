@@ -104,7 +104,8 @@ SCHEMA = {
                            "scene: storage precision of the per-groom table"),
         "layer_reads": Field("pair", _S, one_of("pair", "track"),
                              "what a layer texel reads: pair (eq 7: its HSV's two sectors) or track (every sector "
-                             "its in-plane ray crosses in its track, on its side of the chord)"),
+                             "its in-plane ray crosses in its track, on its side of the chord: closer to the strands, "
+                             "a ~40x costlier sweep)"),
     },
     "camera": CAMERA,
     "lights": {

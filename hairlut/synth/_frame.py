@@ -240,7 +240,11 @@ def sweep_track(ix: MapIndex, rows_re, rows_a, cs):
     HSV h's top sector's at row h, its bottom sector's at row H + h (``sweep_sectors``' layout; ``fetch_kernel``'s
     with every HSV non-uniform).  Per cross-section, with weight w a sector's pixel gives α' = 1 − (1 − α)^w
     (its optical depth times w) and re' = re α'/α (re is α-premultiplied), composited along the ray front to
-    back: α = 1 − Π(1 − α'), re = Σ re' Π_{before}(1 − α')."""
+    back: α = 1 − Π(1 − α'), re = Σ re' Π_{before}(1 − α').
+
+    Cost: up to 2M samples per texel instead of 2, plus the window's geometry; on the paper-scale model
+    (53,040 sectors, 208,896 texels, s_u = 16: M = 6) 246–401 CPU-ms against eq 7's 6.5 in the same run
+    (``benchmarks/layer_reads.py --paper``, loaded 2-core CPU), which is why ``pair`` stays the default."""
     n_c, s_t, n_g, s_u = ix.grid
     H = n_c * s_t * n_g * s_u
     Lt, P = rows_re.shape[1:]
