@@ -3,6 +3,8 @@
 
     python3 run.py demo [ARGS...]   create .venv, install hairlut, run `hairlut demo ARGS`
     python3 run.py test [ARGS...]   create .venv, install hairlut[test], run the whole test suite
+                                    (slow reference checks included) on 2 pytest-xdist workers:
+                                    HAIRLUT_TEST_WORKERS=1 runs it in one process; ARGS go to pytest
     python3 run.py hairlut ARGS...  any hairlut command inside the venv
 
 The venv is (re)installed only when pyproject.toml changes.
@@ -37,6 +39,15 @@ def ensure_venv(extras: str) -> None:
     stamp.write_text(want)
 
 
+def test_workers() -> list[str]:
+    """pytest-xdist options for the whole suite: ``$HAIRLUT_TEST_WORKERS`` workers (default 2, at most the CPU
+    count), each test file on one worker so that its module fixtures are built once. Much of the suite's time
+    is single-threaded work (XLA compilation, HDF5, forked children), so one process leaves a core of a
+    2-core machine idle; the workers share one XLA compilation cache (tests/conftest.py)."""
+    n = int(os.environ.get("HAIRLUT_TEST_WORKERS", min(2, os.cpu_count() or 1)))
+    return ["-n", str(n), "--dist", "loadfile"] if n > 1 else []
+
+
 def main(argv: list[str]) -> int:
     if not argv or argv[0] not in {"demo", "test", "hairlut"}:
         print(__doc__, file=sys.stderr)
@@ -45,7 +56,7 @@ def main(argv: list[str]) -> int:
     # Both tasks share one environment, with the test extras, so switching never reinstalls.
     ensure_venv("test")
     if task == "test":
-        cmd = [str(BIN / "python"), "-m", "pytest", *rest]
+        cmd = [str(BIN / "python"), "-m", "pytest", *test_workers(), *rest]  # options in ARGS come later: they win
     elif task == "demo":
         cmd = [str(BIN / "hairlut"), "demo", *rest]
     else:
