@@ -72,7 +72,19 @@ def cli_fails(*args):
 # ----------------------------------------------------------------------------- item 1: flipped metadata bits
 
 
-CHILD_SECONDS = 5  # per offset: a child that reports nothing for this long is stuck in HDF5
+CHILD_SECONDS = 5  # per offset: a child that computes this long (CPU seconds) without a result is stuck in HDF5
+CHILD_WALL_SECONDS = 60  # ... or that reports nothing for this long at all (a loaded machine slows every child)
+
+
+def _cpu_seconds(pid):
+    """CPU time a child has used (Linux /proc); None where that cannot be read."""
+    try:
+        fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return None
+
+
 BATCH = 64  # offsets per forked child; a fork of the test process costs more than reading one small file
 
 
@@ -100,6 +112,16 @@ def _child(raw, probe_dir, offs, readers, w):  # pragma: no cover (runs in the f
     os._exit(0)
 
 
+def _stuck(pid, since, cpu_then):
+    """No result for CHILD_SECONDS of the child's own CPU time (wall time where /proc is missing), or for
+    CHILD_WALL_SECONDS of wall time: on a loaded machine a slow child is not taken for a hang."""
+    waited = time.monotonic() - since
+    cpu_now = _cpu_seconds(pid)
+    if cpu_then is None or cpu_now is None:
+        return waited > CHILD_SECONDS
+    return cpu_now - cpu_then > CHILD_SECONDS or waited > CHILD_WALL_SECONDS
+
+
 def _run_child(raw, probe_dir, offs, readers):
     """Fork one child for ``offs``; return ({offset: outcomes} it reported, the offset it died or hung at, how)."""
     r, w = os.pipe()
@@ -109,7 +131,7 @@ def _run_child(raw, probe_dir, offs, readers):
         _child(raw, probe_dir, offs, readers, w)
     os.close(w)
     got, buf, fail = {}, b"", None
-    last = time.monotonic()
+    last, last_cpu = time.monotonic(), _cpu_seconds(pid)
     while True:
         ready, _, _ = select.select([r], [], [], 0.05)
         if ready:
@@ -121,8 +143,8 @@ def _run_child(raw, probe_dir, offs, readers):
             for line in lines:
                 off, res = json.loads(line)
                 got[off] = res
-            last = time.monotonic()
-        elif time.monotonic() - last > CHILD_SECONDS:
+            last, last_cpu = time.monotonic(), _cpu_seconds(pid)
+        elif _stuck(pid, last, last_cpu):
             os.kill(pid, signal.SIGKILL)
             fail = "hang"
             break
