@@ -244,6 +244,11 @@ KERNELS = {
         (False, lambda s=s: ((A(4, 8, 8), A(4, 11), A(2), A(3), A(4)),
                              dict(n_pix=8, n_steps=16, rays=1, shadow=s, smooth=True, block=2)))
         for s in (False, True)],
+    "hairlut.synth._viewgrid:bake_grid_kernel": [
+        (False, lambda m=m, s=s: ((A(4, 8, 8), A(4, 11), A(m * m, 16) if m else A(1, 1), A(1), A(3), A(4)),
+                                  dict(n_views=4, n_pix=8, n_steps=16, rays=1, m=m, shade_rays=0, shade_steps=0,
+                                       shadow=s, smooth=True, bins=2)))
+        for m in (0, 4) for s in (False, True)],
     "hairlut.synth._frame:params_kernel": [
         (False, lambda: ((_map_index(), A(3), A(2, 3), A()), dict(n_v=8, n_l=8)))],
     "hairlut.synth._frame:fetch_kernel": [
