@@ -40,34 +40,14 @@ from ._direct import _SIGMA_PX, bucket
 HIGHEST = jax.lax.Precision.HIGHEST
 
 
-def _grid_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, shadow, smooth, eps):
-    """α (V, P) and premultiplied re (V, L, P) of one sector on the views θ (V/2,) and θ + π."""
-    fields = sector_fields(rho)
-    lanes = n_pix * rays
-    flip = lambda x: jnp.flip(x, axis=(1, 2))  # noqa: E731  (views, lanes, steps): the mirror view's order
-    half = march(fields, g, views_half, lanes, n_steps)  # each (H, lanes, K)
-    tau, gx, gy, rs, rr, inside = (jnp.concatenate([x, flip(x)], axis=0) for x in half)
-    views = jnp.concatenate([views_half, views_half + jnp.pi])
-    w, alpha = front_to_back(tau, eps)  # eq 5 front-to-back weights (per view)
-    direct = direct_lighting(rho, gx, gy, rs, rr, inside, views, lights, phong)  # (V, L, lanes, K)
-    if shadow:
-        depth = light_depth_grid(fields, g, lights, n_steps, min(n_steps, SHADOW_GRID))  # (M, M, L)
-        t_half = grid_transmittance(depth, g, views_half, lanes, n_steps)  # (H, lanes, K, L)
-        trans_l = jnp.concatenate([t_half, flip(t_half)], axis=0)  # the mirror views read it reversed
-        direct = direct * jnp.moveaxis(trans_l, -1, 1)
-    refl = reflectance(alpha, direct, w, phong)
-    S = smooth_matrix(g[_SIGMA_PX], n_pix) if smooth else None
-    alpha, refl = to_pixels(alpha, n_pix, rays, S), to_pixels(refl, n_pix, rays, S)
-    return alpha, refl
-
-
 @partial(jax.jit, static_argnames=("n_pix", "n_steps", "rays", "shadow", "smooth", "eps", "block"))
 def view_grid_kernel(rho, geom, views_half, lights, phong, *, n_pix: int, n_steps: int, rays: int = 1,
                      shadow: bool = True, smooth: bool = True, eps: float = 1e-4, block: int = 1):
     """α (B, V, P) and premultiplied re (B, V, L, P) of B sectors on the views ``views_half`` (V/2,)
     followed by the same views + π, and the lights ``lights`` (L,).  ``rho`` (B, n_s, n_r), ``geom``
     (B, 11) rows of ``hairlut.hrir.GEOM``, ``phong`` = (k_a, k_d, k_s, p); B a multiple of ``block``."""
-    one = partial(_grid_one, n_pix=n_pix, n_steps=n_steps, rays=rays, shadow=shadow, smooth=smooth, eps=eps)
+    one = partial(_shade_one, n_pix=n_pix, n_steps=n_steps, rays=rays, shadow=shadow, smooth=smooth, eps=eps,
+                  mirror=True, bins=n_pix)  # every view of the circle, per pixel
     return jax.lax.map(lambda a: one(a[0], a[1], views_half, lights, phong), (rho, geom), batch_size=block)
 
 
@@ -95,26 +75,34 @@ def trace_view_grid(density, geometry, recipe: dict, *, views: int, lights: int,
     n = len(np.asarray(density))
     rho, g, _, _ = _check_inputs(density, geometry, np.zeros(n), np.zeros((n, 1)))
     P = cfg["n_pix"]
-    alpha = np.zeros((n, V, P), np.float32)
-    re = np.zeros((n, V, L, P), np.float32)
-    live = np.flatnonzero(rho.reshape(n, -1).max(axis=1, initial=0.0) > 0) if n else np.zeros(0, np.int64)
     vh = jnp.asarray(2 * np.pi * np.arange(V // 2) / V, jnp.float32)
     lt = jnp.asarray(2 * np.pi * np.arange(L) / L, jnp.float32)
     ph = jnp.asarray(phong, jnp.float32)
+    kernel = lambda r, gg: view_grid_kernel(r, gg, vh, lt, ph, block=block, **cfg)  # noqa: E731
+    return _live_calls(kernel, rho, g, ((V, P), (V, L, P)), block, "trace_view_grid", progress)
+
+
+def _live_calls(kernel, rho, g, shapes, block: int, name: str, progress) -> tuple[np.ndarray, ...]:
+    """``kernel(rho, geom)``'s float32 outputs of shapes (N, *shape) for ``shapes``: zero for the all-zero
+    sectors, the others :data:`CALL` at a time, padded to a bucketed multiple of ``block`` (few
+    compilations), checked finite; ``progress(done, total)`` after each call."""
+    n = len(rho)
+    outs = tuple(np.zeros((n, *shape), np.float32) for shape in shapes)
+    live = np.flatnonzero(rho.reshape(n, -1).max(axis=1, initial=0.0) > 0) if n else np.zeros(0, np.int64)
     for start in range(0, live.size, CALL):
         idx = live[start:start + CALL]
         size = bucket(idx.size, block) if idx.size < CALL else idx.size
         size = -(-size // block) * block
         rows = np.concatenate([idx, np.full(size - idx.size, idx[0])])
-        a, r = view_grid_kernel(jnp.asarray(rho[rows], jnp.float32), jnp.asarray(g[rows], jnp.float32), vh, lt, ph,
-                                block=block, **cfg)
-        a, r = np.asarray(a)[:idx.size], np.asarray(r)[:idx.size]
-        if not (np.isfinite(a).all() and np.isfinite(r).all()):
-            raise errors.HairlutError("trace_view_grid: the kernel produced non-finite maps (check the density scale)")
-        alpha[idx], re[idx] = a, r
+        got = [np.asarray(x)[:idx.size] for x in kernel(jnp.asarray(rho[rows], jnp.float32),
+                                                        jnp.asarray(g[rows], jnp.float32))]
+        if not all(np.isfinite(x).all() for x in got):
+            raise errors.HairlutError(f"{name}: the kernel produced non-finite maps (check the density scale)")
+        for out, x in zip(outs, got):
+            out[idx] = x
         if progress:
             progress(min(start + CALL, live.size), live.size)
-    return alpha, re
+    return outs
 
 
 # ---------------------------------------------------------------------------------------------
@@ -144,7 +132,7 @@ def projection_matrix(m: int, views: int, lanes: int, n_steps: int) -> np.ndarra
 
 def _shade_one(rho, g, views_kept, lights, phong, *, n_pix, n_steps, rays, shadow, smooth, eps, mirror, bins):
     """Per-bin α (Vr, Q) and premultiplied re (Vr, L, Q) of one sector on the kept views (the ratio's):
-    ``views_kept`` then, with ``mirror``, the same + π (their samples shared, as :func:`_grid_one`)."""
+    ``views_kept`` then, with ``mirror``, the same + π (their samples and light lookups shared: the module docstring)."""
     fields = sector_fields(rho)
     lanes = n_pix * rays
     flip = (lambda x: jnp.concatenate([x, jnp.flip(x, axis=(1, 2))], axis=0)) if mirror else (lambda x: x)  # noqa: E731
@@ -173,7 +161,7 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
     product with ``proj`` (:func:`projection_matrix`, precision HIGHEST): τ = σ_t Δs Σ_k ρ(q_k),
     α = 1 − e^−τ (eq 5's Σ_k w_k without the ``eps`` cut-off, which changes α by < eps), rays averaged,
     smoothed; with ``m`` = 0, the tracer's march per view (eq 5's Σ_k w_k; ``proj`` unused).
-    re (eq 5): the tracer's own march (:func:`_grid_one`'s steps) with ``shade_rays`` rays per pixel
+    re (eq 5): the tracer's own march (:func:`_shade_one`) with ``shade_rays`` rays per pixel
     and ``shade_steps`` steps, on the kept views only."""
     lanes = n_pix * rays
     half = n_views // 2
@@ -243,23 +231,10 @@ def bake_view_grid(density, geometry, recipe: dict, *, views: int, lights: int, 
     mirror = (V // 2) % step == 0  # the kept views' mirrors are kept views too: march V/(2·step), read both
     kept = np.arange(0, V // 2 if mirror else V, step)
     Vr = V // step
-    alpha, ab, rb = np.zeros((n, V // 2, P), np.float32), np.zeros((n, Vr, Q), np.float32), np.zeros((n, Vr, L, Q), np.float32)
-    live = np.flatnonzero(rho.reshape(n, -1).max(axis=1, initial=0.0) > 0) if n else np.zeros(0, np.int64)
     vk = jnp.asarray(2 * np.pi * kept / V, jnp.float32)
     lt = jnp.asarray(2 * np.pi * np.arange(L) / L, jnp.float32)
     ph = jnp.asarray(phong, jnp.float32)
     settings = dict(n_views=V, n_pix=P, n_steps=cfg["n_steps"], rays=cfg["rays"], m=m, shade_rays=sr, shade_steps=sk,
                     shadow=bool(cfg["shadow"]), smooth=cfg["smooth"], eps=cfg["eps"], mirror=mirror, bins=Q)
-    for start in range(0, live.size, CALL):
-        idx = live[start:start + CALL]
-        size = bucket(idx.size, 1) if idx.size < CALL else idx.size
-        rows = np.concatenate([idx, np.full(size - idx.size, idx[0])])
-        out = bake_grid_kernel(jnp.asarray(rho[rows], jnp.float32), jnp.asarray(g[rows], jnp.float32), _PROJ[key], vk,
-                               lt, ph, **settings)
-        a, b, r = (np.asarray(x)[:idx.size] for x in out)
-        if not (np.isfinite(a).all() and np.isfinite(b).all() and np.isfinite(r).all()):
-            raise errors.HairlutError("bake_view_grid: the kernel produced non-finite maps (check the density scale)")
-        alpha[idx], ab[idx], rb[idx] = a, b, r
-        if progress:
-            progress(min(start + CALL, live.size), live.size)
-    return alpha, ab, rb
+    kernel = lambda r, gg: bake_grid_kernel(r, gg, _PROJ[key], vk, lt, ph, **settings)  # noqa: E731
+    return _live_calls(kernel, rho, g, ((V // 2, P), (Vr, Q), (Vr, L, Q)), 1, "bake_view_grid", progress)
