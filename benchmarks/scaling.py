@@ -39,7 +39,7 @@ Then the projected time of the production database (65,536 sectors, 64 × 64 ang
 34.9 GB) on 8 H200s, term by term and labelled "projected, not measured on a GPU": the device time from
 the last H200 rate (issue 15, commit 937d29b: 94 default sectors/s, host-bound then), scaled by a
 production sector's tracing work; the host's work per sector measured now on this CPU with the
-production's shapes (``_host_terms``: serial inputs and HDF5/checks/index, and the chunk filters, which
+production's shapes (``host_terms``: serial inputs and HDF5/checks/index, and the chunk filters, which
 the chunk writer runs on every core, divided over the GPU machine's 16 cores); the disk (this machine's
 write bandwidth); and the virtual assembly measured at 65,536 sectors.  A bake overlaps device, host and
 disk, so projected = max(device, host, write) + assembly.
@@ -61,8 +61,10 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+from _assembly import assembly, print_assembly
 from _common import save, table
+from _projection import GPUS, PRODUCTION, host_terms, work, write_bandwidth
+from _projection import projection as production_projection
 
 CODE = "import sys; from hairlut_cli.main import cli; cli(sys.argv[1:])"
 #: name, devices per process, the cores of each process, how (plain: one bake; dist: --distributed; pair: independent
@@ -75,22 +77,6 @@ SAME_CORES = [("dist 1 x 1", "plain 1 dev"), ("dist 2 x 1 virtual", "plain 2 dev
               ("dist 2 x 1 virtual", "2 x plain (pair)"), ("dist 2 x 1 copy", "2 x plain (pair)")]
 BLOCK = 4
 TRACE = {"angles": {"views": 16, "lights": 16}, "trace": {"pixels": 32, "steps": 32}, "sectors": {"grid": [16, 16]}}
-PRODUCTION = {"sectors": {"count": 65_536}, "angles": {"views": 64, "lights": 64}, "trace": {"pixels": 64},
-              "storage": {"dtype": "float16"}}
-#: the assembly's parts: the production's density grid (the default 32 x 32) and float16, the cheapest trace
-ASSEMBLY = {"sectors": {"count": 1024}, "angles": {"views": 1, "lights": 1}, "trace": {"pixels": 2, "steps": 2},
-            "storage": {"dtype": "float16"}}
-DEFAULT = {"sectors": {"count": 512}, "angles": {"views": 32, "lights": 32}, "trace": {"pixels": 64, "steps": 64}}
-#: The last H200 measurement (issue 15): `hairlut bake hrir` of DEFAULT on one H200 traced 94 sectors/s at commit 937d29b
-#: (JAX 0.11.2, CUDA 13).  The bake was host-bound there, so the device's own rate was at least this; none since.
-H200 = {"rate": 94.0, "commit": "937d29b", "recipe": DEFAULT}
-GPUS = 8
-#: cores per GPU on the GPU machine (the H200 machine of issue 15: one GPU, 16 cores); an 8-GPU node is assumed to give each
-#: GPU's process as many
-GPU_HOST_CORES = 16
-#: the production recipe's shapes (angles, pixels, density grid, float16) with a 2-step trace: the host's work per sector
-#: (sampling, densities, geometry, checks, filters, HDF5, index) is the production's, the CPU trace cheap
-HOST = {**PRODUCTION, "sectors": {"count": 96}, "trace": {"pixels": 64, "steps": 2}}
 
 
 def _port() -> int:
@@ -157,211 +143,10 @@ def _run(recipe: Path, out: Path, devices: int, cores: list[set[int]], how: str,
             "peak_rss_mib": max(peaks), "bytes": lead["bytes"], "sectors": sum(r["sectors"] for r in reports)}
 
 
-def _assemble_times(recipe: dict, paths: list[Path], scratch: Path, repeat: int, processes: int = 2,
-                    copy: bool = True) -> dict:
-    """Seconds (wall and CPU, best of ``repeat``) of the leader's last step of a ``processes``-process bake, as
-    ``hairlut.sharding.run`` takes it: virtual datasets over the parts (the index from the leader's own parts
-    and the other processes' share files) and a copy; and what indexing costs each process per part (paid
-    before the barrier, while it bakes)."""
-    from hairlut import registry
-    from hairlut.assets import canonical_json, recipe_hash
-    from hairlut.distributed import Process
-    from hairlut.parts import share_name, stamp, write_share
-    from hairlut.sharding import blocks_of, finish, header
-
-    baker = registry.get("hrir_db")
-    spans = [header(p, baker)[:2] for p in paths]
-    total, block = spans[-1][1], spans[0][1] - spans[0][0]
-    folder = paths[0].parent
-    out = folder.with_name(folder.name[:-len(".parts")])
-    digest = recipe_hash(canonical_json(recipe))
-    t0, c0 = time.perf_counter(), time.process_time()
-    own = {}
-    for k in range(processes):  # what each process does after its blocks: index them, write its share file
-        mine = {b: (stamp(folder / Path(paths[spans.index(b)]).name), baker.units.index(recipe, paths[spans.index(b)]))
-                for b in blocks_of(total, block, (k, processes))}
-        if k == 0:
-            own = mine
-        else:
-            write_share(folder / share_name(k, processes), digest, total, mine)
-    index = {"index_cpu_s_per_part": (time.process_time() - c0) / len(paths),
-             "index_s_per_part": (time.perf_counter() - t0) / len(paths)}
-    times = {m: [] for m in (("virtual", "copy") if copy else ("virtual",))}
-    for i in range(repeat):
-        for merge in times:
-            t0, c0 = time.perf_counter(), time.process_time()
-            finish(baker, recipe, out, total, block, merge, Process(0, processes), own if merge == "virtual" else None)
-            times[merge].append((time.perf_counter() - t0, time.process_time() - c0))
-            size = out.stat().st_size
-            index[f"{merge}_bytes"] = size
-            out.unlink()
-    return {**index, **{f"{m}_s": min(t[0] for t in v) for m, v in times.items()},
-            **{f"{m}_cpu_s": min(t[1] for t in v) for m, v in times.items()}}
-
-
-def _assembly(sizes: list[int], blocks: list[int], tmp: Path, repeat: int, copy_max: int, keep: Path | None) -> list[dict]:
-    """Virtual against copy assembly: each size baked once for each block size (parts of ``block`` sectors), with the
-    ASSEMBLY recipe (the production's density grid and float16, one view and light, 2 px, 2 steps), as one
-    ``--merge virtual`` process (no copy at the end); the copy is timed up to ``copy_max`` sectors.  ``keep``: bake
-    there and keep the parts (a rerun resumes them)."""
-    from hairlut.hrir import bake, resolve_recipe
-    from hairlut.parts import parts_dir
-
-    rows = []
-    where = keep or tmp
-    for n in sizes:
-        given = {**ASSEMBLY, "sectors": {**ASSEMBLY["sectors"], "count": n}}
-        for b in blocks:
-            out = where / f"asm{n}-{b}.h5"
-            (rep, cpu), wall = _timed(lambda: bake(given, out, block=b, keep_parts=True, distributed=True, merge="virtual"))
-            out.unlink()
-            parts = sorted(parts_dir(out).glob("part-*.h5"))
-            t = _assemble_times(resolve_recipe(given), parts, tmp, repeat, copy=n <= copy_max)
-            rows.append({"sectors": n, "parts": len(parts), "part_bytes": sum(p.stat().st_size for p in parts), **t,
-                         "bake_s": wall, "bake_cpu_s": cpu, "resumed": rep["resumed"],
-                         "copy_x_virtual": t["copy_cpu_s"] / t["virtual_cpu_s"] if "copy_cpu_s" in t else None})
-            if keep is None:
-                shutil.rmtree(parts_dir(out))
-    return rows
-
-
-def _timed(fn):
-    """((result, CPU seconds), wall seconds) of ``fn()``."""
-    t0 = time.perf_counter()
-    got = _cpu(fn)
-    return got, time.perf_counter() - t0
-
-
-def _cpu(fn):
-    """(result, CPU seconds of every thread) of ``fn()``."""
-    c0 = time.process_time()
-    out = fn()
-    return out, time.process_time() - c0
-
-
-def _host_terms(tmp: Path, block: int = 32) -> dict:
-    """The host's work per sector of a production-shaped bake, CPU seconds on this machine (module docstring).
-
-    A HOST recipe (the production's angles, pixels, density grid and float16; a 2-step trace) is baked twice in
-    blocks of ``block`` (the first compiles) through the public ``bake`` (``--merge virtual``: no copy).  Its CPU time
-    per sector splits into: the trace (``trace_sectors`` on the same sectors, timed alone); the inputs
-    (``sample_block``, ``sector_density``, ``sector_geometry``: serial Python and small kernels); the chunk filters
-    (shuffle, gzip, fletcher32 of α and reflectance, ``hairlut.assets.chunks.filter_chunk``: run on every core by the
-    chunk writer); and the rest (HDF5 calls, checks, the part index: serial), the bake's CPU less the other three."""
-    from hairlut.assets.chunks import filter_chunk
-    from hairlut.geometry import sector_density
-    from hairlut.hrir import bake, resolve_recipe, sample_block, sector_geometry, trace_sectors
-
-    r = resolve_recipe(HOST)
-    n = r["sectors"]["count"]
-    bake(HOST, tmp / "host-warm.h5", block=block, distributed=True, merge="virtual")
-    _, bake_cpu = _cpu(lambda: bake(HOST, tmp / "host.h5", block=block, distributed=True, merge="virtual"))
-    prep = trace = filters = 0.0
-    dtype = r["storage"]["dtype"]
-    for s in range(0, n, block):
-        (splats, params), c1 = _cpu(lambda: sample_block(r, s, min(s + block, n)))
-        dens, c2 = _cpu(lambda: sector_density(splats, tuple(r["sectors"]["grid"]),
-                                               density_scale=r["sectors"]["density_scale"], chunk=1))
-        geom, c3 = _cpu(lambda: sector_geometry(params, kappa=r["trace"]["extinction"], n_pix=r["trace"]["pixels"],
-                                                smooth_ratio=r["trace"]["smooth_ratio"]))
-        (alpha, refl), c4 = _cpu(lambda: trace_sectors(dens, geom, r))
-        prep += c1 + c2 + c3
-        trace += c4
-        a16, r16 = np.asarray(alpha, dtype), np.asarray(refl, dtype)  # the stored chunks: α 16 sectors, reflectance 1
-        _, c5 = _cpu(lambda: [filter_chunk(a16[i:i + 16], 4) for i in range(0, len(a16), 16)]
-                     + [filter_chunk(r16[i:i + 1], 4) for i in range(len(r16))])
-        filters += c5
-    terms = {"prep": prep / n, "filters": filters / n, "trace_cpu": trace / n}
-    terms["rest"] = max(bake_cpu / n - terms["prep"] - terms["filters"] - terms["trace_cpu"], 0.0)
-    return {**terms, "bake_cpu": bake_cpu / n, "recipe": HOST, "block": block,
-            "bytes_per_sector": sum(p.stat().st_size for p in (tmp / "host.h5.parts").glob("part-*.h5")) / n}
-
-
-def _write_bandwidth(tmp: Path, mib: int = 256) -> float:
-    """Bytes per second this machine's disk takes (``mib`` MiB written in 8 MiB pieces, then fsync): wall clock."""
-    piece = os.urandom(8 << 20)
-    t0 = time.perf_counter()
-    with open(tmp / "bandwidth.bin", "wb") as f:
-        for _ in range(mib // 8):
-            f.write(piece)
-        f.flush()
-        os.fsync(f.fileno())
-    seconds = time.perf_counter() - t0
-    (tmp / "bandwidth.bin").unlink()
-    return (mib << 20) / seconds
-
-
-def _projection(asm: list[dict], host: dict) -> dict:
-    """The production database on GPUS H200s, projected term by term (printed): the device from the last H200 rate, the
-    host from this machine's CPU, the disk, and the leader's assembly; a bake overlaps the first three, so
-    projected = max(device, host, write) + assembly."""
-    from hairlut import registry
-
-    prod_bytes, _ = registry.get("hrir_db").estimate(PRODUCTION)
-    n = PRODUCTION["sectors"]["count"]
-    each = n / GPUS
-    ratio = _work(PRODUCTION) / n / (_work(DEFAULT) / DEFAULT["sectors"]["count"])
-    device_rate = H200["rate"] / ratio  # production sectors per second on one H200, at least
-    serial, parallel = host["prep"] + host["rest"], host["filters"]
-    host_s = each * (serial + parallel / GPU_HOST_CORES)
-    write_s = prod_bytes / host["write_bytes_per_s"]
-    at_size = [r for r in asm if r["sectors"] == n]
-    assembly_s = min((r["virtual_s"] for r in at_size), default=None)
-    out = {"bytes": prod_bytes, "sectors_per_gpu": each, "work_ratio_default": ratio, "device_rate": device_rate,
-           "device_s": each / device_rate, "host_serial_s_per_sector": serial, "host_parallel_cpu_s_per_sector": parallel,
-           "host_s": host_s, "write_s": write_s, "assembly_s": assembly_s, "host": host}
-    out["projected_s"] = max(out["device_s"], host_s, write_s) + (assembly_s or 0.0)
-    print(f"\nproduction database (65,536 sectors, 64 x 64 angles, 64 px, 64 steps, float16: {prod_bytes / 1e9:.1f} GB) on "
-          f"{GPUS} H200s: projected, not measured on a GPU; {each:,.0f} sectors per GPU")
-    print(f"  device:   {out['device_s']:7.1f} s  the last H200 rate, {H200['rate']:.0f} default sectors/s at {H200['commit']} "
-          f"(host-bound then: the device's rate was at least this), / {ratio:.0f} (a production sector's tracing work)")
-    print(f"  host:     {host_s:7.1f} s  this CPU, per sector {1e3 * serial:.2f} CPU-ms serial (inputs {1e3 * host['prep']:.2f},"
-          f" HDF5/checks/index {1e3 * host['rest']:.2f}) + {1e3 * parallel:.2f} CPU-ms of chunk filters over "
-          f"{GPU_HOST_CORES} cores (HOST recipe: production shapes, 2-step trace; same per-core speed assumed)")
-    need = prod_bytes / max(out["device_s"], host_s)
-    out["write_bytes_per_s_needed"] = need
-    print(f"  write:    {write_s:7.1f} s  {prod_bytes / 1e9:.1f} GB at this machine's disk, "
-          f"{host['write_bytes_per_s'] / 1e6:.0f} MB/s (a VM disk shared with other jobs; the GPU node's storage decides: "
-          f"{need / 1e6:.0f} MB/s keeps the disk off the critical path)")
-    print("  assembly: " + (f"{assembly_s:7.3f} s  virtual, measured here at {n:,} sectors (best part count's wall)"
-                            if assembly_s is not None else "   not measured in this run (--sizes 65536)"))
-    print(f"  projected = max(device, host, write) + assembly = {out['projected_s'] / 60:.1f} min")
-    return out
-
-
-def _work(recipe: dict) -> float:
-    """Tracing work of a bake: sector · view · light · pixel · step · ray (what hrir_db's estimate counts)."""
-    from hairlut.hrir import resolve_recipe
-
-    r = resolve_recipe(recipe, budget=False)
-    t = r["trace"]
-    return float(r["sectors"]["count"] * r["angles"]["views"] * r["angles"]["lights"] * t["pixels"] * t["steps"]
-                 * t["rays_per_pixel"])
-
-
 def _spread(rounds: list[dict], name: str, base: str, key=lambda r: r["steady_rate"]) -> list[float]:
     """The ratio name/base taken round by round: (min, median, max)."""
     ratios = [key(r[name]) / key(r[base]) for r in rounds]
     return [min(ratios), statistics.median(ratios), max(ratios)]
-
-
-def _print_assembly(asm: list[dict]) -> None:
-    if not asm:
-        return
-    print(f"assembling the final asset from the same parts, the leader's step of a 2-process bake (best of 2, "
-          f"in-process; load average {os.getloadavg()[0]:.1f}; copy timed up to --copy-max sectors):\n")
-    for r in asm:
-        r["index_ms_per_part"] = 1e3 * r["index_cpu_s_per_part"]
-        r["virtual_cpu_ms_per_part"] = 1e3 * r["virtual_cpu_s"] / r["parts"]
-        r["virtual_cpu_us_per_sector"] = 1e6 * r["virtual_cpu_s"] / r["sectors"]
-    print(table(asm, [("sectors", "sectors", ""), ("parts", "parts", ""), ("part_bytes", "part bytes", ",.0f"),
-                      ("index_ms_per_part", "index CPU-ms/part", ".1f"),
-                      ("virtual_s", "virtual s", ".3f"), ("virtual_cpu_s", "virtual CPU-s", ".3f"),
-                      ("virtual_cpu_ms_per_part", "CPU-ms/part", ".2f"), ("virtual_cpu_us_per_sector", "CPU-us/sector", ".2f"),
-                      ("virtual_bytes", "virtual bytes", ",.0f"), ("copy_s", "copy s", ".3f"),
-                      ("copy_cpu_s", "copy CPU-s", ".3f"), ("copy_bytes", "copy bytes", ",.0f"),
-                      ("copy_x_virtual", "copy/virtual CPU", ".1f")]))
-    print()
 
 
 def main(argv=None) -> dict:
@@ -392,12 +177,12 @@ def main(argv=None) -> dict:
             rounds.append(got)
         sizes = [int(s) for s in a.sizes.split(",") if s]
         blocks = [int(g) for g in a.blocks.split(",") if g]
-        asm = _assembly(sizes, blocks, tmp, repeat=2, copy_max=a.copy_max, keep=a.keep)
-        hosts = None if a.no_projection else {**_host_terms(tmp), "write_bytes_per_s": _write_bandwidth(tmp)}
-    _print_assembly(asm)
+        asm = assembly(sizes, blocks, tmp, repeat=2, copy_max=a.copy_max, keep=a.keep)
+        hosts = None if a.no_projection else {**host_terms(tmp), "write_bytes_per_s": write_bandwidth(tmp)}
+    print_assembly(asm)
     if not rounds:  # --repeat 0: the assembly and the projection only
         doc = {"assembly": asm, "load_before": load_before, "load_after": os.getloadavg(),
-               "projection": _projection(asm, hosts) if hosts else None}
+               "projection": production_projection(asm, hosts) if hosts else None}
         save(a.name, doc)
         return doc
     base = "plain 1 dev"
@@ -449,12 +234,12 @@ def main(argv=None) -> dict:
               f"{100 * c['rate_cost']:+.0f}%, round by round median {100 * c['rate_cost_median']:+.0f}% (range "
               f"{100 * lo:+.0f}..{100 * hi:+.0f}%); whole-bake seconds {100 * c['bake_s_cost']:+.0f}%")
     bench = {**TRACE, "sectors": {**TRACE["sectors"], "count": a.sectors}}
-    per_sector = _work(bench) / a.sectors
+    per_sector = work(bench) / a.sectors
     core_rate = by[base]["rate_best"] * per_sector  # work per second, one core
-    prod_work = _work(PRODUCTION)
+    prod_work = work(PRODUCTION)
     print(f"\nproduction database from this run's one-core CPU rate: {prod_work / core_rate / 3600:.0f} core-hours; 8 such "
           f"devices {prod_work / core_rate / GPUS / 3600:.1f} h (linear scaling assumed)")
-    projection = {**(_projection(asm, hosts) if hosts else {}), "one_core_s": prod_work / core_rate,
+    projection = {**(production_projection(asm, hosts) if hosts else {}), "one_core_s": prod_work / core_rate,
                   "cpu_cores_8_s": prod_work / core_rate / GPUS}
     doc = {"sectors": a.sectors, "recipe": bench, "block": BLOCK, "rounds": a.repeat, "load_before": load_before,
            "load_after": os.getloadavg(), "rows": rows, "same_cores": costs, "assembly": asm, "projection": projection}
