@@ -186,8 +186,8 @@ KERNELS = {
     "hairlut.render._reference:camera_rays": [
         (False, lambda: ((A(2, 2, dtype=i32), A(6, 3)), dict(tile=4, ss=2, perspective=p))) for p in (True, False)],
     "hairlut.render._reference:reference_kernel": [
-        (False, lambda: ((A(4, 3), A(4, 3), A(4, 5, dtype=i32), A(3), A(7, 3), A(7, 3), A(7), A(7), A(7),
-                          A(7, 2, 3), A(4, 5, 3, 2)), dict(steps=3, perspective=p)))
+        (False, lambda: ((A(4, 15), A(4, 15), A(4, 15, dtype=i32), A(4, 3), A(3), A(7, 2, 3), A(4, 15, 2)),
+                         dict(perspective=p)))
         for p in (True, False)],
     "hairlut.render._reference:step_points": [
         (False, lambda: ((A(4, 3), A(4, 3), A(4, 5, dtype=i32), A(7, 3), A(7, 3), A(7), A(7), A(7)),

@@ -266,3 +266,54 @@ def test_rendered_grid_shadows_converge_to_the_shadow_rays(monkeypatch):
     unshadowed = render_level(segs, cam, lit, light, level=1, shadows=False)
     assert np.sqrt(np.mean((unshadowed[..., :3] - rays[..., :3]) ** 2)) > 0.1
     assert diff[1] < diff[0] / 3, diff
+
+
+def _dense_oracle(segs, cam, lit, light, level, lattice):
+    """Every pixel's rays through every segment (no tiles, no first pass, no ``SEEN`` cut), the steps sorted by numpy
+    and composited in float64, each step shadowed by its own exact shadow ray: what ``render_level`` computes."""
+    from hairlut.render import light_index, point_depths
+    from hairlut.render._reference import camera_array, camera_rays
+
+    ss, steps = 1 << level, 2 << level
+    tiles = np.stack(np.meshgrid(np.arange(cam.width // 8), np.arange(cam.height // 8), indexing="ij"), -1).reshape(-1, 2)
+    o, d = camera_rays(jnp.asarray(tiles, jnp.int32), jnp.asarray(camera_array(cam), jnp.float32), tile=8, ss=ss,
+                       perspective=False, lattice=lattice)
+    o, d = np.asarray(o).reshape(-1, 3), np.asarray(d).reshape(-1, 3)
+    r = np.arange(64 * ss * ss)
+    py = (tiles[:, 1, None] * 8 + r // (8 * ss * ss)).reshape(-1)
+    px = (tiles[:, 0, None] * 8 + (r // (ss * ss)) % 8).reshape(-1)
+    dev = segs.device()
+    tau, s = (np.asarray(a, np.float64) for a in crossings(jnp.asarray(o)[:, None], jnp.asarray(d)[:, None],
+                                                              *(a[None] for a in dev), -1e20, steps))
+    seg = np.broadcast_to(np.arange(segs.n)[None, :, None], tau.shape).reshape(len(o), -1)
+    tau, s = tau.reshape(len(o), -1), s.reshape(len(o), -1)
+    order = np.argsort(s, axis=1, kind="stable")
+    tau, s, seg = (np.take_along_axis(a, order, 1) for a in (tau, s, seg))
+    shade = np.zeros(tau.shape)
+    hit = tau > 0
+    pts = o[:, None] + s[..., None] * d[:, None]
+    shade[hit] = point_depths(light_index(segs, light[0]), pts[hit], dev)
+    total = np.cumsum(tau, 1)
+    w = -np.expm1(-tau) * np.exp(-(total - tau))
+    rgb = (w[..., None] * np.asarray(lit, np.float64)[seg, 0] * np.exp(-shade)[..., None]).sum(1)
+    out = np.zeros((cam.height, cam.width, 4))
+    for c, v in enumerate([*rgb.T, -np.expm1(-total[:, -1])]):
+        np.add.at(out[..., c], (py, px), v / (ss * ss))
+    return out
+
+
+@pytest.mark.parametrize("lattice", [False, True])
+def test_frame_equals_the_dense_march_to_float32_rounding(monkeypatch, lattice):
+    """The tiled, first-pass-filtered frame whose crossings are found once (``step_points``) and composited from
+    them (``reference_kernel``) equals a dense float64 march of every ray through every segment, shadows included."""
+    import hairlut.render._reference as ref
+
+    lines, segs = _curls()
+    cam = _camera(np.concatenate(lines), resolution=[24, 16])
+    lit = jnp.asarray(np.random.default_rng(1).uniform(0.2, 1.0, (segs.n, 1, 3)), jnp.float32)
+    light = np.array([[0.3, 0.8, 0.4]]) / np.linalg.norm([0.3, 0.8, 0.4])
+    monkeypatch.setattr(ref, "GRID_NODES", 0)  # exact shadow rays, as the oracle's
+    img = render_level(segs, cam, lit, light, level=1, shadows=True, lattice=lattice)
+    want = _dense_oracle(segs, cam, lit, light, 1, lattice)
+    assert want[..., 3].max() > 0.5 and want[..., :3].max() > 0.2 and (want[..., 3] < 1e-6).mean() > 0.05
+    assert np.abs(img[..., :4] - want).max() < 2e-5

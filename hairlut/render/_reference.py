@@ -50,17 +50,42 @@ SEEN = 1e-5
 GRID_NODES = 1 << 29
 
 
-@partial(jax.jit, static_argnames=("tile", "ss", "perspective"))
-def camera_rays(tiles, cam, *, tile: int, ss: int, perspective: bool):
+def lattice_generator(n: int) -> int:
+    """The generator g of the rank-1 lattice {((i + ½)/n, ((i·g mod n) + ½)/n)} of ``n`` points whose shortest
+    vector on the unit torus is longest (the best-spread Korobov lattice; g = 1 for n ≤ 2)."""
+    best, gen = -1.0, 1
+    i = np.arange(1, n)
+    for g in range(1, max(n, 2), 2):
+        dx, dy = i / n, (i * g % n) / n
+        m = float((np.minimum(dx, 1 - dx) ** 2 + np.minimum(dy, 1 - dy) ** 2).min()) if n > 1 else 0.0
+        if m > best + 1e-12:
+            best, gen = m, g
+    return gen
+
+
+def pixel_offsets(ss: int, lattice: bool) -> np.ndarray:
+    """(ss², 2) sample offsets (x, y) in a pixel: the regular ss × ss grid (sample i = sy·ss + sx) or the rank-1
+    lattice of :func:`lattice_generator` (n = ss² distinct columns and rows: a thin strand at any angle meets
+    about n·width of them, not ss·width or none)."""
+    n = ss * ss
+    i = np.arange(n)
+    if lattice:
+        return np.stack([(i + 0.5) / n, (i * lattice_generator(n) % n + 0.5) / n], 1)
+    return np.stack([(i % ss + 0.5) / ss, (i // ss + 0.5) / ss], 1)
+
+
+@partial(jax.jit, static_argnames=("tile", "ss", "perspective", "lattice"))
+def camera_rays(tiles, cam, *, tile: int, ss: int, perspective: bool, lattice: bool = False):
     """Origins and unit directions (T, R, 3) of the rays of T tiles: R = tile² pixels × ss² samples, ray r =
-    ((y·tile + x)·ss + sy)·ss + sx.  ``cam`` (6, 3): eye, right, up, back, (half width, half height, 0) of the frame
-    at unit distance (perspective) or in world units (orthographic), (width, height, 0) in pixels."""
+    (y·tile + x)·ss² + i, sample i at :func:`pixel_offsets` (``lattice`` or the grid).  ``cam`` (6, 3): eye,
+    right, up, back, (half width, half height, 0) of the frame at unit distance (perspective) or in world units
+    (orthographic), (width, height, 0) in pixels."""
     eye, right, up, back, half = cam[0], cam[1], cam[2], cam[3], cam[4]
-    sub = (jnp.arange(ss, dtype=jnp.float32) + 0.5) / ss
+    sub = jnp.asarray(pixel_offsets(ss, lattice), jnp.float32)
     pix = jnp.arange(tile, dtype=jnp.float32)
-    px = (tiles[:, 0, None, None, None, None] * tile + pix[None, None, :, None, None] + sub[None, None, None, None, :])
-    py = (tiles[:, 1, None, None, None, None] * tile + pix[None, :, None, None, None] + sub[None, None, None, :, None])
-    px, py = jnp.broadcast_arrays(px, py)  # (T, y, x, sy, sx)
+    px = (tiles[:, 0, None, None, None] * tile + pix[None, None, :, None] + sub[None, None, None, :, 0])
+    py = (tiles[:, 1, None, None, None] * tile + pix[None, :, None, None] + sub[None, None, None, :, 1])
+    px, py = jnp.broadcast_arrays(px, py)  # (T, y, x, i)
     sx = (2.0 * px / cam[5, 0] - 1.0) * half[0]
     sy = (1.0 - 2.0 * py / cam[5, 1]) * half[1]
     if perspective:
@@ -75,47 +100,38 @@ def camera_rays(tiles, cam, *, tile: int, ss: int, perspective: bool):
 
 @partial(jax.jit, static_argnames=("steps", "perspective"))
 def step_points(o, d, cand, p0, t, length, radius, sigma_t, *, steps: int, perspective: bool):
-    """Mid-points (N, K, steps, 3) of the steps of N rays (``o``, ``d`` (N, 3)) through their near segments ``cand``
-    (N, K) (−1: none) and whether each step needs its shadow (N, K, steps): it holds optical depth and the camera
-    ray's transmittance in front of it is at least ``SEEN`` (the steps behind weigh less than ``SEEN`` together)."""
+    """The steps of N rays (``o``, ``d`` (N, 3)) through their near segments ``cand`` (N, K) (−1: none), M = K·steps
+    of them per ray sorted along it: optical depth τ (N, M) (``_strands.crossings``: each crossing's support cut
+    into ``steps`` equal steps), mid-point s (N, M), segment (N, M) (0 where none: τ = 0), mid-point x (N, M, 3) and
+    whether the step needs its shadow (N, M): it holds optical depth and the camera ray's transmittance in front of
+    it is at least ``SEEN`` (the steps behind weigh less than ``SEEN`` together).  The crossings are found once
+    here; :func:`reference_kernel` composites these sorted steps."""
     valid = cand >= 0
     ix = jnp.where(valid, cand, 0)
     tau, s = crossings(o[:, None], d[:, None], *(a[ix] for a in (p0, t, length, radius, sigma_t)),
                        0.0 if perspective else -1e20, steps)
     tau = jnp.where(valid[..., None], tau, 0.0)
     n = tau.shape[0]
-    order = jnp.broadcast_to(jnp.arange(tau[0].size, dtype=jnp.int32), (n, tau[0].size))
-    _, tau_, order_ = jax.lax.sort((s.reshape(n, -1), tau.reshape(n, -1), order), dimension=-1, num_keys=1)
+    seg = jnp.broadcast_to(ix[..., None], tau.shape)
+    s_, tau_, seg_ = jax.lax.sort((s.reshape(n, -1), tau.reshape(n, -1), seg.reshape(n, -1)), dimension=-1, num_keys=1)
     front = jnp.cumsum(tau_, -1) - tau_  # optical depth in front of each step, in ray order
-    before = jnp.zeros_like(front).at[jnp.arange(n)[:, None], order_].set(front).reshape(tau.shape)
-    return o[:, None, None] + s[..., None] * d[:, None, None], (tau > 0) & (before < -np.log(SEEN))
+    x = o[:, None] + s_[..., None] * d[:, None]
+    return tau_, s_, seg_, x, (tau_ > 0) & (front < -np.log(SEEN))
 
 
-@partial(jax.jit, static_argnames=("steps", "perspective"))
-def reference_kernel(o, d, cand, back, p0, t, length, radius, sigma_t, lit, shade, *, steps: int, perspective: bool):
-    """Premultiplied RGB, α, Σ w·depth and Σ w of N rays (``o``, ``d`` (N, 3)) through their near segments ``cand``
-    (N, K) (−1: none): (N, 6) (module docstring).  ``back`` (3,) the camera's back axis; ``lit`` (S, L, 3) each
-    segment's lighting; ``shade`` (N, K, steps, L) each step's optical depth toward each light (:func:`step_points`,
-    ``_light.point_depths``; zeros: no shadows)."""
-    valid = cand >= 0
-    ix = jnp.where(valid, cand, 0)
-    seg = [a[ix] for a in (p0, t, length, radius, sigma_t)]
-    o, d = o[:, None], d[:, None]  # (N, 1, 3)
-    s_lo = 0.0 if perspective else -1e20  # an orthographic ray is the whole line (nothing lies behind its plane)
-    tau, s = crossings(o, d, *seg, s_lo, steps)  # (N, K, steps)
-    tau = jnp.where(valid[..., None], tau, 0.0)
-    colour = lit[ix][:, :, None] * jnp.exp(-shade)[..., None]  # (N, K, steps, L, 3)
-    colour = colour.sum(-2)
-    n = tau.shape[0]
-    depth = s * (-(d[..., None, :] * back).sum(-1)) if perspective else s
-    keys = (s.reshape(n, -1), tau.reshape(n, -1), jnp.broadcast_to(depth, tau.shape).reshape(n, -1),
-            *(colour[..., c].reshape(n, -1) for c in range(3)))
-    s_, tau_, z_, r_, g_, b_ = jax.lax.sort(keys, dimension=-1, num_keys=1)
-    total = jnp.cumsum(tau_, -1)
-    before = jnp.exp(-(total - tau_))
-    w = -jnp.expm1(-tau_) * before
+@partial(jax.jit, static_argnames=("perspective",))
+def reference_kernel(tau, s, seg, d, back, lit, shade, *, perspective: bool):
+    """Premultiplied RGB, α, Σ w·depth and Σ w of N rays (unit directions ``d`` (N, 3)) from their steps sorted along
+    the ray (:func:`step_points`: optical depth ``tau``, mid-point ``s``, segment ``seg``, all (N, M)): (N, 6)
+    (module docstring).  ``back`` (3,) the camera's back axis; ``lit`` (S, L, 3) each segment's lighting; ``shade``
+    (N, M, L) each step's optical depth toward each light (``_light``; zeros: no shadows)."""
+    colour = (lit[seg] * jnp.exp(-shade)[..., None]).sum(-2)  # (N, M, 3)
+    depth = s * (-(d * back).sum(-1))[:, None] if perspective else s
+    total = jnp.cumsum(tau, -1)
+    w = -jnp.expm1(-tau) * jnp.exp(-(total - tau))
     alpha = -jnp.expm1(-total[..., -1])
-    return jnp.stack([(w * r_).sum(-1), (w * g_).sum(-1), (w * b_).sum(-1), alpha, (w * z_).sum(-1), w.sum(-1)], -1)
+    rgb = (w[..., None] * colour).sum(1)
+    return jnp.concatenate([rgb, jnp.stack([alpha, (w * depth).sum(-1), w.sum(-1)], -1)], -1)
 
 
 def camera_array(camera) -> np.ndarray:
@@ -144,11 +160,13 @@ def segment_boxes(segs: Segments, camera):
     return np.minimum(xa, xb) - px - 1, np.maximum(xa, xb) + px + 1, np.minimum(ya, yb) - px - 1, np.maximum(ya, yb) + px + 1
 
 
-def render_level(segs: Segments, camera, lit, lights, *, level: int, shadows: bool, stats: dict | None = None) -> np.ndarray:
+def render_level(segs: Segments, camera, lit, lights, *, level: int, shadows: bool, stats: dict | None = None,
+                 samples: int | None = None, steps: int | None = None, lattice: bool = False) -> np.ndarray:
     """The (h, w, 5) RGBA + depth of one convergence level (module docstring).  ``stats`` gets where the shadows came
     from (``grid`` or ``rays``), the seconds of the lights' grids or indexes, of the shadow lookups (``_light``), of
     the first pass (``_hits``) and of the second (:func:`reference_kernel`), and the pair counts."""
-    ss, steps = 1 << level, 2 << level
+    ss = 1 << level if samples is None else int(samples)
+    steps = 2 << level if steps is None else int(steps)
     t0 = time.perf_counter()
     f32 = partial(jnp.asarray, dtype=jnp.float32)
     dev = segs.device()
@@ -172,16 +190,16 @@ def render_level(segs: Segments, camera, lit, lights, *, level: int, shadows: bo
     def run(k, ids, cand, o, d):
         tc = time.perf_counter()
         o, d, cand = f32(o), f32(d), jnp.asarray(cand)
-        shade = np.zeros((len(ids), k, steps, n_l), np.float32)
+        tau, s, seg, x, live = step_points(o, d, cand, *dev, steps=steps, perspective=perspective)
+        shade = np.zeros((len(ids), k * steps, n_l), np.float32)
         if lookups:
-            x, live = step_points(o, d, cand, *dev, steps=steps, perspective=perspective)
-            live = np.asarray(live) & (ids >= 0)[:, None, None]
+            ts = time.perf_counter()
+            live = np.asarray(live) & (ids >= 0)[:, None]
             pts = np.asarray(x)[live]
             for li, lookup in enumerate(lookups):
                 shade[live, li] = lookup(pts)
-            st["shadow_seconds"] += time.perf_counter() - tc
-        res = np.asarray(reference_kernel(o, d, cand, back, *dev, lit, f32(shade), steps=steps, perspective=perspective),
-                         np.float64)
+            st["shadow_seconds"] += time.perf_counter() - ts
+        res = np.asarray(reference_kernel(tau, s, seg, d, back, lit, f32(shade), perspective=perspective), np.float64)
         good = ids >= 0
         for c in range(6):
             acc[c] += np.bincount(ids[good], res[good, c], minlength=acc.shape[1])
@@ -195,7 +213,7 @@ def render_level(segs: Segments, camera, lit, lights, *, level: int, shadows: bo
     s_lo = 0.0 if perspective else -1e20
     for tl, count, cand in tile_groups(buckets, group):
         padded = np.concatenate([tl, np.repeat(tl[:1], group - len(tl), 0)])
-        o, d = camera_rays(jnp.asarray(padded, jnp.int32), cam, tile=TILE, ss=ss, perspective=perspective)
+        o, d = camera_rays(jnp.asarray(padded, jnp.int32), cam, tile=TILE, ss=ss, perspective=perspective, lattice=lattice)
         o, d = o.reshape(-1, 3), d.reshape(-1, 3)
         ray, seg, pairs = near_pairs(o, d, count, cand, per_tile, dev, s_lo)
         pix = ((tl[:, 1, None] * TILE + ry) * wp + tl[:, 0, None] * TILE + rx).reshape(-1)
