@@ -12,7 +12,7 @@ import time
 
 import click
 
-from hairlut import errors, registry
+from hairlut import errors
 from hairlut.recipes import apply_overrides, load_toml
 
 from .progress import Bars, Progress
@@ -68,6 +68,8 @@ def _common_options(baker) -> list[click.Option]:
 
 def kind_command(kind: str, name: str | None = None) -> click.Command:
     """The ``hairlut bake KIND`` command of a registered kind."""
+    from hairlut import registry  # the bakers: JAX and the kinds' modules, only once a kind is named
+
     baker = registry.get(kind)
 
     def callback(recipe, out, sets, shard, distributed, coordinator, num_processes, process_id, merge, no_progress,
@@ -121,12 +123,16 @@ class KindGroup(click.Group):
     """``hairlut bake``: its sub-commands are the registered kinds, by command name or kind name."""
 
     def list_commands(self, ctx):
+        from hairlut import registry
+
         return sorted({*super().list_commands(ctx), *(registry.get(k).command for k in registry.kinds())})
 
     def get_command(self, ctx, cmd_name):
         cmd = super().get_command(ctx, cmd_name)
         if cmd is not None:
             return cmd
+        from hairlut import registry
+
         try:
             baker = registry.get(cmd_name)
         except errors.ValidationError:
@@ -200,6 +206,8 @@ def merge_cmd(shards, out, as_json):
       hairlut bake hrir --recipe tables/hrir-default.toml --out s1.h5 --shard 1/2
       hairlut merge s0.h5 s1.h5 --out tables/hrir-default.h5
     """
+    from hairlut import registry
+
     shards = list(shards)
     baker = registry.for_shard_kind(registry.kind_of(shards[0]))
     report = baker.merge(shards, out)

@@ -13,7 +13,16 @@ def _parts_help() -> str:
     return "\n".join(f"  {p.name:<8} {p.title}" for p in PARTS.values())
 
 
-@click.command("bench", epilog="\b\nParts:\n" + _parts_help())
+class _PartsEpilog(click.Command):
+    """``hairlut bench --help`` ends with the parts, listed from :data:`hairlut.bench.PARTS` only when the help is
+    shown: importing hairlut.bench loads HDF5 and NumPy, which ``hairlut --help`` need not."""
+
+    def format_epilog(self, ctx, formatter):
+        self.epilog = "\b\nParts:\n" + _parts_help()
+        super().format_epilog(ctx, formatter)
+
+
+@click.command("bench", cls=_PartsEpilog)
 @click.option("--quick", is_flag=True, help="Small sweeps (a few minutes): the same parts and tables, fewer settings.")
 @click.option("--only", "only", metavar="PART,...", help="Run only these parts (comma-separated; see the list below).")
 @click.option("--out", "out", type=click.Path(file_okay=False), default="bench-out", show_default=True,

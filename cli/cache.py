@@ -6,8 +6,6 @@ import json
 
 import click
 
-from hairlut.cache import cache_dir, entries, prune
-
 
 @click.group("cache")
 def cache_group():
@@ -19,6 +17,8 @@ def cache_group():
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 def ls_cmd(root, as_json):
     """List cached assets, newest first."""
+    from hairlut.cache import cache_dir, entries
+
     rows = entries(root)
     if as_json:
         click.echo(json.dumps([{"path": str(e.path), "kind": e.kind, "recipe_hash": e.recipe_hash, "created": e.created,
@@ -41,6 +41,8 @@ def ls_cmd(root, as_json):
 def prune_cmd(root, kinds, days, everything, dry_run):
     """Remove cached assets; always removes what killed bakes left: temporaries and parts folders (OUT.parts/ of
     an asset that is gone) older than an hour, and lock files nobody holds."""
+    from hairlut.cache import prune
+
     gone = prune(root, kinds=kinds or None, older_than_days=days, everything=everything, dry_run=dry_run)
     for p in gone:
         click.echo(("would remove " if dry_run else "removed ") + str(p))

@@ -14,7 +14,11 @@ from .progress import Bars, Progress
 
 __all__ = ["Bars", "Progress", "hrir_cmd", "hrir_slice_cmd", "merge_cmd"]
 
-hrir_cmd = kind_command("hrir_db")
+
+def __getattr__(name: str):
+    if name == "hrir_cmd":  # built on first use: it loads the hrir_db baker (JAX), which `hairlut --help` does not need
+        return kind_command("hrir_db")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @click.command("hrir-slice")

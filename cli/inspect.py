@@ -4,10 +4,6 @@ from __future__ import annotations
 
 import click
 
-from hairlut import registry
-from hairlut.assets import preview, summarize
-from hairlut.parts import check_virtual
-
 from .format import dumps, render
 
 
@@ -37,6 +33,10 @@ def inspect_cmd(paths, as_json, png, channel, part, dataset, index, exposure, no
       hairlut inspect --json out/demo/sky-clusters/*.exr
       hairlut inspect out/demo/sky-clusters/cluster000.exr --channel layer2.A --png alpha.png
     """
+    from hairlut import registry
+    from hairlut.assets import preview, summarize
+    from hairlut.parts import check_virtual
+
     if png and len(paths) != 1:
         raise click.UsageError("--png takes exactly one input file")
     for p in paths:

@@ -6,6 +6,7 @@ status 2 (the same status click uses for usage errors); no traceback.
 
 from __future__ import annotations
 
+import importlib
 import logging
 import os
 import sys
@@ -26,6 +27,8 @@ class Failure(click.ClickException):
 
 
 class Group(click.Group):
+    """A click group that turns hairlut errors into :class:`Failure`."""
+
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
@@ -36,7 +39,22 @@ class Group(click.Group):
             raise Failure(f"{where}{exc.strerror or exc}") from exc
 
 
-@click.group(cls=Group, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+class LazyGroup(Group):
+    """The top-level group: its commands are :data:`COMMANDS`, each imported on first look-up."""
+
+    def list_commands(self, ctx):
+        return sorted({*super().list_commands(ctx), *COMMANDS})
+
+    def get_command(self, ctx, cmd_name):
+        cmd = super().get_command(ctx, cmd_name)
+        if cmd is None and cmd_name in COMMANDS:
+            module, attr = COMMANDS[cmd_name].split(":")
+            cmd = getattr(importlib.import_module(f"{__package__}.{module}"), attr)
+            self.add_command(cmd, cmd_name)
+        return cmd
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, "-V", "--version", prog_name="hairlut")
 @click.option("-v", "--verbose", count=True, help="More log output on stderr (-vv for debug).")
 @click.option("-q", "--quiet", is_flag=True, help="Only errors on stderr.")
@@ -57,29 +75,43 @@ def cli(verbose: int, quiet: bool) -> None:
         logger.addHandler(handler)
 
 
-def _register() -> None:
-    from . import bake, cache, demo, hrir, inspect, plan, sh, strands, synth
-    from . import bench, render, stress
-
-    for command in (bake.bake_group,  # its KIND sub-commands come from hairlut.registry
-                    bake.merge_cmd, hrir.hrir_slice_cmd, cache.cache_group, demo.demo_cmd, inspect.inspect_cmd, sh.sh_group,
-                    strands.strands_group, synth.synth_cmd, plan.plan_cmd, render.render_cmd, render.compare_cmd,
-                    stress.stress_cmd, bench.bench_cmd):
-        cli.add_command(command)
-
-
-_register()
+#: command name → ``module:attribute`` in this package.  A command's module is imported only when the command is
+#: looked up (to run it, or for its line in ``hairlut --help``), so ``hairlut --version`` imports none of them, and
+#: the command modules import hairlut's heavy parts (JAX, the bakers) inside their callbacks.
+COMMANDS: dict[str, str] = {
+    "bake": "bake:bake_group",  # its KIND sub-commands come from hairlut.registry
+    "merge": "bake:merge_cmd",
+    "hrir-slice": "hrir:hrir_slice_cmd",
+    "cache": "cache:cache_group",
+    "demo": "demo:demo_cmd",
+    "inspect": "inspect:inspect_cmd",
+    "sh": "sh:sh_group",
+    "strands": "strands:strands_group",
+    "synth": "synth:synth_cmd",
+    "plan": "plan:plan_cmd",
+    "render": "render:render_cmd",
+    "compare": "render:compare_cmd",
+    "stress": "stress:stress_cmd",
+    "bench": "bench:bench_cmd",
+}
 
 
 def _xla_cache() -> None:
     """Keep compiled JAX kernels between runs (a warm `hairlut demo` then skips most compilation):
-    ``$JAX_COMPILATION_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/hairlut/xla`` (``~/.cache``)."""
-    import jax
+    ``$JAX_COMPILATION_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/hairlut/xla`` (``~/.cache``).
 
+    JAX reads both settings from the environment when it is imported, so they go there while JAX is not
+    loaded yet: ``hairlut --version`` and ``--help`` never import it."""
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    jax.config.update("jax_compilation_cache_dir",
-                      os.environ.get("JAX_COMPILATION_CACHE_DIR") or os.path.join(base, "hairlut", "xla"))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)
+    folder, min_secs = os.environ.get("JAX_COMPILATION_CACHE_DIR") or os.path.join(base, "hairlut", "xla"), 0.2
+    if "jax" in sys.modules:
+        import jax
+
+        jax.config.update("jax_compilation_cache_dir", folder)
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", min_secs)
+    else:
+        os.environ["JAX_COMPILATION_CACHE_DIR"] = folder
+        os.environ["JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS"] = str(min_secs)
 
 
 def main() -> None:

@@ -6,9 +6,11 @@ import json
 
 import click
 
-from hairlut.envlight import LAYOUTS, load_env_light, write_light
-
 from .format import num
+
+#: ``hairlut.envlight.LAYOUTS``, spelled here so that ``hairlut --help`` need not import JAX (tests/test_sh_cli.py
+#: checks that the two agree).
+LAYOUTS = ("auto", "latlong", "cube")
 
 
 @click.group("sh")
@@ -36,6 +38,8 @@ def project_cmd(envmap, bands, layout, up, out, as_json):
       hairlut sh project ENV.exr --bands 3
       hairlut sh project ENV.exr --layout cube --bands 8 --out light.h5
     """
+    from hairlut.envlight import load_env_light, write_light
+
     light = load_env_light(envmap, bands - 1, layout, up)
     if out:
         write_light(out, light, {"source_sha256": light.source_sha256, "layout": light.layout, "up": up, "lmax": bands - 1})

@@ -6,8 +6,6 @@ import json
 
 import click
 
-from hairlut.geometry import format_of, read_strands, write_strands
-
 from .format import num
 
 _FORMAT_NAMES = {"tfx": "TressFX .tfx", "hair": "Cem Yuksel .hair", "usd": "USD BasisCurves"}
@@ -51,6 +49,8 @@ def info_cmd(path, as_json):
       hairlut strands info tables/grooms/sintel_lite.tfx
       hairlut strands info --json tables/grooms/ratboy_mohawk.tfx
     """
+    from hairlut.geometry import format_of, read_strands
+
     summary = {"path": path, "format": format_of(path), **read_strands(path).summary()}
     click.echo(json.dumps(summary, indent=2) if as_json else _render(path, summary))
 
@@ -69,6 +69,8 @@ def convert_cmd(src, dst):
       hairlut strands convert tables/grooms/ratboy_mohawk.tfx ratboy.hair
       hairlut strands convert tables/grooms/sintel_lite.tfx sintel.usda   # needs the usd extra
     """
+    from hairlut.geometry import read_strands, write_strands
+
     strands = read_strands(src)
     write_strands(dst, strands)
     click.echo(f"wrote {dst}: {strands.n_strands} strands, {strands.n_points} vertices")

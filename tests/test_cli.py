@@ -48,6 +48,28 @@ def test_version_and_help():
     assert "Examples" in run("inspect", "--help").output
 
 
+def test_every_command_is_listed_under_its_name():
+    from hairlut_cli.main import COMMANDS
+
+    for name in COMMANDS:
+        assert cli.get_command(None, name).name == name
+    assert "sh" in run("bench", "--help").output  # the parts list, built when the help is shown
+
+
+def test_version_and_help_import_neither_jax_nor_hdf5():
+    """``hairlut --version`` and ``--help`` import no command's heavy parts (each took ~2 CPU-s with JAX)."""
+    import sys
+
+    code = ("import sys; from hairlut_cli.main import cli\n"
+            "try: cli(sys.argv[1:], prog_name='hairlut')\n"
+            "except SystemExit as e: assert not e.code, e.code\n"
+            "print(sorted({'jax', 'h5py', 'numpy', 'hairlut.registry'} & set(sys.modules)))")
+    for args in (["--version"], ["--help"]):
+        out = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=120)
+        assert out.returncode == 0, out.stderr
+        assert out.stdout.splitlines()[-1] == "[]", (args, out.stdout)
+
+
 def test_inspect_table_text_and_json(tmp_path):
     path, ref = lobes_table(tmp_path / "t.h5")
     res = run("inspect", path)

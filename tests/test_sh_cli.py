@@ -17,6 +17,13 @@ def run(*args):
     return CliRunner().invoke(cli, [str(a) for a in args])
 
 
+def test_layout_choices_are_envlights():
+    from hairlut.envlight import LAYOUTS
+    from hairlut_cli import sh
+
+    assert sh.LAYOUTS == LAYOUTS
+
+
 @pytest.fixture(scope="module")
 def env(tmp_path_factory):
     path = tmp_path_factory.mktemp("env") / "sky.exr"
