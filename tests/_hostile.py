@@ -5,7 +5,7 @@ import h5py
 import pytest
 from click.testing import CliRunner
 
-from cli.main import cli
+from hairlut_cli.main import cli
 from hairlut.assets import recipe_hash
 from hairlut.hrir import bake as bake_hrir
 from hairlut.shtables import bake_sh, write_sh_tables

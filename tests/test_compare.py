@@ -1,15 +1,16 @@
 """compare: zero against itself, known RMSEs and bias for known perturbations; frames through EXR; the CLI."""
 
 import json
-import subprocess
 
 import numpy as np
 import pytest
+from click.testing import CliRunner
 
 from hairlut import errors
 from hairlut.render import Frame, block_average, compare, read_frame, write_frame
 from hairlut.scene import CAMERA, make_camera
 from hairlut.recipes import resolve
+from hairlut_cli.main import cli
 
 
 def _frame(rng, h=64, w=48):
@@ -64,18 +65,18 @@ def test_frame_round_trip_keeps_the_camera(tmp_path, rng):
     assert (tmp_path / "f.png").is_file()
 
 
-def test_cli_compare(tmp_path, rng, hairlut_exe):
+def test_cli_compare(tmp_path, rng):
     cam = make_camera(resolve(CAMERA, {"view": [0.0, 0.0, 1.0], "resolution": [32, 32]}, "camera."), rng.normal(size=(9, 3)))
     a = _frame(rng, 32, 32)
     b = a.copy()
     b[..., :3] *= 0.5
     write_frame(Frame(a, np.ones((32, 32), np.float32), cam), tmp_path / "a.exr")
     write_frame(Frame(b, np.ones((32, 32), np.float32), cam), tmp_path / "b.exr")
-    out = subprocess.run([hairlut_exe, "compare", str(tmp_path / "b.exr"), str(tmp_path / "a.exr"), "--json",
-                          "--png", str(tmp_path / "d.png")], capture_output=True, text=True, check=True)
+    out = CliRunner().invoke(cli, ["compare", str(tmp_path / "b.exr"), str(tmp_path / "a.exr"), "--json",
+                                   "--png", str(tmp_path / "d.png")], catch_exceptions=False)
+    assert out.exit_code == 0, out.output
     fig = json.loads(out.stdout)
     assert np.isclose(fig["rgb_rmse"], np.sqrt(np.mean((0.5 * a[..., :3].astype(np.float64)) ** 2)), rtol=1e-5)
     assert fig["flip_mean"] > 0 and (tmp_path / "d.png").is_file()
-    bad = subprocess.run([hairlut_exe, "compare", str(tmp_path / "a.exr"), str(tmp_path / "nope.exr")],
-                         capture_output=True, text=True)
-    assert bad.returncode == 2 and "nope.exr" in bad.stderr
+    bad = CliRunner().invoke(cli, ["compare", str(tmp_path / "a.exr"), str(tmp_path / "nope.exr")])
+    assert bad.exit_code == 2 and "nope.exr" in bad.stderr and bad.stdout == ""

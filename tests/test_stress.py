@@ -46,12 +46,9 @@ def test_table_and_json_carry_every_case(quick):
     assert all(c["tolerance_reason"] for c in d["cases"])
 
 
-def test_cli_json(hairlut_exe):
-    import subprocess
-
-    out = subprocess.run([hairlut_exe, "stress", "--quick", "--json", "--only", "sh.bad_tangents,gpu"],
-                         capture_output=True, text=True, timeout=600)
-    assert out.returncode == 0, out.stderr
+def test_cli_json():
+    out = CliRunner().invoke(cli, ["stress", "--quick", "--json", "--only", "sh.bad_tangents,gpu"])
+    assert out.exit_code == 0, out.output
     d = json.loads(out.stdout)
     assert d["passed"] and [c["name"] for c in d["cases"]] == ["sh.bad_tangents", "gpu.float32"]
 
