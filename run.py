@@ -43,9 +43,11 @@ def test_workers() -> list[str]:
     """pytest-xdist options for the whole suite: ``$HAIRLUT_TEST_WORKERS`` workers (default 2, at most the CPU
     count), each test file on one worker so that its module fixtures are built once. Much of the suite's time
     is single-threaded work (XLA compilation, HDF5, forked children), so one process leaves a core of a
-    2-core machine idle; the workers share one XLA compilation cache (tests/conftest.py)."""
+    2-core machine idle; the workers share one XLA compilation cache (tests/conftest.py). Files are handed out
+    costliest first (tests/conftest.py ``COSTLIEST_FIRST``), not by xdist's default of most tests first, so
+    that no long file starts last and keeps one worker busy alone."""
     n = int(os.environ.get("HAIRLUT_TEST_WORKERS", min(2, os.cpu_count() or 1)))
-    return ["-n", str(n), "--dist", "loadfile"] if n > 1 else []
+    return ["-n", str(n), "--dist", "loadfile", "--no-loadscope-reorder"] if n > 1 else []
 
 
 def main(argv: list[str]) -> int:

@@ -47,6 +47,24 @@ def pytest_unconfigure(config):
         os.environ.pop("JAX_COMPILATION_CACHE_DIR", None)
 
 
+#: The costliest test files first, by the CPU seconds a whole-suite run measured per file (HAIRLUT_TEST_CPU_LOG,
+#: below: ``awk -F'\t' '{split($1, f, "::"); c[f[1]] += $3} END {for (k in c) print c[k], k}' LOG | sort -nr``).
+#: Under pytest-xdist (``run.py test``: ``--dist loadfile --no-loadscope-reorder``) each file runs whole on one worker
+#: and the workers take files in collection order, so the long files start first and the short ones fill in at the
+#: end (longest-processing-time-first): the two workers end together instead of one waiting on a long file that
+#: started last.  Only the order changes: every test still runs, and a file's own tests keep their order.
+COSTLIEST_FIRST = (
+    "test_synth_track_reads.py",
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        return  # one process: the order does not change the time
+    rank = {name: i for i, name in enumerate(COSTLIEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))  # stable: the rest keep their order
+
+
 GROOMS = ROOT / "tables" / "grooms"  # the example grooms kept in the repository (tables/grooms/README.md)
 
 
