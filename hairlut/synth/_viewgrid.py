@@ -148,6 +148,62 @@ def _shade_one(rho, g, views_kept, lights, phong, *, n_pix, n_steps, rays, shado
     return a.reshape(*a.shape[:-1], bins, -1).sum(-1), r.reshape(*r.shape[:-1], bins, -1).sum(-1)
 
 
+def _mirror_phong(rho, gx, gy, rs, rr, inside, views, lights, phong):
+    """The Phong direct term (``hairlut.hrir`` ``phong_direct``, eq 5's shading) at every (view, light, lane, step)
+    sample of a march on ``views`` (V,) and at the same samples seen from the mirror views + π: two (V, L, lanes, K)
+    arrays, both in the march's sample order, from one power per (sample, light).
+
+    With d′ = −d: where ∇ρ is resolved the normal is the same, so n·l′ = n·l and r·d′ = −r·d; where it is not
+    (n = d, n′ = −d) n′·l = −n·l and r′·d′ = −r·d too.  So |r·d|^p is shared and lands on whichever view of the
+    pair has r·d > 0; the diffuse max(0, n·l) is shared where the normal is resolved."""
+    vx, vy = jnp.cos(views)[:, None, None], jnp.sin(views)[:, None, None]
+    mag2 = gx * gx + gy * gy
+    ok = (rs * rs + rr * rr > (1e-5 * jnp.max(jnp.abs(rho))) ** 2) & (mag2 > 0) & inside
+    inv = jnp.where(ok, jax.lax.rsqrt(jnp.where(ok, mag2, 1.0)), 0.0)
+    nx, ny = jnp.where(ok, -gx * inv, vx)[:, None], jnp.where(ok, -gy * inv, vy)[:, None]  # (V, 1, lanes, K)
+    lx, ly = jnp.cos(lights)[None, :, None, None], jnp.sin(lights)[None, :, None, None]
+    vx, vy = vx[:, None], vy[:, None]
+    nl = nx * lx + ny * ly
+    rv = 2 * nl * (nx * vx + ny * vy) - (lx * vx + ly * vy)
+    spec = phong[2] * jnp.exp(phong[3] * jnp.log(jnp.where(rv != 0, jnp.abs(rv), 1.0)))
+    nl_m = jnp.where(ok[:, None], nl, -nl)
+    front = phong[1] * jnp.maximum(nl, 0.0) + jnp.where((nl > 0) & (rv > 0), spec, 0.0)
+    back = phong[1] * jnp.maximum(nl_m, 0.0) + jnp.where((nl_m > 0) & (rv < 0), spec, 0.0)
+    return front, back
+
+
+def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, shadow, smooth, eps, bins, alpha):
+    """``_shade_one``'s per-bin α and re on the kept views (every ``step``-th of ``views_half``, then the same + π),
+    each sample's march, normals, light transmittance and Phong power computed once for a view and its mirror
+    (:func:`_mirror_phong`), in the march's sample order (the mirror's weights are reversed instead of its samples).
+    With ``alpha``, the march runs on every view of ``views_half`` and α (V/2, lanes) of all of them (eq 5's Σ_k w_k)
+    comes back too (the shading reads its kept views), else on the kept views only and α is None."""
+    fields = sector_fields(rho)
+    lanes = n_pix * rays
+    march_views = views_half if alpha else views_half[::step]
+    tau, gx, gy, rs, rr, inside = march(fields, g, march_views, lanes, n_steps)
+    w_all, a_all = front_to_back(tau, eps)
+    if alpha:
+        tau, gx, gy, rs, rr, inside = (x[::step] for x in (tau, gx, gy, rs, rr, inside))
+        w, a = w_all[::step], a_all[::step]
+    else:
+        w, a = w_all, a_all
+    views = views_half[::step]
+    w_m, a_m = front_to_back(jnp.flip(tau, axis=(1, 2)), eps)  # the mirror views' own order
+    w_m = jnp.flip(w_m, axis=(1, 2))  # back into the march's order
+    front, back = _mirror_phong(rho, gx, gy, rs, rr, inside, views, lights, phong)  # (Vk, L, lanes, K)
+    if shadow:
+        depth = light_depth_grid(fields, g, lights, n_steps, min(n_steps, SHADOW_GRID))
+        t_l = jnp.moveaxis(grid_transmittance(depth, g, views, lanes, n_steps), -1, 1)
+        front, back = front * t_l, back * t_l
+    r = reflectance(a, front, w, phong)
+    r_m = jnp.flip(reflectance(jnp.flip(a_m, axis=-1), back, w_m, phong), axis=-1)  # lanes back to the mirror's order
+    S = smooth_matrix(g[_SIGMA_PX], n_pix) if smooth else None
+    ab, rb = (to_pixels(jnp.concatenate(x, axis=0), n_pix, rays, S) for x in ((a, a_m), (r, r_m)))
+    binned = tuple(x.reshape(*x.shape[:-1], bins, -1).sum(-1) for x in (ab, rb))
+    return (a_all if alpha else None), *binned
+
+
 @partial(jax.jit, static_argnames=("n_views", "n_pix", "n_steps", "rays", "m", "shade_rays", "shade_steps", "shadow", "smooth",
                                    "eps", "mirror", "bins"))
 def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int, n_pix: int, n_steps: int, rays: int, m: int,
@@ -165,8 +221,21 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
     and ``shade_steps`` steps, on the kept views only."""
     lanes = n_pix * rays
     half = n_views // 2
-
-    if m:
+    sr, sk = shade_rays or rays, shade_steps or n_steps
+    shared = mirror and not m and (sr, sk) == (rays, n_steps)  # α's march is the shading's on the kept views
+    S = jax.vmap(lambda s: smooth_matrix(s, n_pix))(geom[:, _SIGMA_PX]) if smooth else None
+    if mirror:
+        views = 2 * jnp.pi * jnp.arange(half, dtype=rho.dtype) / (2 * half) if shared else views_kept
+        shade = partial(_bake_one, n_pix=n_pix, n_steps=sk, rays=sr, step=half // views_kept.shape[0] if shared else 1,
+                        shadow=shadow, smooth=smooth, eps=eps, bins=bins, alpha=shared)
+        alpha, ab, rb = jax.lax.map(lambda a: shade(a[0], a[1], views, lights, phong), (rho, geom))
+    else:
+        shade = partial(_shade_one, n_pix=n_pix, n_steps=sk, rays=sr, shadow=shadow, smooth=smooth, eps=eps, mirror=False,
+                        bins=bins)
+        ab, rb = jax.lax.map(lambda a: shade(a[0], a[1], views_kept, lights, phong), (rho, geom))
+    if shared:
+        pass
+    elif m:
         def nodes(r, g):  # σ_t ρ 2R/m at the m × m node grid (x major): the view-0 march's samples, x reversed
             return jnp.flip(march(sector_fields(r), g, jnp.zeros(1, rho.dtype), m, m)[0][0], axis=1).T.reshape(-1)
 
@@ -179,11 +248,7 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
                             (rho, geom))
     alpha = to_pixels(alpha, n_pix, rays)
     if smooth:
-        S = jax.vmap(lambda s: smooth_matrix(s, n_pix))(geom[:, _SIGMA_PX])
         alpha = jnp.einsum("bvp,bpq->bvq", alpha, S, precision=HIGHEST)
-    shade = partial(_shade_one, n_pix=n_pix, n_steps=shade_steps, rays=shade_rays, shadow=shadow, smooth=smooth,
-                    eps=eps, mirror=mirror, bins=bins)
-    ab, rb = jax.lax.map(lambda a: shade(a[0], a[1], views_kept, lights, phong), (rho, geom))
     return alpha, ab, rb
 
 
