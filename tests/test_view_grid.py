@@ -63,7 +63,7 @@ def _binned(a, re, step, bins):
             re[:, ::step].reshape(n, -1, re.shape[2], bins, P // bins).sum(-1))
 
 
-@pytest.mark.parametrize("V, step", [(8, 2), (6, 2)])  # kept views mirrored (8/2) or not (6/2: 3 is odd)
+@pytest.mark.parametrize("V, step", [(8, 2), (8, 4), (6, 2)])  # kept views mirrored (8/2, 8/4) or not (6/2: 3 is odd)
 def test_bake_grid_shading_equals_the_tracer(sectors, V, step):
     """At the trace's own rays and steps, the fast path's per-bin α and re are the reference's, binned."""
     dens, geom, full = sectors

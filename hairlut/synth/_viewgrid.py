@@ -13,6 +13,10 @@ same arrays with less work, using two facts of the planar geometry:
   on the V/2 views θ < π only; the other half reads them reversed.  What depends on the viewing
   direction (the front-to-back weights w_k = α_k T_k, the Phong half vector, the fallback normal
   n = d where ∇ρ vanishes) is still evaluated per view.
+* **The bake shares more** (:func:`bake_view_grid`, :func:`_bake_one`): one march on the V/2 views gives α and,
+  on the kept views, the shading's samples; a view and its mirror share each sample's normal, light
+  transmittance and Phong power |r·d|^p (r·d changes sign, n·l does not where ∇ρ is resolved), and the mirror's
+  weights are reversed instead of its samples.
 * **Sectors in blocks.**  ``block`` sectors are vmapped together inside one ``lax.map`` (as the
   direct kernel), and the host pads the live sectors to a few bucketed counts, so one compilation
   serves a whole bake.
@@ -217,8 +221,11 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
     product with ``proj`` (:func:`projection_matrix`, precision HIGHEST): τ = σ_t Δs Σ_k ρ(q_k),
     α = 1 − e^−τ (eq 5's Σ_k w_k without the ``eps`` cut-off, which changes α by < eps), rays averaged,
     smoothed; with ``m`` = 0, the tracer's march per view (eq 5's Σ_k w_k; ``proj`` unused).
-    re (eq 5): the tracer's own march (:func:`_shade_one`) with ``shade_rays`` rays per pixel
-    and ``shade_steps`` steps, on the kept views only."""
+    re (eq 5): the tracer's own march with ``shade_rays`` rays per pixel and ``shade_steps`` steps (0: the
+    trace's), on the kept views only; when the kept views' mirrors are kept too (``mirror``), each view and its
+    mirror share samples, light lookups and Phong powers (:func:`_bake_one`), and at the trace's own rays and
+    steps with ``m`` = 0 the one march gives both α and the shading (the α march above is not run);
+    otherwise :func:`_shade_one`."""
     lanes = n_pix * rays
     half = n_views // 2
     sr, sk = shade_rays or rays, shade_steps or n_steps
@@ -233,16 +240,14 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
         shade = partial(_shade_one, n_pix=n_pix, n_steps=sk, rays=sr, shadow=shadow, smooth=smooth, eps=eps, mirror=False,
                         bins=bins)
         ab, rb = jax.lax.map(lambda a: shade(a[0], a[1], views_kept, lights, phong), (rho, geom))
-    if shared:
-        pass
-    elif m:
+    if m:
         def nodes(r, g):  # σ_t ρ 2R/m at the m × m node grid (x major): the view-0 march's samples, x reversed
             return jnp.flip(march(sector_fields(r), g, jnp.zeros(1, rho.dtype), m, m)[0][0], axis=1).T.reshape(-1)
 
         tau_nodes = jax.lax.map(lambda a: nodes(a[0], a[1]), (rho, geom))  # (B, m²)
         tau = jnp.matmul(tau_nodes, proj, precision=HIGHEST).reshape(-1, half, lanes) * (m / n_steps)
         alpha = -jnp.expm1(-tau)
-    else:  # the tracer's march on the V/2 views, eq 5's Σ_k w_k with its cut-off
+    elif not shared:  # the tracer's march on the V/2 views, eq 5's Σ_k w_k with its cut-off
         views = 2 * jnp.pi * jnp.arange(half, dtype=rho.dtype) / (2 * half)
         alpha = jax.lax.map(lambda a: front_to_back(march(sector_fields(a[0]), a[1], views, lanes, n_steps)[0], eps)[1],
                             (rho, geom))
