@@ -2,6 +2,7 @@
 
     python benchmarks/scene_layouts.py --scene tables/scenes/sintel-groom.toml [--lights 16 9 5] [--json OUT]
     python benchmarks/scene_layouts.py --paper-subset 64 [--fast 128 1 0] [--json OUT]  # bake CPU, paper-scale model
+    python benchmarks/scene_layouts.py --scene SCENE.toml --bake 0 0 0 --bake 128 1 0  # the bake's knobs' accuracy
 
 A ``scene_maps`` table's α and re rows are functions of the traced grid alone; its layout (Fourier terms
 K, shading bins Q, storage dtype, the ratio's view step) only compresses them (``hairlut.scenemaps.compress``).  So per light
@@ -70,12 +71,14 @@ def _frame(src, ix, sc, runs: int = 3):
 def layouts(args) -> list[dict]:
     import jax.numpy as jnp
     from hairlut.scene import scene_maps_recipe
-    from hairlut.scenemaps import SceneMaps, compress, fetch_kernel, hrir_recipe, scene_inputs
-    from hairlut.synth import MapSource, trace_view_grid
+    from hairlut.scenemaps import SceneMaps, compress, fetch_kernel, hrir_recipe, ratio_terms, scene_inputs
+    from hairlut.synth import MapSource, bake_view_grid, trace_view_grid
 
     prep, t_rows, t_maps, truth_s = truth(args.scene, False, cache=args.truth_cache)
     ix = prep.index
-    sc = _scene(args.scene, method="scene", rays=2)
+    own = _scene(args.scene).config["render"]  # --bake: the scene file's own layout (map_accuracy's first scene row)
+    sc = _scene(args.scene, method="scene", rays=2,
+                **({k: own[k] for k in ("views", "terms", "shading_pixels", "precision")} if args.bake else {}))
     recipe = scene_maps_recipe(sc)
     V = recipe["table"]["views"]
     dens, geom = scene_inputs(sc, recipe)
@@ -85,17 +88,32 @@ def layouts(args) -> list[dict]:
     full = hrir_recipe(recipe)
     tv, tl, _ = _angles(prep, prep.scene)
     records = []
+    t = recipe["table"]
+    # --bake: the scene's own layout only, computed by bake_view_grid at each (alpha_grid, shade_rays, shade_steps)
+    runs = [(L, None) for L in args.lights] if not args.bake else [(t["lights"], kw) for kw in args.bake]
     with tempfile.TemporaryDirectory() as tmp:
-        for L in args.lights:
+        for L, knobs in runs:
             t0 = time.perf_counter()
-            a, re = trace_view_grid(dens[live], geom[live], full, views=V, lights=L)
+            if knobs is None:
+                a, re = trace_view_grid(dens[live], geom[live], full, views=V, lights=L)
+                layouts_here = LAYOUTS
+            else:
+                ag, sr, sk = knobs
+                half_b, ab, rb = bake_view_grid(dens[live], geom[live], full, views=V, lights=L, ratio_step=t["ratio_step"],
+                                                bins=t["shading_pixels"], alpha_grid=ag, shade_rays=sr or None,
+                                                shade_steps=sk or None)
+                layouts_here = [(t["terms"], t["shading_pixels"], t["dtype"], t["ratio_step"])]
             trace_s = time.perf_counter() - t0
-            print(f"traced {live.size} rows on {V} views × {L} lights in {trace_s:.1f} s", flush=True)
-            for K, Q, dt, step in LAYOUTS:
+            print(f"traced {live.size} rows on {V} views × {L} lights in {trace_s:.1f} s"
+                  + (f" (bake_view_grid alpha_grid={ag}, shade_rays={sr}, shade_steps={sk})" if knobs else ""), flush=True)
+            for K, Q, dt, step in layouts_here:
                 if 2 * K + 1 > L or full["trace"]["pixels"] % Q:
                     continue
                 t1 = time.perf_counter()
-                half, coef, _ = compress(a, re, V, K, Q, step)
+                if knobs is None:
+                    half, coef, _ = compress(a, re, V, K, Q, step)
+                else:
+                    half, coef = np.asarray(half_b, np.float64), ratio_terms(ab, rb, V, K, step)
                 half, coef = half.astype(dt), coef.astype(dt)
                 comp_s = time.perf_counter() - t1
                 rec = {**recipe, "table": {**recipe["table"], "lights": L, "terms": K, "shading_pixels": Q, "dtype": dt,
@@ -107,7 +125,9 @@ def layouts(args) -> list[dict]:
                 ra, rr = fetch_kernel(*dev, tv, tl)
                 raw = half.nbytes + coef.nbytes + row.nbytes
                 records.append({"method": "scene", "knobs": f"views={V}, lights={L}, terms={K}, shading_pixels={Q}, {dt}, "
-                                                          f"ratio_step={step}",
+                                                          f"ratio_step={step}"
+                                                          + (f", alpha_grid={ag}, shade_rays={sr}, shade_steps={sk}" if knobs else ""),
+                                "bake_knobs": " ".join(map(str, knobs)) if knobs else None,
                                 "views": V, "lights": L, "terms": K, "shading_pixels": Q, "dtype": dt, "ratio_step": step,
                                 "frame_ms": ms, "bake_s": trace_s + comp_s, "bytes": disk, "raw_bytes": raw,
                                 "sectors_per_s": live.size / trace_s, "paper_mb": disk / live.size * PAPER_LIVE / 1e6,
@@ -116,7 +136,7 @@ def layouts(args) -> list[dict]:
                 print(records[-1], flush=True)
     print(f"\n## Scene-table layouts of {args.scene.name} ({live.size} of {len(dens)} sectors live) against the "
           f"converged truth ({truth_s:.1f} s to trace)\n")
-    print(table(records, [("lights", "L", "d"), ("terms", "K", "d"), ("shading_pixels", "Q", "d"), ("dtype", "dtype", "s"),
+    print(table(records, [("lights", "L", "d"), ("bake_knobs", "alpha_grid, shade_rays, shade_steps", "s"), ("terms", "K", "d"), ("shading_pixels", "Q", "d"), ("dtype", "dtype", "s"),
                           ("ratio_step", "ratio step", "d"),
                           ("re_rel_l2", "re", ".3f"), ("alpha_rel_l2", "α", ".3f"), ("coverage_rel_l2", "coverage", ".3f"),
                           ("alpha_bias", "mean-α bias", "+.3f"), ("frame_ms", "maps ms", ".1f"),
@@ -207,6 +227,9 @@ def main(argv=None):
     ap.add_argument("--paper-subset", type=int, metavar="N", help="only the bake rate on N paper-model sectors")
     ap.add_argument("--fast", type=int, nargs=3, action="append", default=[], metavar=("ALPHA_GRID", "RAYS", "STEPS"),
                     help="with --paper-subset: also time bake_view_grid at these table.alpha_grid, shade_rays, shade_steps")
+    ap.add_argument("--bake", type=int, nargs=3, action="append", default=[], metavar=("ALPHA_GRID", "RAYS", "STEPS"),
+                    help="without --paper-subset: only the scene's own layout, baked by bake_view_grid at these "
+                         "table.alpha_grid, shade_rays, shade_steps (0: the trace's), against the converged truth (repeatable)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
     return paper_subset(args) if args.paper_subset else layouts(args)
