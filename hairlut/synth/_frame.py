@@ -166,13 +166,46 @@ def fetch_kernel(ix: MapIndex, alpha, refl, tv, tl, uniform, nonuniform, scratch
     return interpolate(*(jnp.concatenate([a, b[nonuniform]]) for a, b in zip(q, (n2, w2, v2, l2))), alpha, refl)
 
 
-def track_window(ix: MapIndex, cs, e: int):
-    """The sectors a texel's in-plane ray crosses in its track, on its side of the chord, in cross-section ``e``
-    (0: its HSV's top, 1: bottom): per texel (C, K, n_t, n_u), for m < M = min(s_u, ⌊s_u/4⌋ + 2), the phase
-    column ``col[m]`` (0 … s_u − 1) of the m-th sector from the texel's point p inward along the ray, its weight
-    ``w[m]`` (1; ½ when the chord's other fragment crosses it too; 0 past the segment's end) and its image-line
-    coordinate ``x[m]`` = (p − c_s)·e / R_s (e the in-plane view turned +90°); and ``front`` (the ray enters the
-    track at p: m runs front to back; else back to front).
+def _fenced(fn, *args):
+    """fn(*args), materialised: both branches of a ``lax.cond`` are fn, so the result is the same whichever runs,
+    and XLA cannot fuse fn's work into the consumers.  XLA:CPU drops ``optimization_barrier`` and fuses a producer
+    into each of its consumers, recomputing it (cos, sin, atan2, the gathers' index arithmetic) once per
+    consumer (the paper-scale track window computed cos and sin in 12 fusions: 72 → 20–24 CPU-ms fenced)."""
+    lead = jnp.ravel(jax.tree_util.tree_leaves(args)[0])[0]
+    return jax.lax.cond(lead == lead, fn, fn, *args)
+
+
+def _track_layout(ix: MapIndex):
+    """The track read's static layout: the sector rows ``used`` (sorted, of 0 … s_t) that the texels' two
+    cross-sections read, and per cross-section e (0: the HSV's top, 1: its bottom) the position in ``used`` of
+    each texel row's sector row ``rows[i] + e``.  A cross-section's window and composite depend only on the
+    sector row, the track and the texel column (the layer-surface point p lies in the cross-section), so they
+    are made once per (C, R, K, n_u) *entry* and shared by the texel rows that read that sector row."""
+    rows = np.asarray(ix.rows)
+    used = np.unique(np.concatenate([rows, rows + 1]))
+    return tuple(used.tolist()), tuple(tuple(np.searchsorted(used, rows + e).tolist()) for e in (0, 1))
+
+
+def _entries(ix: MapIndex, x, used: tuple):
+    """Per-sector values (S, …) → per entry (C, R, K, n_u, …): sector row ``used[r]``, track k, the phase column
+    of texel column j (broadcasts, no gather, where the texel columns are the regular repeat)."""
+    n_c, s_t, n_g, s_u = ix.grid
+    x = x.reshape(n_c, s_t + 1, n_g, s_u, *x.shape[1:])[:, :, :ix.layers]
+    if used != tuple(range(s_t + 1)):
+        x = jnp.take(x, np.asarray(used), axis=1)
+    return _take(x, ix.cols, 3)
+
+
+def track_window(ix: MapIndex, cs, used: tuple, by_sector: bool = False):
+    """The sectors each entry's in-plane ray crosses in its track, on its side of the chord (an entry: a sector
+    row ``used[r]``, a track k, a texel column j; :func:`_track_layout`), flattened to (E,): for m < M =
+    min(s_u, ⌊s_u/4⌋ + 2), the m-th sector from the texel's point p inward along the ray is phase column
+    k_m = (``j0`` + ``sig`` m) mod s_u, with weight ``w[:, m]`` (1; ½ when the chord's other fragment crosses it
+    too; 0 past the segment's end); ``last`` is one past the last m of nonzero weight (slots from ``last`` on
+    are no-ops); ``front`` (the ray enters the track at p: m runs front to back; else back to front); and what
+    the image-line coordinate x_m = (p − c_s)·e / R_s of sector s = ``base`` + k_m needs (e the in-plane view
+    turned +90°): p (``Px``, ``Py``) and the in-plane view (``dx``, ``dy``); ``row0``: the entry's track's first
+    row in :func:`sweep_track`'s rows (``by_sector``: rows in sector order, (S, …); else its HSV layout).
 
     Geometry (satf eq 1: x = A v cos(q + u), y = B v sin(q + u), so in (x/A, y/B) the track is the annulus
     v0 ≤ |·| ≤ v1 and a straight line stays straight): the camera ray through p, projected into the normal
@@ -184,16 +217,16 @@ def track_window(ix: MapIndex, cs, e: int):
     cross (by more than :data:`EPS_PHASE` of phase) is split between them (weight ½ each: the sector's own
     projection counts once in all)."""
     n_c, s_t, n_g, s_u = ix.grid
-    S = n_c * (s_t + 1) * n_g * s_u
+    S, H = n_c * (s_t + 1) * n_g * s_u, n_c * s_t * n_g * s_u
     n_u = ix.offset.shape[-1]
     du = TWO_PI / s_u
     u = (TWO_PI * (jnp.arange(n_u) + 0.5) / n_u).astype(jnp.float32)
-    sid = _texels(ix, _split(ix, jnp.arange(S, dtype=jnp.int32))[e])
-    g = ix.track[sid]
-    A, B, q, v0, v1, cx, cy, R, exx, exy, eyx, eyy = (g[..., i] for i in range(12))
-    c = cs[sid]
+    sid = _entries(ix, jnp.arange(S, dtype=jnp.int32), used)
+    g = _entries(ix, ix.track, used)
+    A, B, q, v0, v1, _, _, _, exx, exy, eyx, eyy = (g[..., i] for i in range(12))
+    c = _entries(ix, cs, used)
     dx, dy = c[..., 0] * exx + c[..., 1] * eyx, c[..., 0] * exy + c[..., 1] * eyy  # in-plane view (toward the eye)
-    px, py = v1 * jnp.cos(q + u), v1 * jnp.sin(q + u)  # p in (x/A, y/B)
+    px, py = _fenced(lambda v1, qu: (v1 * jnp.cos(qu), v1 * jnp.sin(qu)), v1, q + u)  # p in (x/A, y/B)
     wx, wy = -dx / A, -dy / B  # the ray, away from the eye
     pw = px * wx + py * wy
     front = pw < 0
@@ -209,8 +242,8 @@ def track_window(ix: MapIndex, cs, e: int):
     def phase(s):  # unwrapped phase of p + s w: the polar angle turns by sig · atan2(|s cr|, v1² + s pw)
         return u + sig * jnp.arctan2(jnp.abs(s * cr), v1 * v1 + s * pw)
 
-    own = (u, phase(s_end))
-    other = (phase(2 * s_mid - s_end), phase(2 * s_mid))
+    own_end, other = _fenced(lambda *a: (phase(s_end), (phase(2 * s_mid - s_end), phase(2 * s_mid))), s_end)
+    own = (u, own_end)
 
     turns = (-s_u, 0, s_u) if s_u == 1 else (0,)  # from s_u = 2 on, the chord's columns never wrap onto each other
 
@@ -220,53 +253,76 @@ def track_window(ix: MapIndex, cs, e: int):
         return over[0] if len(over) == 1 else jnp.max(jnp.stack(over), axis=0)
 
     j0 = jnp.floor(u / du).astype(jnp.int32) + jnp.zeros_like(sig)  # unwrapped column of p
-    Px, Py, base = A * px, B * py, sid - jnp.mod(sid, s_u)
-    frame = ix.track[:, 5:8]  # centre, extent
-    cols, ws, xs = [], [], []
-    for m in range(min(s_u, s_u // 4 + 2)):
-        j = j0 + sig * m
-        k = jnp.mod(j, s_u)
-        w = jnp.where(crossed(j, own) > EPS_PHASE, jnp.where(crossed(j, other) > EPS_PHASE, 0.5, 1.0), 0.0)
-        h = frame[base + k]
-        xs.append(((Px - h[..., 0]) * -dy + (Py - h[..., 1]) * dx) / h[..., 2])
-        cols.append(k)
-        ws.append(w)
-    return cols, ws, xs, front
+    ws = [jnp.where(crossed(j0 + sig * m, own) > EPS_PHASE, jnp.where(crossed(j0 + sig * m, other) > EPS_PHASE,
+                                                                        0.5, 1.0), 0.0)
+          for m in range(min(s_u, s_u // 4 + 2))]
+    last = jnp.max(jnp.stack([jnp.where(w > 0, m + 1, 0) for m, w in enumerate(ws)]), axis=0)
+    base = sid - jnp.mod(sid, s_u)
+    cell = sid // (n_g * s_u)  # c (s_t + 1) + r
+    hs = base - (cell // (s_t + 1)) * (n_g * s_u)  # the HSV of which the sector is the top (r < s_t) …
+    row0 = base if by_sector else jnp.where(jnp.mod(cell, s_t + 1) < s_t, hs, H + hs - n_g * s_u)  # … else the
+    # bottom of the HSV before it
+    geo = {"j0": j0, "sig": sig, "front": front, "w": jnp.stack(ws, -1), "last": last, "Px": A * px, "Py": B * py,
+           "dx": dx, "dy": dy, "base": base, "row0": row0}
+    return {k: v.reshape(-1, *v.shape[4:]) for k, v in geo.items()}
 
 
-def sweep_track(ix: MapIndex, rows_re, rows_a, cs):
+def _track_slot(m: int, geo: dict, acc, trans, flat_a, flat_re, frame, s_u: int, P: int):
+    """Slot m of :func:`sweep_track`'s front-to-back composite, for the entries of ``geo`` (all, or a subset)."""
+    Lt = acc.shape[-1]
+    k = jnp.mod(geo["j0"] + geo["sig"] * m, s_u)
+    w = geo["w"][:, m]
+    h = frame[geo["base"] + k]
+    x = ((geo["Px"] - h[..., 0]) * -geo["dy"] + (geo["Py"] - h[..., 1]) * geo["dx"]) / h[..., 2]
+    row, p = geo["row0"] + k, (x + 1.0) * P / 2.0 - 0.5
+    f = jnp.clip(p, 0.0, P - 1.0)  # _maps._sample's pixel, materialised before the gathers that use it
+    i0 = jnp.clip(jnp.floor(f).astype(jnp.int32), 0, max(P - 2, 0))
+    row, i0, t = _fenced(lambda *a: a, row, i0, f - i0)
+    i1 = jnp.minimum(i0 + 1, P - 1)
+
+    def sample(flat, r):  # linear in the pixel, clamped: _maps._sample's arithmetic
+        g0 = flat[r * P + i0]
+        return g0 + t * (flat[r * P + i1] - g0)
+
+    a = jnp.clip(sample(flat_a, row), 0.0, 1.0)
+    a_w = jnp.where(w == 1.0, a, jnp.where(w == 0.0, 0.0, 1.0 - jnp.sqrt(1.0 - a)))  # 1 − (1 − α)^w
+    scale = jnp.where(a > 0, a_w / jnp.where(a > 0, a, 1.0), 0.0)
+    re = jnp.stack([sample(flat_re, row * Lt + j) for j in range(Lt)], -1) * scale[..., None]
+    front = geo["front"][..., None]
+    return _fenced(lambda *a: (jnp.where(front, acc + trans[..., None] * re, re + (1.0 - a_w[..., None]) * acc),
+                               trans * (1.0 - a_w)), acc)
+
+
+def sweep_track(ix: MapIndex, rows_re, rows_a, cs, by_sector: bool = False):
     """``layer_reads = "track"``: each texel's α and re from every sector its in-plane ray crosses in its track
     (:func:`track_window`), in both of its HSV's cross-sections, then eq 7's γ interpolation between them.  Rows:
-    HSV h's top sector's at row h, its bottom sector's at row H + h (``sweep_sectors``' layout; ``fetch_kernel``'s
-    with every HSV non-uniform).  Per cross-section, with weight w a sector's pixel gives α' = 1 − (1 − α)^w
-    (its optical depth times w) and re' = re α'/α (re is α-premultiplied), composited along the ray front to
-    back: α = 1 − Π(1 − α'), re = Σ re' Π_{before}(1 − α').
+    HSV h's top sector's at row h, its bottom sector's at row H + h (``fetch_kernel``'s with every HSV
+    non-uniform), or with ``by_sector`` every sector's own row, (S, …) (``sweep_sectors``: no concatenation).
+    Per cross-section, with weight w a sector's pixel gives α' = 1 − (1 − α)^w (its optical depth times w) and
+    re' = re α'/α (re is α-premultiplied), composited along the ray front to back: α = 1 − Π(1 − α'),
+    re = Σ re' Π_{before}(1 − α').
 
-    Cost: up to 2M samples per texel instead of 2, plus the window's geometry; on the paper-scale model
-    (53,040 sectors, 208,896 texels, s_u = 16: M = 6) 246–401 CPU-ms against eq 7's 6.5 in the same run
-    (``benchmarks/layer_reads.py --paper``, loaded 2-core CPU), which is why ``pair`` stays the default."""
+    Cost: the window and the composite are made once per entry (:func:`_track_layout`: a sector row's, shared
+    by the texel rows on either side of it), each materialised (:func:`_fenced`), and a slot only when some
+    entry's window reaches it (the paper-scale model's reach 4 of M = 6; compacting the entries that reach a
+    slot, 21 % at slot 2, cost more than the slot itself: 10.7 against 4.7 CPU-ms)."""
     n_c, s_t, n_g, s_u = ix.grid
-    H = n_c * s_t * n_g * s_u
     Lt, P = rows_re.shape[1:]
-    h = _texels(ix, jnp.arange(H, dtype=jnp.int32))
-    flat_re, flat_a = rows_re.reshape(-1), rows_a.reshape(-1)
-    out = []
-    for e in (0, 1):
-        # materialised: XLA:CPU would otherwise recompute the window's geometry inside every gather that reads it
-        cols, ws, xs, front = jax.lax.optimization_barrier(tuple(jnp.stack(a) if isinstance(a, list) else a
-                                                                 for a in track_window(ix, cs, e)))
-        row0 = e * H + h - jnp.mod(h, s_u)
-        acc = jnp.zeros(h.shape + (Lt,), jnp.float32)
-        trans = jnp.ones(h.shape, jnp.float32)
-        for k, w, x in zip(cols, ws, xs):
-            row, p = row0 + k, (x + 1.0) * P / 2.0 - 0.5
-            a = jnp.clip(_sample(flat_a, row, p, P), 0.0, 1.0)
-            a_w = jnp.where(w == 1.0, a, jnp.where(w == 0.0, 0.0, 1.0 - jnp.sqrt(1.0 - a)))  # 1 − (1 − α)^w
-            scale = jnp.where(a > 0, a_w / jnp.where(a > 0, a, 1.0), 0.0)
-            re = jnp.stack([_sample(flat_re, row * Lt + j, p, P) for j in range(Lt)], -1) * scale[..., None]
-            acc = jnp.where(front[..., None], acc + trans[..., None] * re, re + (1.0 - a_w[..., None]) * acc)
-            trans = trans * (1.0 - a_w)
-        out.append((acc, 1.0 - trans))
+    used, pos = _track_layout(ix)
+    geo = _fenced(lambda ix, cs: track_window(ix, cs, used, by_sector), ix, cs)  # materialised before the gathers
+    flat_re, flat_a, frame = rows_re.reshape(-1), rows_a.reshape(-1), ix.track[:, 5:8]  # centre, extent
+    n = geo["j0"].shape[0]
+    acc, trans = jnp.zeros((n, Lt), jnp.float32), jnp.ones(n, jnp.float32)
+    for m in range(geo["w"].shape[1]):
+        def slot(state, m=m):
+            return _track_slot(m, geo, *state, flat_a, flat_re, frame, s_u, P)
+
+        # a slot no window reaches is skipped (a weight-0 slot is an exact no-op: the same numbers either way)
+        acc, trans = slot((acc, trans)) if m == 0 else jax.lax.cond(jnp.any(geo["last"] > m), slot, lambda s: s,
+                                                                    (acc, trans))
+    shape = (n_c, len(used), ix.layers, -1)
+    ent = (acc.reshape(*shape, Lt), (1.0 - trans).reshape(shape))
+    out = [[jnp.swapaxes(_take(x, pos[e], 1), 1, 2) for x in ent] for e in (0, 1)]
     g = ix.gamma[:, None]
     re = (1 - g[..., None]) * out[0][0] + g[..., None] * out[1][0]
     a = (1 - g) * out[0][1] + g * out[1][1]
@@ -361,6 +417,8 @@ def sweep_sectors(ix: MapIndex, alpha, re, cs):
     """Eq 7 per texel from every sector's own rows, α (S, P) and re (S, Lt, P), two per HSV (its top and
     bottom sector; no eq 6 shortcut): re (C, K, Lt, n_t, n_u), α (C, K, n_t, n_u).  ``cs`` (S, 2): each
     sector's (cos θv, sin θv) from :func:`params_kernel`."""
+    if ix.reads == "track":
+        return sweep_track(ix, re, alpha, cs, by_sector=True)
     a1, a2 = _split(ix, alpha)
     r1, r2 = _split(ix, re)
     H = a1.shape[0]

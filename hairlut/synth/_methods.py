@@ -23,7 +23,7 @@ import numpy as np
 
 from .. import errors
 from ._direct import direct_sector_maps, scene_sector_inputs
-from ._frame import MapIndex, _split, _texels, params_kernel, sweep_sectors
+from ._frame import MapIndex, _fenced, _split, _texels, params_kernel, sweep_sectors
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,7 +90,8 @@ def scene_frame_kernel(ix: MapIndex, alpha, ratio, cs, top, bot):
     α (C, K, n_t, n_u)."""
     (S, P), (Lt, Q) = alpha.shape, ratio.shape[1:]
     if ix.reads == "track":  # [render] layer_reads: every sector's re row, re(p) = α(p) ρ(⌊pQ/P⌋), for sweep_track
-        return sweep_sectors(ix, alpha, alpha[:, None] * jnp.repeat(ratio, P // Q, axis=-1), cs)
+        re = _fenced(lambda a, r: a[:, None] * jnp.repeat(r, P // Q, axis=-1), alpha, ratio)  # not per gather
+        return sweep_sectors(ix, alpha, re, cs)
     c1, c2 = cs[top], cs[bot]
     pix = [((-c[..., 1] * o[0] + c[..., 0] * o[1]) + 1.0) * P / 2.0 - 0.5 for c, o in zip((c1, c2), ix.offset)]
     fa, fr = alpha.reshape(-1), ratio.reshape(-1)
