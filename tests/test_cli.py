@@ -176,7 +176,9 @@ def test_usage_errors_are_status_2(tmp_path):
 def test_demo_writes_and_inspects(tmp_path):
     from .test_plan import _write_toml, scene
 
-    path = _write_toml(tmp_path / "tiny.toml", scene({"map": "sky"}))
+    # 4 light bands, not "auto": the choice against a 30-band reference (test_env_bands.py checks it) would bake
+    # 13 here and costs a quarter of this end-to-end run
+    path = _write_toml(tmp_path / "tiny.toml", scene({"map": "sky", "bands": 4}))
     res = run("demo", "--scene", path, "--out", tmp_path / "d", "--cache", tmp_path / "c", "--no-progress", "--json")
     assert res.exit_code == 0, res.output
     (doc,) = json.loads(res.output)["scenes"]
