@@ -1,7 +1,8 @@
 """The parts folder of a bake and the virtual assets built over it (every table kind).
 
-``<out>.parts/`` holds a bake's finished blocks, one ``part-<start>-<stop>.h5`` file
-each (the kind's shard kind).  hairlut creates the folder atomically with a marker file
+``<out>.parts/`` holds a bake's finished blocks, one file each (the kind's shard kind),
+named by the bake's unit count, its block size and the block's number (:func:`part_name`):
+``part-<total>x<block>-<b>.h5``, and ``part-<total>x<block>-<b>-last.h5`` for the last block.  hairlut creates the folder atomically with a marker file
 (:data:`MARKER`) inside, and refuses a folder without it, or a symlink, rather than touch
 what it did not create; it deletes only the part files, temporaries and marker it wrote.
 Bakes of one output take turns on an advisory lock (``fcntl.flock`` on
@@ -10,7 +11,10 @@ Bakes of one output take turns on an advisory lock (``fcntl.flock`` on
 :func:`remove_if_unused`).
 
 A *virtual* asset (:func:`write_virtual`) stores its per-unit tables as HDF5 virtual
-datasets over the part files, which stay beside it: nothing is copied.  HDF5 fills a
+datasets over the part files, which stay beside it: nothing is copied.  Each table is two
+mappings whatever the part count: one printf-style mapping (source file ``…-%b.h5``, an
+unlimited regular selection of stride ``block``) over the equal blocks, and one fixed mapping
+for the last block (shorter or not), which also pins the table's extent.  HDF5 fills a
 missing source with the fill value silently, so :func:`check_virtual` validates every
 source before a reader trusts the file, by the readers' own rule
 (:func:`hairlut.assets.trust.allowed_virtual_sources`: a part inside ``<asset>.parts/``,
@@ -38,13 +42,13 @@ from .assets import Axis, Variable, atomic_path, canonical_json, open_table, rec
 from .assets.h5 import LIBVER, dims_of, disk_name
 from .assets.kinds import SCHEMA
 from .assets.layout import layout
-from .assets.trust import allowed_virtual_sources
+from .assets.trust import allowed_virtual_sources, expand_sources, printf_escape
 
 MARKER = ".hairlut-parts"
 MARKER_TEXT = "hairlut parts folder: finished blocks of a bake; hairlut deletes only its own files here\n"
-PART_GLOB = "part-*-*.h5"
+PART_GLOB = "part-*.h5"
 SHARE_GLOB = "share-*-of-*.npz"
-ATTR = "hairlut_parts"  # root attribute of a virtual asset: its part files (JSON list, relative names)
+ATTR = "hairlut_parts"  # root attribute of a virtual asset: its parts (JSON: folder, block, total, part count)
 _SKIP_ATTRS = {"DIMENSION_LIST", "DIMENSION_LABELS", "REFERENCE_LIST", "CLASS", "NAME"}
 
 
@@ -53,8 +57,18 @@ def parts_dir(out) -> Path:
     return out.with_name(out.name + ".parts")
 
 
-def part_name(start: int, stop: int) -> str:
-    return f"part-{start:09d}-{stop:09d}.h5"
+def part_name(start: int, stop: int, total: int, block: int) -> str:
+    """The part file of units [start, stop) of a bake of ``total`` units in blocks of ``block``: named by the block's
+    number, so that a virtual asset maps every whole block with one printf-style name (:func:`part_pattern`); the
+    last block, whole or short, is ``…-last.h5``, outside that pattern (a short block cannot share its selection)."""
+    if start % block or not 0 <= start < stop <= total or stop != min(start + block, total):
+        raise errors.ValidationError("part", [start, stop], f"not a block of {total} units in blocks of {block}")
+    return f"part-{total}x{block}-{start // block}{'-last' if stop == total else ''}.h5"
+
+
+def part_pattern(total: int, block: int) -> str:
+    """The HDF5 printf-style source name (``%b``: the block number) of the whole blocks' parts (:func:`part_name`)."""
+    return f"part-{total}x{block}-%b.h5"
 
 
 def _is_ours(folder: Path) -> bool:
@@ -230,7 +244,7 @@ def write_share(path, digest: str, total: int, blocks: dict) -> Path:
     return Path(path)
 
 
-def read_share(path, digest: str, total: int, folder: Path) -> dict:
+def read_share(path, digest: str, total: int, block: int, folder: Path) -> dict:
     """{(start, stop): index dict} of the blocks of a share index whose parts are unchanged since they were
     indexed (same inode, size and mtime) and which matches this recipe hash and unit count; {} for a missing
     or foreign share index (the leader then opens those parts itself)."""
@@ -250,9 +264,9 @@ def read_share(path, digest: str, total: int, folder: Path) -> dict:
     got = {}
     for j, ((s, e), st) in enumerate(zip(spans.tolist(), stamps)):
         try:
-            if np.array_equal(stamp(folder / part_name(s, e)), st):
+            if np.array_equal(stamp(folder / part_name(s, e, total, block)), st):
                 got[(s, e)] = {k: split[k][j] for k in keys}
-        except OSError:
+        except (OSError, errors.ValidationError):
             continue
     return got
 
@@ -280,10 +294,16 @@ def _kwargs(chunks) -> dict:
 def write_virtual(out, kind: str, recipe: dict, axis: str, parts: list[tuple[Path, int, int]], axes: list[Axis],
                   variables: list[Variable], attrs: dict | None = None) -> Path:
     """Write ``out`` (atomically): ``variables`` stored, every table of the parts whose first axis is ``axis``
-    a virtual dataset over the parts.  ``parts`` are (path, start, stop) covering the axis in order."""
+    a virtual dataset over the parts.  ``parts`` are (path, start, stop) covering the axis in order, in equal
+    blocks but the last, in one folder, named by :func:`part_name`; each table is two mappings (see the module)."""
     out = Path(out)
     text = recipe_hash(canonical_json(recipe))
-    total = parts[-1][2]
+    total, block = parts[-1][2], parts[0][2] - parts[0][1]
+    folder = parts[0][0].parent
+    for path, start, stop in parts:
+        if Path(path) != folder / part_name(start, stop, total, block):
+            raise errors.ValidationError("parts", str(path), f"a virtual asset maps the blocks of {block} {axis} named "
+                                         f"{part_pattern(total, block)} in one folder, in order")
     with open_table(parts[0][0]) as f:
         on_disk, tables = layout(f)
         per_unit = {name: (ds.name.lstrip("/"), ds.shape[1:], ds.dtype, dims_of(ds),
@@ -292,12 +312,13 @@ def write_virtual(out, kind: str, recipe: dict, axis: str, parts: list[tuple[Pat
     by_name = {a.name: a for a in axes}
     if len(by_name[axis].values) != total:
         raise errors.ValidationError(axis, len(by_name[axis].values), f"the parts cover {total} units")
-    rel = [os.path.relpath(p, out.parent) for p, _, _ in parts]
+    rel = os.path.relpath(folder, out.parent)
+    described = {"folder": rel, "block": block, "total": total, "parts": len(parts)}
     with atomic_path(out) as tmp:
         with h5py.File(tmp, "w", libver=LIBVER, track_order=True) as f:
             for key, value in {"hairlut_schema": np.int32(SCHEMA), "kind": kind, "hairlut_version": __version__,
                                "created": _created(parts[0][0]), "recipe": canonical_json(recipe),
-                               "recipe_hash": text, **(attrs or {}), ATTR: json.dumps(rel)}.items():
+                               "recipe_hash": text, **(attrs or {}), ATTR: json.dumps(described)}.items():
                 f.attrs[key] = value
             scales = {}
             for ax in axes:
@@ -326,38 +347,62 @@ def write_virtual(out, kind: str, recipe: dict, axis: str, parts: list[tuple[Pat
                 for i, dim in enumerate(var.dims):
                     ds.dims[i].label = dim
                     ds.dims[i].attach_scale(scales[dim])
-            names = [os.fsencode(r) for r in rel]
+            names = [os.fsencode(os.path.join(printf_escape(rel), n)) for n in (part_pattern(total, block),
+                                                                                printf_escape(parts[-1][0].name))]
             for name, (src, rest, dtype, dims, extra) in per_unit.items():
-                dcpl = _mappings(total, rest, src, parts, names, np.nan if np.issubdtype(dtype, np.floating) else 0)
+                dcpl = _mappings(total, block, rest, src, names, np.nan if np.issubdtype(dtype, np.floating) else 0)
                 space = h5py.h5s.create_simple((total, *rest))
                 tid = h5py.h5t.py_create(np.dtype(dtype), logical=1)
                 ds = place(name, lambda w, dcpl=dcpl, space=space, tid=tid: f[w] if h5py.h5d.create(
                     f.id, name=w.encode(), tid=tid, space=space, dcpl=dcpl) else None)
                 ds.attrs.update(extra)
-                for i, dim in enumerate(dims):
-                    ds.dims[i].label = dim
-                    ds.dims[i].attach_scale(scales[dim])
+                _attach_scales(ds, dims, scales)
     return out
 
 
-def _mappings(total: int, rest: tuple, src: str, parts, names: list[bytes], fill):
-    """The dataset creation property list of one virtual table: rows [start, stop) of each part's ``src``.
+def _attach_scales(ds: h5py.Dataset, dims: tuple, scales: dict) -> None:
+    """Label ``ds``'s dimensions and attach their scales, writing the attributes HDF5's H5DS calls write
+    (``DIMENSION_LABELS``, ``DIMENSION_LIST``, and each scale's ``REFERENCE_LIST``) itself: those calls read the
+    dataset's extent, which for a printf-style mapping makes HDF5 open every part, and in the asset's write mode
+    it opens them for writing (each part's modification time would change, and with it its stamp)."""
+    ds.attrs.create("DIMENSION_LABELS", np.array(list(dims), dtype=object), dtype=h5py.string_dtype("ascii"))
+    refs = np.empty(len(dims), dtype=object)
+    for i, dim in enumerate(dims):
+        refs[i] = np.array([scales[dim].ref], dtype=h5py.ref_dtype)
+    ds.attrs.create("DIMENSION_LIST", refs, dtype=h5py.vlen_dtype(h5py.ref_dtype))
+    row = np.dtype([("dataset", h5py.ref_dtype), ("dimension", "<i4")])
+    for i, dim in enumerate(dims):
+        scale = scales[dim]
+        old = scale.attrs["REFERENCE_LIST"] if "REFERENCE_LIST" in scale.attrs else np.zeros(0, row)
+        new = np.zeros(len(old) + 1, row)
+        new[:len(old)] = old
+        new[-1] = (ds.ref, i)
+        if "REFERENCE_LIST" in scale.attrs:
+            del scale.attrs["REFERENCE_LIST"]
+        scale.attrs.create("REFERENCE_LIST", new, dtype=row)
 
-    Built with h5py's low-level calls, one hyperslab and one ``H5Pset_virtual`` per part (HDF5 copies the
-    selections), as ``h5py.VirtualLayout`` would, without its per-part Python selection objects: a
-    thousand parts × two dozen tables take a fraction of a second."""
+
+def _mappings(total: int, block: int, rest: tuple, src: str, names: list[bytes], fill):
+    """The dataset creation property list of one virtual table over the parts (the module's two mappings).
+
+    ``names``: the whole blocks' printf-style source name and the last block's.  Blocks 0 .. n − 2 are one
+    ``H5Pset_virtual`` call: an unlimited regular hyperslab of stride ``block`` mapped to ``src`` of the file named
+    with ``%b`` replaced by the block number (HDF5 finds the block files when the table is opened); the last block,
+    whose length may differ, is a fixed mapping.  So the cost does not grow with the part count."""
     dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
     dcpl.set_layout(h5py.h5d.VIRTUAL)
     dcpl.set_fill_value(np.array([fill]))
+    zeros, ones = (0,) * len(rest), (1,) * len(rest)
+    dset = printf_escape(src).encode()
+    whole = (total - 1) // block  # the blocks before the last
+    if whole:
+        vspace = h5py.h5s.create_simple((total, *rest))
+        vspace.select_hyperslab((0, *zeros), (h5py.h5s.UNLIMITED, *ones), stride=(block, *ones), block=(block, *rest))
+        dcpl.set_virtual(vspace, names[0], dset, h5py.h5s.create_simple((block, *rest)))
+    last = total - whole * block
     vspace = h5py.h5s.create_simple((total, *rest))
-    zeros, spaces = (0,) * len(rest), {}
-    dset = src.encode()
-    for (_, start, stop), name in zip(parts, names):
-        n = stop - start
-        if n not in spaces:
-            spaces[n] = h5py.h5s.create_simple((n, *rest))
-        vspace.select_hyperslab((start, *zeros), (n, *rest))
-        dcpl.set_virtual(vspace, name, dset, spaces[n])
+    vspace.select_hyperslab((whole * block, *zeros), (last, *rest))
+    dcpl.set_virtual(vspace, names[1], dset, h5py.h5s.create_simple((last, *rest)))
     return dcpl
 
 
@@ -381,8 +426,9 @@ def check_virtual(path) -> list[Path]:
     sources = []
 
     def visit(name, obj):
-        if isinstance(obj, h5py.Dataset) and obj.is_virtual:
-            sources.extend((name, vs.file_name, vs.dset_name, obj.shape[1:]) for vs in obj.virtual_sources())
+        if isinstance(obj, h5py.Dataset) and obj.is_virtual:  # a printf-style mapping: every block it must read
+            sources.extend((name, file_name, dset, vs.vspace.shape[1:]) for vs in obj.virtual_sources()
+                           for file_name, dset in expand_sources(path, obj, vs))  # not obj.shape: see printf_blocks
 
     try:
         with h5py.File(path, "r") as f:

@@ -203,9 +203,9 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
         folder = open_folder(out)
         indexed = merge == "virtual" and shard is None and units.index is not None
         share_file = folder / share_name(proc.index, proc.count)
-        clean_temporaries([folder / part_name(s, e) for s, e in todo] + ([out] if writes_out else [])
+        clean_temporaries([folder / part_name(s, e, total, block) for s, e in todo] + ([out] if writes_out else [])
                           + ([share_file] if indexed and proc.count > 1 else []))
-        mine = [folder / part_name(s, e) for s, e in todo]
+        mine = [folder / part_name(s, e, total, block) for s, e in todo]
         _bake_blocks(units, recipe, todo, mine, total, digest, baker, report, progress, want, inputs)
         indexes = _index_share(units, recipe, todo, mine, share_file, digest, total, proc, report, inputs) if indexed else None
         report["blocks_s"] = time.perf_counter() - t0
@@ -245,9 +245,9 @@ def finish(baker: Baker, recipe: dict, out, total: int, block: int, merge: str, 
     units, out = baker.units, Path(out)
     folder = out.with_name(out.name + ".parts")
     digest = recipe_hash(canonical_json(recipe))
-    parts = [(folder / part_name(s, e), s, e) for s, e in blocks_of(total, block)]
+    parts = [(folder / part_name(s, e, total, block), s, e) for s, e in blocks_of(total, block)]
     if merge == "virtual":
-        index = gather(baker, recipe, folder, proc, digest, total, parts, own, inputs)
+        index = gather(baker, recipe, folder, proc, digest, total, block, parts, own, inputs)
         axes, variables, attrs = units.whole(recipe, [p for p, _, _ in parts], **index, **inputs)
         return write_virtual(out, baker.kind, recipe, units.axis, parts, axes, variables, attrs)
     for p, s, e in parts:  # each process validated or wrote its own parts: the headers suffice
@@ -260,8 +260,8 @@ def _present(part: Path, baker: Baker, digest: str, start: int, stop: int, total
         raise errors.AssetNotFoundError(part, "part missing or damaged after every process finished")
 
 
-def gather(baker: Baker, recipe: dict, folder: Path, proc: Process, digest: str, total: int, parts, own,
-            inputs: dict) -> dict:
+def gather(baker: Baker, recipe: dict, folder: Path, proc: Process, digest: str, total: int, block: int, parts, own,
+           inputs: dict) -> dict:
     """The leader's ``whole`` keyword arguments: every part's index (``index=[...]``) from its own indexes and
     the other processes' share files, one file per process whatever the part count.  A part that no index
     covers unchanged (a share file missing or foreign, a part rewritten since) is checked and indexed here;
@@ -273,13 +273,13 @@ def gather(baker: Baker, recipe: dict, folder: Path, proc: Process, digest: str,
     got = {}
     for b, (st, ix) in (own or {}).items():
         try:
-            if np.array_equal(stamp(folder / part_name(*b)), st):
+            if np.array_equal(stamp(folder / part_name(*b, total, block)), st):
                 got[b] = ix
-        except OSError:
+        except (OSError, errors.ValidationError):
             pass
     for k in range(proc.count):
         if k != proc.index:
-            got.update(read_share(folder / share_name(k, proc.count), digest, total, folder))
+            got.update(read_share(folder / share_name(k, proc.count), digest, total, block, folder))
     for p, s, e in parts:
         if (s, e) not in got:
             _present(p, baker, digest, s, e, total)

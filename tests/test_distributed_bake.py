@@ -16,7 +16,7 @@ import pytest
 
 from hairlut import errors
 from hairlut.hrir import bake, load_hrir_db, parts_dir
-from hairlut.parts import MARKER, check_virtual, locked
+from hairlut.parts import MARKER, check_virtual, locked, part_name
 
 RECIPE = '[sectors]\ncount = 12\ngrid = [8, 8]\n[angles]\nviews = 4\nlights = 3\n[trace]\npixels = 8\nsteps = 12\n'
 SMALL = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3}, "trace": {"pixels": 8, "steps": 12}}
@@ -139,7 +139,7 @@ def test_a_killed_process_resumes_its_part(recipe, tmp_path):
                    capture_output=True)
     out = tmp_path / "db.h5"
     procs = _launch(recipe, out, _free_port(), "--set", "sectors.count=16", "--block", "2", devices=1)
-    mine = parts_dir(out) / "part-000000008-000000010.h5"  # process 1's first part (sectors 8..15)
+    mine = parts_dir(out) / part_name(8, 10, 16, 2)  # process 1's first part (sectors 8..15)
     deadline = time.time() + 120
     while time.time() < deadline and not mine.exists():
         time.sleep(0.05)
@@ -187,7 +187,7 @@ def test_a_users_parts_folder_is_never_touched(tmp_path):
 def test_concurrent_bakes_of_one_output_wait_and_stray_temporaries_go(tmp_path):
     out = tmp_path / "db.h5"
     first = bake(SMALL, out, block=4, keep_parts=True)
-    stray = [tmp_path / ".db.h5.99999.dead.tmp", parts_dir(out) / ".part-000000000-000000004.h5.99999.dead.tmp"]
+    stray = [tmp_path / ".db.h5.99999.dead.tmp", parts_dir(out) / f".{part_name(0, 4, 12, 4)}.99999.dead.tmp"]
     for p in stray:
         p.write_bytes(b"half a file")
     held = threading.Event()

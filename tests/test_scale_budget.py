@@ -94,7 +94,7 @@ def test_leader_assembles_from_share_files_and_falls_back_to_parts(tmp_path, mon
     from hairlut.assets import canonical_json, recipe_hash
     from hairlut.distributed import Process
     from hairlut.hrir import bake, resolve_recipe
-    from hairlut.parts import parts_dir, share_name, stamp, write_share
+    from hairlut.parts import part_name, parts_dir, share_name, stamp, write_share
     from hairlut.sharding import blocks_of, finish
 
     small = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3},
@@ -105,7 +105,7 @@ def test_leader_assembles_from_share_files_and_falls_back_to_parts(tmp_path, mon
     r = resolve_recipe(small)
     baker = registry.get("hrir_db")
     folder, digest = parts_dir(out), recipe_hash(canonical_json(r))
-    part = {b: folder / f"part-{b[0]:09d}-{b[1]:09d}.h5" for b in blocks_of(12, 4)}
+    part = {b: folder / part_name(*b, 12, 4) for b in blocks_of(12, 4)}
     own = {b: (stamp(part[b]), baker.units.index(r, part[b])) for b in blocks_of(12, 4, (0, 2))}
     theirs = {b: (stamp(part[b]), baker.units.index(r, part[b])) for b in blocks_of(12, 4, (1, 2))}
     write_share(folder / share_name(1, 2), digest, 12, theirs)

@@ -31,6 +31,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import re
 import stat
 from pathlib import Path
 
@@ -182,30 +183,85 @@ def redirected_source(asset, where: str) -> Path | None:
     return None
 
 
+_PRINTF = re.compile(r"%(.)")
+
+
+def printf_name(name: str, block: int | None = None) -> str:
+    """A virtual source name as HDF5 reads it: ``%b`` is the block number (``block``), ``%%`` a literal ``%``
+    (H5Pset_virtual's printf-style names; any other ``%`` sequence is kept as written)."""
+    return _PRINTF.sub(lambda m: "%" if m.group(1) == "%" else str(block) if m.group(1) == "b" else m.group(0), name)
+
+
+def is_printf(name: str) -> bool:
+    """Whether a virtual source name holds ``%b``: one mapping for a run of blocks, one source file each."""
+    return any(m.group(1) == "b" for m in _PRINTF.finditer(name))
+
+
+def printf_escape(name: str) -> str:
+    """``name`` with each ``%`` doubled, so that HDF5 reads it literally as a virtual source name."""
+    return name.replace("%", "%%")
+
+
+def printf_blocks(ds: h5py.Dataset, src) -> int:
+    """How many blocks a printf-style mapping of ``ds`` (``%b`` in its names: :mod:`hairlut.parts`) must read: the
+    blocks of its unlimited regular selection that lie wholly before the next mapping on that axis, or before the
+    end of the dataset's extent, which the writer pins with one fixed mapping for the last block so that a missing
+    part cannot shrink it.  (HDF5 sets the extent of such a dataset from the blocks whose files it finds.)"""
+    start, stride, count, block = src.vspace.get_regular_hyperslab()
+    axis = ([i for i, c in enumerate(count) if c == h5py.h5s.UNLIMITED] or [0])[0]
+    after = [int(other.vspace.get_select_bounds()[0][axis]) for other in ds.virtual_sources()
+             if not (is_printf(other.file_name) or is_printf(other.dset_name))]
+    after = [lo for lo in after if lo >= start[axis]]
+    limit = min(after) if after else int(ds.shape[axis])  # the extent only without a fixed mapping after the blocks
+    return max(0, (limit - int(start[axis]) - int(block[axis])) // int(stride[axis]) + 1)
+
+
+def expand_sources(path: Path, ds: h5py.Dataset, src) -> list[tuple[str, str]]:
+    """(file name, dataset name) of each source file one virtual mapping of ``ds`` in asset ``path`` reads.
+
+    A printf-style mapping reads blocks 0 .. :func:`printf_blocks` − 1 (each must be there), and HDF5 also opens
+    the files of the blocks after those while they exist (its default printf gap of 0), so those count too."""
+    where, dset = src.file_name, src.dset_name
+    if not (is_printf(where) or is_printf(dset)):
+        return [(printf_name(where), printf_name(dset))]
+    need = printf_blocks(ds, src)
+    found = []
+    for block in range(MAX_OBJECTS):
+        name = printf_name(where, block)
+        if block >= need and not os.path.lexists(name if os.path.isabs(name) else path.parent / name):
+            break
+        found.append((name, printf_name(dset, block)))
+    return found
+
+
 def _check_virtual(path: Path, name: str, ds: h5py.Dataset, recipe_hash: str) -> None:
     for src in ds.virtual_sources():
-        where = src.file_name
-        if where == ".":
-            continue
-        candidate = Path(where) if os.path.isabs(where) else path.parent / where
-        fault = _part_fault(path, candidate, recipe_hash)
-        if fault is not None:
+        for where, dset in expand_sources(path, ds, src):
+            _check_source(path, name, where, dset, recipe_hash)
+
+
+def _check_source(path: Path, name: str, where: str, dset: str, recipe_hash: str) -> None:
+    if where == ".":
+        return
+    candidate = Path(where) if os.path.isabs(where) else path.parent / where
+    fault = _part_fault(path, candidate, recipe_hash)
+    if fault is not None:
+        raise errors.ForeignReferenceError(
+            path, f"dataset {name!r} is virtual with source {where}:{dset}, which {fault}; "
+                  "only the asset's own parts (<asset>.parts/, same recipe hash) may be sources")
+    other = redirected_source(path, where)
+    if other is not None and os.path.realpath(other) != os.path.realpath(candidate):
+        raise errors.ForeignReferenceError(
+            path, f"dataset {name!r} is virtual with source {where}:{dset}, which "
+                  f"{VDS_PREFIX_ENV}={os.environ.get(VDS_PREFIX_ENV)!r} redirects to {other}; hairlut reads a virtual "
+                  f"asset's parts only from beside it: unset {VDS_PREFIX_ENV}")
+    with guard(candidate), h5py.File(candidate, "r") as g:
+        link = g.get(dset, getlink=True)
+        obj = g.get(dset) if isinstance(link, h5py.HardLink) else None
+        if not isinstance(obj, h5py.Dataset) or obj.external or obj.is_virtual:
             raise errors.ForeignReferenceError(
-                path, f"dataset {name!r} is virtual with source {where}:{src.dset_name}, which {fault}; "
-                      "only the asset's own parts (<asset>.parts/, same recipe hash) may be sources")
-        other = redirected_source(path, where)
-        if other is not None and os.path.realpath(other) != os.path.realpath(candidate):
-            raise errors.ForeignReferenceError(
-                path, f"dataset {name!r} is virtual with source {where}:{src.dset_name}, which "
-                      f"{VDS_PREFIX_ENV}={os.environ.get(VDS_PREFIX_ENV)!r} redirects to {other}; hairlut reads a virtual "
-                      f"asset's parts only from beside it: unset {VDS_PREFIX_ENV}")
-        with guard(candidate), h5py.File(candidate, "r") as g:
-            link = g.get(src.dset_name, getlink=True)
-            obj = g.get(src.dset_name) if isinstance(link, h5py.HardLink) else None
-            if not isinstance(obj, h5py.Dataset) or obj.external or obj.is_virtual:
-                raise errors.ForeignReferenceError(
-                    path, f"dataset {name!r} is virtual with source {where}:{src.dset_name}, "
-                          "which is not a plain dataset of that part")
+                path, f"dataset {name!r} is virtual with source {where}:{dset}, "
+                      "which is not a plain dataset of that part")
 
 
 def check_dataset(path, name: str, ds: h5py.Dataset, recipe_hash: str) -> None:
@@ -217,10 +273,11 @@ def check_dataset(path, name: str, ds: h5py.Dataset, recipe_hash: str) -> None:
             path, f"dataset {name!r} keeps its data in external file(s) {files}; table files never reach outside themselves")
     if ds.dtype.kind not in NUMERIC_KINDS or ds.dtype.names is not None or ds.dtype.subdtype is not None:
         raise errors.CorruptAssetError(path, f"dataset {name!r} holds {ds.dtype} values, not numbers")
+    if ds.is_virtual:  # first: the extent of a printf-style mapping is set from the files HDF5 finds
+        _check_virtual(path, name, ds, recipe_hash)
     if ds.shape is None:
         raise errors.CorruptAssetError(path, f"dataset {name!r} has an empty (null) dataspace")
     if ds.is_virtual:
-        _check_virtual(path, name, ds, recipe_hash)
         return
     nbytes = declared_nbytes(ds)
     if ds.chunks is not None:
