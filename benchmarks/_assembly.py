@@ -1,10 +1,18 @@
 """The final asset's assembly, timed (``scaling.py``'s second table; its module docstring): virtual
-datasets against a copy from the same parts, as the leader of a 2-process bake takes it."""
+datasets against a copy from the same parts, as the leader of a 2-process bake takes it.
+
+Run on its own (issue 16), it times the leader's step by part count, 256 to 16,384 parts, on copies of one
+baked part (:func:`synthetic_parts`), the printf mappings against the old one mapping per part in the same run,
+and what a reader pays on the new asset::
+
+    .venv/bin/python benchmarks/_assembly.py [--parts 256,1024,4096,16384] [--block 16] [--repeat 2]
+"""
 
 from __future__ import annotations
 
 import os
 import shutil
+import sys
 import time
 from pathlib import Path
 
@@ -114,3 +122,165 @@ def print_assembly(asm: list[dict]) -> None:
                       ("copy_cpu_s", "copy CPU-s", ".3f"), ("copy_bytes", "copy bytes", ",.0f"),
                       ("copy_x_virtual", "copy/virtual CPU", ".1f")]))
     print()
+
+
+# ----------------------------------------------------------------------------- part counts beyond a bake's reach
+
+
+def old_mappings(total: int, block: int, rest: tuple, src: str, names: list[bytes], fill):
+    """The mappings as written before issue 16's printf layout (``hairlut.parts._mappings`` up to 7f422cc): one
+    hyperslab and one ``H5Pset_virtual`` per part, each part named in full.  Kept here only to time the old
+    assembly against the new in the same run, on the same parts (``names``: the new pattern and the last part,
+    from which every part's name follows)."""
+    import h5py
+    import numpy as np
+
+    dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
+    dcpl.set_layout(h5py.h5d.VIRTUAL)
+    dcpl.set_fill_value(np.array([fill]))
+    vspace = h5py.h5s.create_simple((total, *rest))
+    zeros, spaces = (0,) * len(rest), {}
+    dset = src.encode()
+    for start in range(0, total, block):
+        n = min(block, total - start)
+        name = names[1] if start + n == total else names[0].replace(b"%b", str(start // block).encode())
+        if n not in spaces:
+            spaces[n] = h5py.h5s.create_simple((n, *rest))
+        vspace.select_hyperslab((start, *zeros), (n, *rest))
+        dcpl.set_virtual(vspace, name, dset, spaces[n])
+    return dcpl
+
+
+def synthetic_parts(where: Path, parts: int, block: int) -> tuple[dict, Path, dict]:
+    """(recipe, out, index) of ``parts`` parts of ``block`` sectors each (the ASSEMBLY recipe at parts × block
+    sectors) in ``out``'s parts folder.  Baking 4,096 or more parts takes too long on the shared machine, so one
+    part is baked for real (a 2-part bake of ``block``-sector blocks) and copied, each copy's header attributes
+    (sector range, total, recipe, recipe hash) rewritten: every part has a real part's layout and size, and its
+    index (what the leader joins) is that part's, the same for every copy."""
+    import h5py
+
+    from hairlut import registry
+    from hairlut.assets import canonical_json, recipe_hash
+    from hairlut.hrir import bake, resolve_recipe
+    from hairlut.parts import open_folder, part_name, parts_dir
+
+    seed = where / f"seed-{block}.h5"
+    if not parts_dir(seed).exists():
+        bake({**ASSEMBLY, "sectors": {**ASSEMBLY["sectors"], "count": 2 * block}}, seed, block=block, keep_parts=True,
+             distributed=True, merge="virtual")
+    template = parts_dir(seed) / part_name(0, block, 2 * block, block)
+    total = parts * block
+    recipe = resolve_recipe({**ASSEMBLY, "sectors": {**ASSEMBLY["sectors"], "count": total}})
+    text = canonical_json(recipe)
+    out = where / f"synth{parts}x{block}.h5"
+    folder = open_folder(out)
+    raw = template.read_bytes()
+    for s in range(0, total, block):
+        path = folder / part_name(s, s + block, total, block)
+        path.write_bytes(raw)
+        with h5py.File(path, "r+") as f:
+            f.attrs.update({"sector_start": s, "sector_stop": s + block, "sector_total": total, "recipe": text,
+                            "recipe_hash": recipe_hash(text)})
+    index = registry.get("hrir_db").units.index(recipe, template)
+    index["features"] = index["features"][:block]
+    return recipe, out, index
+
+
+def leader_times(recipe: dict, out: Path, block: int, index: dict, repeat: int, old: bool = True,
+                 readers: bool = True) -> dict:
+    """Wall and CPU seconds (best of ``repeat``) of the leader's step of a 2-process bake over ``out``'s parts
+    (``hairlut.sharding.finish``: process 0's indexes in memory, process 1's share file), with the printf
+    mappings (``new``) and, in the same run, with :func:`old_mappings` (``old``); then what a reader pays on the
+    new asset: opening it and one per-sector table's shape (HDF5 finds the block files: ``open``), and
+    ``check_virtual`` (every part checked, as readers, ``inspect`` and the cache do: ``check``)."""
+    import h5py
+
+    import hairlut.parts as parts_mod
+    from hairlut import registry
+    from hairlut.assets import canonical_json, recipe_hash
+    from hairlut.distributed import Process
+    from hairlut.parts import check_virtual, part_name, share_name, stamp, write_share
+    from hairlut.sharding import blocks_of, finish
+
+    baker = registry.get("hrir_db")
+    total = recipe["sectors"]["count"]
+    folder = parts_mod.parts_dir(out)
+    digest = recipe_hash(canonical_json(recipe))
+    entry = {b: (stamp(folder / part_name(*b, total, block)), index) for b in blocks_of(total, block)}
+    own = {b: entry[b] for b in blocks_of(total, block, (0, 2))}
+    write_share(folder / share_name(1, 2), digest, total, {b: entry[b] for b in blocks_of(total, block, (1, 2))})
+    got = {}
+    for label, mappings in (("new", parts_mod._mappings), *((("old", old_mappings),) if old else ())):
+        best = None
+        for _ in range(repeat):
+            saved, parts_mod._mappings = parts_mod._mappings, mappings
+            try:
+                (_, c), w = timed(lambda: finish(baker, recipe, out, total, block, "virtual", Process(0, 2), own))
+            finally:
+                parts_mod._mappings = saved
+            best = (w, c) if best is None or c < best[1] else best
+            got[f"{label}_bytes"] = out.stat().st_size
+            out.unlink()
+        got[f"{label}_s"], got[f"{label}_cpu_s"] = best
+    if readers:
+        finish(baker, recipe, out, total, block, "virtual", Process(0, 2), own)
+
+        def opened():
+            with h5py.File(out, "r") as f:
+                return f["reflectance"].shape
+
+        (shape, got["open_cpu_s"]), got["open_s"] = timed(opened)
+        assert shape[0] == total, shape
+        (_, got["check_cpu_s"]), got["check_s"] = timed(lambda: check_virtual(out))
+        out.unlink()
+    return got
+
+
+def part_counts(counts: list[int], block: int, tmp: Path, repeat: int, readers_max: int) -> list[dict]:
+    """:func:`leader_times` at each part count of ``counts`` (synthetic parts of ``block`` sectors)."""
+    rows = []
+    for n in counts:
+        c0 = time.process_time()
+        recipe, out, index = synthetic_parts(tmp, n, block)
+        made = time.process_time() - c0
+        t = leader_times(recipe, out, block, index, repeat, readers=n <= readers_max)
+        rows.append({"parts": n, "sectors": n * block, "make_cpu_s": made, **t,
+                     "old_x_new": t["old_cpu_s"] / t["new_cpu_s"], "load": os.getloadavg()[0]})
+        shutil.rmtree(out.with_name(out.name + ".parts"))
+        print(f"{n} parts: new {t['new_cpu_s']:.3f} CPU-s, old {t['old_cpu_s']:.3f} CPU-s", file=sys.stderr)
+    return rows
+
+
+def print_part_counts(rows: list[dict]) -> None:
+    print(f"the leader's step of a 2-process bake by part count, printf mappings (new) against one mapping per part "
+          f"(old), same run, same synthetic parts (best CPU time of --repeat; load average {os.getloadavg()[0]:.1f}):\n")
+    print(table(rows, [("parts", "parts", ",d"), ("sectors", "sectors", ",d"), ("new_s", "new s", ".3f"),
+                       ("new_cpu_s", "new CPU-s", ".3f"), ("old_s", "old s", ".3f"), ("old_cpu_s", "old CPU-s", ".3f"),
+                       ("old_x_new", "old/new CPU", ".1f"), ("new_bytes", "new bytes", ",.0f"),
+                       ("old_bytes", "old bytes", ",.0f"), ("open_cpu_s", "reader open CPU-s", ".3f"),
+                       ("check_cpu_s", "check_virtual CPU-s", ".3f"), ("load", "load", ".1f")]))
+    print()
+
+
+def main(argv=None) -> list[dict]:
+    import argparse
+    import tempfile
+
+    from _common import save
+
+    ap = argparse.ArgumentParser(description="the virtual assembly's cost by part count (issue 16)")
+    ap.add_argument("--parts", default="256,1024,4096,16384", help="part counts")
+    ap.add_argument("--block", type=int, default=16, help="sectors per part (16: 4,096 parts are 65,536 sectors)")
+    ap.add_argument("--repeat", type=int, default=2, help="best of this many assemblies")
+    ap.add_argument("--readers-max", type=int, default=4096, help="time the readers' open and check up to this many parts")
+    ap.add_argument("--name", default="assembly", help="results/<name>.json")
+    a = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory() as tmp:
+        rows = part_counts([int(n) for n in a.parts.split(",") if n], a.block, Path(tmp), a.repeat, a.readers_max)
+    print_part_counts(rows)
+    save(a.name, {"rows": rows, "block": a.block})
+    return rows
+
+
+if __name__ == "__main__":
+    main()
