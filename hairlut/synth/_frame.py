@@ -305,7 +305,10 @@ def sweep_track(ix: MapIndex, rows_re, rows_a, cs, by_sector: bool = False):
     Cost: the window and the composite are made once per entry (:func:`_track_layout`: a sector row's, shared
     by the texel rows on either side of it), each materialised (:func:`_fenced`), and a slot only when some
     entry's window reaches it (the paper-scale model's reach 4 of M = 6; compacting the entries that reach a
-    slot, 21 % at slot 2, cost more than the slot itself: 10.7 against 4.7 CPU-ms)."""
+    slot, 21 % at slot 2, cost more than the slot itself: 10.7 against 4.7 CPU-ms).  Paper-scale model (53,040
+    sectors, 208,896 texels, s_u = 16), loaded 2-core CPU, same run: 40–43 CPU-ms against eq 7's 7.6–8.5 (was
+    246–401; ``benchmarks/track_cost.py``), of which the window's three atan2 are ~14; the vendored grooms'
+    scenes: Sintel 1.3 against 1.25, Ratboy 4.2 against 5.1."""
     n_c, s_t, n_g, s_u = ix.grid
     Lt, P = rows_re.shape[1:]
     used, pos = _track_layout(ix)
