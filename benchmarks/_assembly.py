@@ -50,6 +50,7 @@ def assemble_times(recipe: dict, paths: list[Path], scratch: Path, repeat: int, 
     from hairlut.sharding import blocks_of, finish, header
 
     baker = registry.get("hrir_db")
+    paths = sorted(paths, key=lambda p: header(p, baker)[0])  # in sector order (the names sort by text)
     spans = [header(p, baker)[:2] for p in paths]
     total, block = spans[-1][1], spans[0][1] - spans[0][0]
     folder = paths[0].parent
