@@ -105,7 +105,7 @@ SCHEMA = {
         "layer_reads": Field("pair", _S, one_of("pair", "track"),
                              "what a layer texel reads: pair (eq 7: its HSV's two sectors) or track (every sector "
                              "its in-plane ray crosses in its track, on its side of the chord: closer to the strands, "
-                             "a ~40x costlier sweep)"),
+                             "a sweep ~5x costlier at paper scale, about as costly on the vendored grooms)"),
     },
     "camera": CAMERA,
     "lights": {
