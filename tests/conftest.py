@@ -47,14 +47,39 @@ def pytest_unconfigure(config):
         os.environ.pop("JAX_COMPILATION_CACHE_DIR", None)
 
 
-#: The costliest test files first, by the CPU seconds a whole-suite run measured per file (HAIRLUT_TEST_CPU_LOG,
-#: below: ``awk -F'\t' '{split($1, f, "::"); c[f[1]] += $3} END {for (k in c) print c[k], k}' LOG | sort -nr``).
+#: The costliest test files first, by the CPU seconds measured per file (HAIRLUT_TEST_CPU_LOG, below, then
+#: ``awk -F'\t' '{split($1, f, "::"); c[f[1]] += $3} END {for (k in c) print c[k], k}' LOG | sort -nr``).
 #: Under pytest-xdist (``run.py test``: ``--dist loadfile --no-loadscope-reorder``) each file runs whole on one worker
 #: and the workers take files in collection order, so the long files start first and the short ones fill in at the
 #: end (longest-processing-time-first): the two workers end together instead of one waiting on a long file that
 #: started last.  Only the order changes: every test still runs, and a file's own tests keep their order.
+#: Measured on the loaded 2-core machine (load 9-30; file CPU seconds, some files only partly run):
+#: distributed_bake 140, render_layered 105, direct_maps 72, reliability 66, render_reference 62, cli 47, plan 43,
+#: env_bands 34, map_methods 33, bench_shadows 30, fit 28, scale_devices 21, parts_features 20, satf_projection 19,
+#: bench 19, opacity_maps 15, atomic 14, density 10, cache 9.  test_synth_track_reads.py (160-420 s of wall time
+#: in a whole run) and the bit-flip sweeps of test_hostile_bitflips.py were not measured here.
 COSTLIEST_FIRST = (
     "test_synth_track_reads.py",
+    "test_distributed_bake.py",
+    "test_render_layered.py",
+    "test_hostile_bitflips.py",
+    "test_direct_maps.py",
+    "test_reliability.py",
+    "test_render_reference.py",
+    "test_cli.py",
+    "test_plan.py",
+    "test_env_bands.py",
+    "test_map_methods.py",
+    "test_bench_shadows.py",
+    "test_fit.py",
+    "test_scale_devices.py",
+    "test_parts_features.py",
+    "test_satf_projection.py",
+    "test_bench.py",
+    "test_opacity_maps.py",
+    "test_atomic.py",
+    "test_density.py",
+    "test_cache.py",
 )
 
 
