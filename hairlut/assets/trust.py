@@ -229,9 +229,9 @@ def expand_sources(path: Path, ds: h5py.Dataset, src) -> list[tuple[str, str]]:
     for block in range(MAX_OBJECTS):
         name = printf_name(where, block)
         if block >= need and not os.path.lexists(name if os.path.isabs(name) else path.parent / name):
-            break
+            return found
         found.append((name, printf_name(dset, block)))
-    return found
+    raise errors.CorruptAssetError(path, f"virtual source {where!r} names more than {MAX_OBJECTS} files; not a hairlut table")
 
 
 def _check_virtual(path: Path, name: str, ds: h5py.Dataset, recipe_hash: str) -> None:
