@@ -232,7 +232,8 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
     shared = mirror and not m and (sr, sk) == (rays, n_steps)  # α's march is the shading's on the kept views
     S = jax.vmap(lambda s: smooth_matrix(s, n_pix))(geom[:, _SIGMA_PX]) if smooth else None
     if mirror:
-        views = 2 * jnp.pi * jnp.arange(half, dtype=rho.dtype) / (2 * half) if shared else views_kept
+        # the V/2 views as the host computes them (float64, then rounded): the kept ones bitwise views_kept
+        views = jnp.asarray(2 * np.pi * np.arange(half) / n_views, rho.dtype) if shared else views_kept
         shade = partial(_bake_one, n_pix=n_pix, n_steps=sk, rays=sr, step=half // views_kept.shape[0] if shared else 1,
                         shadow=shadow, smooth=smooth, eps=eps, bins=bins, alpha=shared)
         alpha, ab, rb = jax.lax.map(lambda a: shade(a[0], a[1], views, lights, phong), (rho, geom))
