@@ -5,6 +5,7 @@ the package's geometry).  A camera ray crosses the layer surfaces; the optical d
 up to the analytic chord through the disc, ρ · 2(√(1 − b²) − √(c² − b²)), each piece counted once.
 """
 
+import functools
 from types import SimpleNamespace
 
 import numpy as np
@@ -24,6 +25,14 @@ EXTENT = 2.0  # every sector's image half-width (the disc fits)
 
 def _disc(s_u, core=0.0, n_u=1024, reads="track"):
     """The index, per-sector α rows (S, P) and (cos θv, sin θv) (S, 2) of a one-cluster disc seen along +y."""
+    fr, table, alpha, cs = _disc_rows(s_u, core)
+    return geometry_index(table, fr, len(RADII), (n_u, 2), reads), alpha, cs
+
+
+@functools.lru_cache(maxsize=None)
+def _disc_rows(s_u, core):
+    """The disc's sector frames, table layout, α rows and view per sector (:func:`_disc`), made once per
+    (s_u, core): the pair and track reads of a test read the same rows."""
     bounds = np.array((core,) + RADII)
     G, n_i = len(RADII), 2  # s_t = 1: two equal cross-sections
     du = 2 * np.pi / s_u
@@ -39,7 +48,6 @@ def _disc(s_u, core=0.0, n_u=1024, reads="track"):
                       np.tile([1.0, 0, 0], (S, 1)), np.tile([0, 1.0, 0], (S, 1)), np.ones(S, bool), v0)
     top = (np.arange(G)[:, None] * s_u + np.arange(s_u)).ravel()
     table = SimpleNamespace(shape=(1, n_i, G, s_u), hsv_sectors=np.stack([top, top + G * s_u], 1))
-    ix = geometry_index(table, fr, G, (n_u, 2), reads)
     view = np.array([0.0, 1.0])  # toward the eye, in the normal plane
     cs = np.stack([ex @ view, ey @ view], 1)
     e = np.array([-view[1], view[0]])
@@ -54,7 +62,7 @@ def _disc(s_u, core=0.0, n_u=1024, reads="track"):
         inside = (r >= v0[s]) & (r < v1[s]) & (np.minimum((ph // du).astype(int), s_u - 1) == k[s])
         alpha[s] = 1 - np.exp(-RHO * inside.sum(1) * dt)
     alpha[G * s_u:] = alpha[:G * s_u]  # cross-section 1 is the same
-    return ix, alpha.astype(np.float32), cs.astype(np.float32)
+    return fr, table, alpha.astype(np.float32), cs.astype(np.float32)
 
 
 def _depth(ix, alpha, cs):
