@@ -18,8 +18,9 @@ import click
               help="Layered: the sh_tables file of the scene's environment light (default: from the cache).")
 @click.option("--cache", "cache_root", type=click.Path(file_okay=False),
               help="Table cache folder (default: $HAIRLUT_CACHE, else tables/).")
-@click.option("--bound", default=0.01, show_default=True, type=float,
-              help="Reference: stop when one more level changes RGB and α RMSE by less than this.")
+@click.option("--bound", default=None, type=float,
+              help="Reference: stop when one more level changes RGB and α RMSE by less than this "
+                   "(default: the scene's [render] reference_bound, 0.01 unless set).")
 @click.option("--max-level", default=3, show_default=True, type=int, help="Reference: the finest level tried.")
 @click.option("--verify", is_flag=True,
               help="Reference: once converged, render one more level and store whether the bound still holds.")

@@ -137,11 +137,25 @@ def test_reference_bound_holds_one_level_finer(tmp_path):
 
     cfg = tomllib.loads(TINY.replace("resolution = [48, 40]", "resolution = [24, 20]").replace("radius = 0.006", "radius = 0.025"))
     cfg["shadows"] = {"method": "none"}
-    f = render_reference(resolve_scene(cfg, None), bound=0.05, max_level=1, verify=True)
-    assert f.info["converged"]
+    cfg.setdefault("render", {})["reference_bound"] = 0.05  # the scene's own bound, as the Ratboy scene sets it
+    f = render_reference(resolve_scene(cfg, None), max_level=1, verify=True)
+    assert f.info["converged"] and f.info["bound"] == 0.05
     v = f.info["verified"]
     assert v["level"] == f.info["levels"][-1]["level"] + 1 and v["holds"], v
     assert max(v["change_from_returned"].values()) < 0.05
+
+
+@pytest.mark.parametrize("bad", [0.0, -0.01, float("nan"), 2.0, "tight"])
+def test_a_bad_reference_bound_is_refused_naming_the_key(bad):
+    from hairlut.scene import resolve_scene
+    import tomllib
+
+    from tests.test_render_layered import TINY
+
+    cfg = tomllib.loads(TINY)
+    cfg.setdefault("render", {})["reference_bound"] = bad
+    with pytest.raises(errors.ValidationError, match="reference_bound"):
+        resolve_scene(cfg, None)
 
 
 def test_inside_clusters_splits_strand_length_by_where_the_sectors_see_it():

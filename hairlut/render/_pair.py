@@ -13,7 +13,7 @@ from ..assets import atomic_write_bytes, encode_png, tonemap
 from ._compare import compare
 from ._frame import write_frame
 from ._layered import render_layered
-from ._render import BOUND, render_reference
+from ._render import render_reference
 
 GAP = 8
 
@@ -32,7 +32,7 @@ def panels(*images8, gap: int = GAP) -> np.ndarray:
 
 
 def layered_vs_reference(scene, out_dir, *, db=None, sh=None, maps=None, level: int | None = None,
-                         bound: float = BOUND, max_level: int = 3, prepared=None, reference_info=None) -> dict:
+                         bound: float | None = None, max_level: int = 3, prepared=None, reference_info=None) -> dict:
     """Render ``scene`` with the layered model and with the strand reference (converged to ``bound``, or exactly
     ``level`` when given: no convergence claim), write ``layered.exr``, ``reference.exr``, ``flip.png`` and
     ``side_by_side.png`` (layered | reference | FLIP) under ``out_dir``; returns the figures, times and paths.

@@ -12,7 +12,8 @@ from ._frame import Frame
 from ._reference import render_level
 from ._strands import segments_of
 
-#: Default convergence bound: RMSE of the premultiplied RGB and of α between successive levels.
+#: Default convergence bound (the scene schema's ``render.reference_bound``): RMSE of the premultiplied RGB and of α
+#: between successive levels.
 BOUND = 0.01
 
 
@@ -60,16 +61,18 @@ def _change(a: np.ndarray, b: np.ndarray) -> dict:
             "alpha_rmse": float(np.sqrt(np.mean((a[..., 3] - b[..., 3]) ** 2)))}
 
 
-def render_reference(scene, camera=None, *, bound: float = BOUND, max_level: int = 3, min_level: int = 1,
+def render_reference(scene, camera=None, *, bound: float | None = None, max_level: int = 3, min_level: int = 1,
                      levels: list | None = None, strands=None, verify: bool = False) -> Frame:
     """The converged strand-level reference of ``scene`` (``_reference``): levels ``min_level − 1``, … until the
     change from the level before is below ``bound`` in both RGB and α RMSE (or ``max_level``).  With ``levels``
     (e.g. [2]) exactly those levels are rendered and the last returned (no convergence claim).  ``verify``: once
     converged, one more level is rendered and its change from the returned image stored as ``info["verified"]``
-    (``holds``: below ``bound`` too); the returned image stays the converged one."""
+    (``holds``: below ``bound`` too); the returned image stays the converged one.  ``bound`` None: the scene's
+    ``[render] reference_bound``."""
     from ..scene import as_scene
 
     sc = as_scene(scene)
+    bound = float(sc.config["render"].get("reference_bound", BOUND)) if bound is None else bound
     if not (np.isfinite(bound) and bound > 0):
         raise errors.ValidationError("bound", bound, "must be finite and > 0")
     if isinstance(max_level, bool) or not isinstance(max_level, int) or not 0 <= max_level <= 4:

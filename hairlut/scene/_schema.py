@@ -102,6 +102,9 @@ SCHEMA = {
                             "scene: the re/α terms are kept on every ratio_step-th view (a divisor of views)"),
         "precision": Field("float16", _S, one_of("float16", "float32"),
                            "scene: storage precision of the per-groom table"),
+        "reference_bound": Field(0.01, _F, in_range(1e-6, 1.0),
+                                 "the strand reference (render --reference): stop refining once one more level changes "
+                                 "the RGB and α RMSE by less than this; the bound is stored in the frame"),
         "layer_reads": Field("pair", _S, one_of("pair", "track"),
                              "what a layer texel reads: pair (eq 7: its HSV's two sectors) or track (every sector "
                              "its in-plane ray crosses in its track, on its side of the chord: closer to the strands, "
