@@ -124,7 +124,11 @@ def _crossings(geom: ClusterGeometry, strands: Strands, assignment: np.ndarray, 
         o, n = sec.origin[c], sec.tangent[c]  # (I, 3)
         da = np.einsum("ik,ek->ie", n, a) - np.sum(n * o, axis=1)[:, None]
         db = np.einsum("ik,ek->ie", n, b) - np.sum(n * o, axis=1)[:, None]
-        ii, ee = np.nonzero((da < 0) != (db < 0))
+        # a segment crosses the plane where its ends' signed distances differ in sign or one is 0 (a strand's first
+        # or last point exactly on t = 0 or 1, as generated roots are: `(da < 0) != (db < 0)` lost every root on
+        # the t = 0 plane); an in-plane segment (da = db = 0) has no single crossing; a vertex on the plane found by
+        # both its segments is one point, kept once below (nearest crossing per strand)
+        ii, ee = np.nonzero((np.minimum(da, db) <= 0) & (np.maximum(da, db) >= 0) & (da != db))
         lam = da[ii, ee] / (da[ii, ee] - db[ii, ee])
         p = a[ee] + lam[:, None] * (b[ee] - a[ee])
         rel = p - o[ii]
