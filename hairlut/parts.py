@@ -42,7 +42,7 @@ from .assets import Axis, Variable, atomic_path, canonical_json, open_table, rec
 from .assets.h5 import LIBVER, dims_of, disk_name
 from .assets.kinds import SCHEMA
 from .assets.layout import layout
-from .assets.trust import allowed_virtual_sources, expand_sources, printf_escape
+from .assets.trust import check_sources, printf_escape
 
 MARKER = ".hairlut-parts"
 MARKER_TEXT = "hairlut parts folder: finished blocks of a bake; hairlut deletes only its own files here\n"
@@ -419,42 +419,42 @@ def check_virtual(path) -> list[Path]:
 
     Whether a source may be read is decided in one place, the readers' own rule
     (:func:`hairlut.assets.trust.allowed_virtual_sources`: a regular file, no symlink, directly in
-    ``<asset>.parts/``, HDF5, the asset's recipe hash); this names what is wrong with a refused one:
-    AssetNotFoundError for a missing part, CorruptAssetError for a source outside the parts folder, a
-    symlink, a part of another recipe, or a part lacking its dataset."""
+    ``<asset>.parts/``, HDF5, the asset's recipe hash), applied by :func:`hairlut.assets.trust.check_sources`:
+    each part is stamped once per call and opened only when this process has not seen it with that stamp
+    (then once for all the tables), so a reopened asset costs a ``stat`` per part.  This names what is wrong
+    with a refused one: AssetNotFoundError for a missing part, CorruptAssetError for a source outside the parts
+    folder, a symlink, a part of another recipe, or a part lacking its dataset."""
     path = Path(path)
-    sources = []
-
-    def visit(name, obj):
-        if isinstance(obj, h5py.Dataset) and obj.is_virtual:  # a printf-style mapping: every block it must read
-            sources.extend((name, file_name, dset, vs.vspace.shape[1:]) for vs in obj.virtual_sources()
-                           for file_name, dset in expand_sources(path, obj, vs))  # not obj.shape: see printf_blocks
-
     try:
         with h5py.File(path, "r") as f:
             digest = _text(f.attrs.get("recipe_hash", ""))
-            f.visititems(visit)
+            found = check_sources(path, f, digest)
     except (OSError, KeyError, RuntimeError, ValueError):
         return []  # not readable as HDF5: the table reader names that fault
-    if all(file_name == "." for _, file_name, _, _ in sources):
-        return []
-    allowed = {str(p) for p in allowed_virtual_sources(path, digest)}
+    for exc in found.faults.values():
+        raise exc
     by_part: dict[Path, list] = {}
-    for name, file_name, dset, shape in sources:
-        if file_name == ".":
-            continue
-        part = Path(file_name) if os.path.isabs(file_name) else path.parent / file_name
-        if part not in by_part:
-            if os.path.join(os.path.realpath(part.parent), part.name) not in allowed:
-                raise _refused(path, name, file_name, part, digest)
-            by_part[part] = []
-        by_part[part].append((dset, tuple(shape)))
-    for part, wanted in by_part.items():  # each part opened once, for every table it serves
-        with h5py.File(part, "r") as pf:
-            for dset, shape in wanted:
-                if dset not in pf or not isinstance(pf[dset], h5py.Dataset) or pf[dset].shape[1:] != shape:
-                    raise errors.CorruptAssetError(part, f"part of {path} lacks dataset {dset!r} of shape (n, "
-                                                   f"{', '.join(map(str, shape))})")
+    for name, sources in found.tables.items():
+        for file_name, dset, shape in sources:
+            if file_name == ".":
+                continue
+            src = found.files[file_name]
+            if src.fault is not None:
+                raise _refused(path, name.lstrip("/"), file_name, src.path, digest)
+            by_part.setdefault(src.path, []).append((dset, shape))
+    return _lacking(path, found, by_part)
+
+
+def _lacking(path: Path, found, by_part: dict) -> list[Path]:
+    """The parts of ``by_part``, sorted, after checking that each holds the datasets (with their trailing shapes)
+    its tables read."""
+    shapes = {src.path: src.datasets for src in found.files.values()}
+    for part, wanted in by_part.items():
+        for dset, shape in wanted:
+            got = shapes[part].get(dset)
+            if got is None or tuple(got[1:]) != shape:
+                raise errors.CorruptAssetError(part, f"part of {path} lacks dataset {dset!r} of shape (n, "
+                                               f"{', '.join(map(str, shape))})")
     return sorted(by_part)
 
 

@@ -1,6 +1,7 @@
 """Virtual assets whose assembly does not grow with the part count (issue 16): one printf-style mapping
 (``part-<total>x<block>-%b.h5``) over the whole blocks and one fixed mapping for the last block, per table."""
 
+import os
 import shutil
 import subprocess
 
@@ -129,3 +130,39 @@ def test_a_short_last_block_of_a_real_bake_matches_one_process(tmp_path):
     assert a.reflectance.tobytes() == b.reflectance.tobytes() and a.alpha.tobytes() == b.alpha.tobytes()
     with h5py.File(out, "r") as f:
         assert len(f["reflectance"].virtual_sources()) == 2
+
+
+def test_each_part_is_opened_once_per_asset_and_again_only_when_its_stamp_changes(tmp_path, monkeypatch):
+    """Readers validate a virtual asset's parts once for all its tables (24 virtual tables here), remember them by
+    their stat stamps for the process's lifetime, and open a part again only when it changed."""
+    from pathlib import Path
+
+    from hairlut.assets import trust
+
+    small = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 2, "lights": 2},
+             "trace": {"pixels": 4, "steps": 4}}
+    out = tmp_path / "db.h5"
+    bake(small, out, block=5, merge="virtual")
+    parts = sorted(parts_dir(out).glob("part-*.h5"))
+    opened = []
+    real = trust.guard
+    monkeypatch.setattr(trust, "guard", lambda p, *a: (opened.append(Path(p)), real(p, *a))[1])
+    monkeypatch.setattr(trust, "_PARTS", {})
+    first = load_hrir_db(out)  # check_virtual, then read_table's validation of every table
+    with h5py.File(out, "r") as f:
+        assert sum(f[n].is_virtual for n in ("alpha", "reflectance", "density", "geometry/v0")) == 4
+    assert sorted(p for p in opened if p.parent == parts_dir(out)) == parts  # once each, for every table
+    opened.clear()
+    assert check_virtual(out) == parts and load_hrir_db(out).reflectance.tobytes() == first.reflectance.tobytes()
+    assert not [p for p in opened if p.parent == parts_dir(out)]  # unchanged: stamped, not opened
+    st = parts[1].stat()
+    os.utime(parts[1], ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000))
+    assert check_virtual(out) == parts
+    assert [p for p in opened if p.parent == parts_dir(out)] == [parts[1]]  # only the touched part, once
+    theirs = tmp_path / "o.h5"
+    bake({**small, "trace": {"pixels": 4, "steps": 3}}, theirs, block=5, merge="virtual")
+    parts[1].write_bytes((parts_dir(theirs) / parts[1].name).read_bytes())  # a foreign part under the same name
+    with pytest.raises(errors.CorruptAssetError, match="another recipe"):
+        check_virtual(out)
+    with pytest.raises(errors.ForeignReferenceError, match="part-12x5-1.h5:alpha, which carries another recipe hash"):
+        read_table(out, kind="hrir_db")

@@ -33,6 +33,7 @@ import math
 import os
 import re
 import stat
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import h5py
@@ -99,9 +100,29 @@ def check_links(path, f: h5py.File) -> None:
                 raise errors.CorruptAssetError(path, f"{name!r} is a {type(obj).__name__}, neither a group nor a dataset")
 
 
+#: Shapes of the virtual datasets of open files, by (HDF5 id of the open file, dataset name); see :func:`table_shape`.
+_SHAPES: dict[tuple, tuple | None] = {}
+_SHAPES_MAX = 4096
+
+
+def table_shape(ds: h5py.Dataset) -> tuple | None:
+    """``ds.shape``, read from HDF5 once per opening of its file for a virtual dataset: HDF5 looks for every block
+    file of a printf-style mapping each time such a dataset's extent is read (about 35 µs a part), and each
+    ``h5py.Dataset`` object of it reads the extent anew (HDF5 does not reuse file ids, so an entry is never stale)."""
+    if not ds.is_virtual:
+        return ds.shape
+    key = (h5py.h5i.get_file_id(ds.id).id, ds.name)
+    if key not in _SHAPES:
+        if len(_SHAPES) >= _SHAPES_MAX:
+            _SHAPES.clear()
+        _SHAPES[key] = ds.shape
+    return _SHAPES[key]
+
+
 def declared_nbytes(ds: h5py.Dataset) -> float:
     """Bytes the dataset's declared shape and dtype take in memory (a float: no overflow)."""
-    return budget.product(*ds.shape, ds.dtype.itemsize) if ds.shape is not None else 0.0
+    shape = table_shape(ds)
+    return budget.product(*shape, ds.dtype.itemsize) if shape is not None else 0.0
 
 
 def _expected_chunks(shape, chunks) -> int:
@@ -115,28 +136,81 @@ def _part_folders(asset: Path) -> tuple[str]:
     return (os.path.join(os.path.realpath(asset.parent), asset.name + PARTS_SUFFIX),)
 
 
-def _part_fault(asset: Path, candidate: Path, recipe_hash: str) -> str | None:
-    """Why ``candidate`` may not feed a virtual dataset of ``asset`` (None: it may)."""
-    if os.path.islink(candidate.parent) or os.path.realpath(candidate.parent) not in _part_folders(asset):
-        return "is not in the asset's parts folder"
+def file_stamp(path) -> tuple | None:
+    """(device, inode, size, mtime ns, ctime ns, mode) of ``path``, a symlink not followed; None when nothing is there.
+    A part replaced, rewritten or touched since it was checked has another stamp (see :func:`check_sources`)."""
     try:
-        st = os.lstat(candidate)
+        st = os.lstat(path)
     except OSError:
-        return "does not exist"
-    if not stat.S_ISREG(st.st_mode):
-        return "is not a regular file (symlinks are not followed)"
+        return None
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_mode)
+
+
+@dataclass
+class _Part:
+    """What one look at a part file found: why it may not feed the asset (``fault``, None: it may), and each dataset
+    asked about: its shape when it is a plain dataset of the part (no link, not virtual, not external), else None."""
+
+    fault: str | None
+    datasets: dict = field(default_factory=dict)
+
+
+#: Parts checked in this process, by (path, :func:`file_stamp`, recipe hash): a part whose stamp is unchanged is not
+#: opened again, whichever asset or table asks (cleared when it holds more than ``_PARTS_MAX`` entries).
+_PARTS: dict[tuple, _Part] = {}
+_PARTS_MAX = 1 << 16
+
+
+def _plain_shape(g: h5py.File, dset: str) -> tuple | None:
+    link = g.get(dset, getlink=True)
+    obj = g.get(dset) if isinstance(link, h5py.HardLink) else None
+    if not isinstance(obj, h5py.Dataset) or obj.external or obj.is_virtual:
+        return None
+    return obj.shape
+
+
+def _look(candidate: Path, st: tuple | None, recipe_hash: str, dsets=()) -> _Part:
+    """The part file ``candidate`` (stamp ``st``) as a source of an asset of ``recipe_hash``, with datasets ``dsets``:
+    from :data:`_PARTS` when that stamp was looked at before (and those datasets with it), else opened once."""
+    if st is None:
+        return _Part("does not exist")
+    if not stat.S_ISREG(st[5]):
+        return _Part("is not a regular file (symlinks are not followed)")
+    key = (str(candidate), st, recipe_hash)
+    part = _PARTS.get(key)
+    if part is not None and (part.fault is not None or all(d in part.datasets for d in dsets)):
+        return part
     try:
         with open(candidate, "rb") as fh:
             if fh.read(8) != b"\x89HDF\r\n\x1a\n":
-                return "is not HDF5"
-        with guard(candidate), h5py.File(candidate, "r") as g:
-            theirs = g.attrs.get("recipe_hash")
-            theirs = theirs.decode("utf-8") if isinstance(theirs, bytes) else theirs
+                part = _Part("is not HDF5")
+        if part is None or part.fault is None:
+            with guard(candidate), h5py.File(candidate, "r") as g:
+                if part is None:
+                    theirs = g.attrs.get("recipe_hash")
+                    theirs = theirs.decode("utf-8") if isinstance(theirs, bytes) else theirs
+                    part = _Part(None if theirs == recipe_hash else "carries another recipe hash")
+                if part.fault is None:
+                    part.datasets.update({d: _plain_shape(g, d) for d in dsets if d not in part.datasets})
     except errors.HairlutError as exc:
-        return str(exc)
-    if theirs != recipe_hash:
-        return "carries another recipe hash"
+        part = _Part(str(exc))
+    except OSError as exc:  # gone or unreadable since it was stamped
+        return _Part(f"cannot be read ({_first_line(exc)})")
+    if len(_PARTS) >= _PARTS_MAX:
+        _PARTS.clear()
+    _PARTS[key] = part
+    return part
+
+
+def _folder_fault(asset: Path, candidate: Path) -> str | None:
+    if os.path.islink(candidate.parent) or os.path.realpath(candidate.parent) not in _part_folders(asset):
+        return "is not in the asset's parts folder"
     return None
+
+
+def _part_fault(asset: Path, candidate: Path, recipe_hash: str) -> str | None:
+    """Why ``candidate`` may not feed a virtual dataset of ``asset`` (None: it may)."""
+    return _folder_fault(asset, candidate) or _look(candidate, file_stamp(candidate), recipe_hash).fault
 
 
 def allowed_virtual_sources(path, recipe_hash: str) -> list[Path]:
@@ -216,49 +290,119 @@ def printf_blocks(ds: h5py.Dataset, src) -> int:
     return max(0, (limit - int(start[axis]) - int(block[axis])) // int(stride[axis]) + 1)
 
 
-def expand_sources(path: Path, ds: h5py.Dataset, src) -> list[tuple[str, str]]:
+def expand_sources(path: Path, ds: h5py.Dataset, src, memo: dict | None = None) -> list[tuple[str, str]]:
     """(file name, dataset name) of each source file one virtual mapping of ``ds`` in asset ``path`` reads.
 
     A printf-style mapping reads blocks 0 .. :func:`printf_blocks` − 1 (each must be there), and HDF5 also opens
-    the files of the blocks after those while they exist (its default printf gap of 0), so those count too."""
+    the files of the blocks after those while they exist (its default printf gap of 0), so those count too.
+    ``memo``: the file names already found for a (name, blocks) pair, shared by the tables of one asset."""
     where, dset = src.file_name, src.dset_name
     if not (is_printf(where) or is_printf(dset)):
         return [(printf_name(where), printf_name(dset))]
     need = printf_blocks(ds, src)
+    memo = {} if memo is None else memo
+    if (where, need) not in memo:
+        memo[(where, need)] = _block_files(path, where, need)
+    files = memo[(where, need)]
+    if not is_printf(dset):
+        name = printf_name(dset)
+        return [(w, name) for w in files]
+    return [(w, printf_name(dset, block)) for block, w in enumerate(files)]
+
+
+def _block_files(path: Path, where: str, need: int) -> list[str]:
     found = []
     for block in range(MAX_OBJECTS):
         name = printf_name(where, block)
         if block >= need and not os.path.lexists(name if os.path.isabs(name) else path.parent / name):
             return found
-        found.append((name, printf_name(dset, block)))
+        found.append(name)
     raise errors.CorruptAssetError(path, f"virtual source {where!r} names more than {MAX_OBJECTS} files; not a hairlut table")
 
 
+@dataclass
+class Source:
+    """One part file that virtual datasets of an asset read (see :func:`check_sources`)."""
+
+    path: Path  # the file HDF5 opens (beside the asset)
+    fault: str | None  # why the readers' rule refuses it (None: it may be read)
+    redirect: Path | None  # another file that ``$HDF5_VDS_PREFIX`` makes HDF5 open instead, else None
+    datasets: dict  # dataset name -> shape when a plain dataset of the part, else None
+
+
+@dataclass
+class Sources:
+    """Every source of every virtual dataset of one open asset, each part file stamped and looked at once."""
+
+    tables: dict = field(default_factory=dict)  # dataset name -> [(file name, dataset name, trailing shape), ...]
+    faults: dict = field(default_factory=dict)  # dataset name -> the error its mappings raise when expanded
+    files: dict = field(default_factory=dict)  # file name (as the mapping names it) -> Source
+
+
+#: The last checks of open assets, by (HDF5 id of the open file, asset, recipe hash): each table of an asset being
+#: validated asks for its sources, and its parts are stamped once per opening (HDF5 does not reuse file ids).
+_OPEN: dict[tuple, Sources] = {}
+_OPEN_MAX = 16
+
+
+def check_sources(path, f: h5py.File, recipe_hash: str) -> Sources:
+    """The sources of every virtual dataset of asset ``path`` (open as ``f``), checked by the readers' rule
+    (:func:`allowed_virtual_sources`), whatever the number of tables: each part file is stamped once
+    (:func:`file_stamp`) and opened only if no earlier check in this process saw it with that stamp, then once for
+    every dataset that the asset's tables read from it.  Nothing is raised here for a fault of one table's sources:
+    :func:`check_dataset` and :func:`hairlut.parts.check_virtual` name it."""
+    path = Path(path)
+    key = (f.id.id, str(path), recipe_hash)
+    if key in _OPEN:
+        return _OPEN[key]
+    found = Sources()
+    virtual: list = []
+    f.visititems(lambda n, o: virtual.append(o) if isinstance(o, h5py.Dataset) and o.is_virtual else None)
+    expanded: dict = {}
+    for ds in virtual:
+        try:
+            found.tables[ds.name] = [(where, dset, tuple(vs.vspace.shape[1:])) for vs in ds.virtual_sources()
+                                     for where, dset in expand_sources(path, ds, vs, expanded)]
+        except errors.HairlutError as exc:
+            found.faults[ds.name] = exc
+    wanted: dict = {}
+    for sources in found.tables.values():
+        for where, dset, _ in sources:
+            if where != ".":
+                wanted.setdefault(where, set()).add(dset)
+    folders: dict = {}
+    for where, dsets in wanted.items():
+        candidate = Path(where) if os.path.isabs(where) else path.parent / where
+        if candidate.parent not in folders:
+            folders[candidate.parent] = _folder_fault(path, candidate)
+        fault = folders[candidate.parent]
+        part = _Part(fault) if fault else _look(candidate, file_stamp(candidate), recipe_hash, dsets)
+        found.files[where] = Source(candidate, part.fault, redirected_source(path, where), part.datasets)
+    if len(_OPEN) >= _OPEN_MAX:
+        _OPEN.pop(next(iter(_OPEN)))
+    _OPEN[key] = found
+    return found
+
+
 def _check_virtual(path: Path, name: str, ds: h5py.Dataset, recipe_hash: str) -> None:
-    for src in ds.virtual_sources():
-        for where, dset in expand_sources(path, ds, src):
-            _check_source(path, name, where, dset, recipe_hash)
-
-
-def _check_source(path: Path, name: str, where: str, dset: str, recipe_hash: str) -> None:
-    if where == ".":
-        return
-    candidate = Path(where) if os.path.isabs(where) else path.parent / where
-    fault = _part_fault(path, candidate, recipe_hash)
-    if fault is not None:
-        raise errors.ForeignReferenceError(
-            path, f"dataset {name!r} is virtual with source {where}:{dset}, which {fault}; "
-                  "only the asset's own parts (<asset>.parts/, same recipe hash) may be sources")
-    other = redirected_source(path, where)
-    if other is not None and os.path.realpath(other) != os.path.realpath(candidate):
-        raise errors.ForeignReferenceError(
-            path, f"dataset {name!r} is virtual with source {where}:{dset}, which "
-                  f"{VDS_PREFIX_ENV}={os.environ.get(VDS_PREFIX_ENV)!r} redirects to {other}; hairlut reads a virtual "
-                  f"asset's parts only from beside it: unset {VDS_PREFIX_ENV}")
-    with guard(candidate), h5py.File(candidate, "r") as g:
-        link = g.get(dset, getlink=True)
-        obj = g.get(dset) if isinstance(link, h5py.HardLink) else None
-        if not isinstance(obj, h5py.Dataset) or obj.external or obj.is_virtual:
+    with guard(path):
+        found = check_sources(path, ds.file, recipe_hash)
+    if ds.name in found.faults:
+        raise found.faults[ds.name]
+    for where, dset, _ in found.tables.get(ds.name, ()):
+        if where == ".":
+            continue
+        src = found.files[where]
+        if src.fault is not None:
+            raise errors.ForeignReferenceError(
+                path, f"dataset {name!r} is virtual with source {where}:{dset}, which {src.fault}; "
+                      "only the asset's own parts (<asset>.parts/, same recipe hash) may be sources")
+        if src.redirect is not None and os.path.realpath(src.redirect) != os.path.realpath(src.path):
+            raise errors.ForeignReferenceError(
+                path, f"dataset {name!r} is virtual with source {where}:{dset}, which "
+                      f"{VDS_PREFIX_ENV}={os.environ.get(VDS_PREFIX_ENV)!r} redirects to {src.redirect}; hairlut reads "
+                      f"a virtual asset's parts only from beside it: unset {VDS_PREFIX_ENV}")
+        if src.datasets.get(dset) is None:
             raise errors.ForeignReferenceError(
                 path, f"dataset {name!r} is virtual with source {where}:{dset}, "
                       "which is not a plain dataset of that part")
@@ -275,7 +419,7 @@ def check_dataset(path, name: str, ds: h5py.Dataset, recipe_hash: str) -> None:
         raise errors.CorruptAssetError(path, f"dataset {name!r} holds {ds.dtype} values, not numbers")
     if ds.is_virtual:  # first: the extent of a printf-style mapping is set from the files HDF5 finds
         _check_virtual(path, name, ds, recipe_hash)
-    if ds.shape is None:
+    if table_shape(ds) is None:
         raise errors.CorruptAssetError(path, f"dataset {name!r} has an empty (null) dataspace")
     if ds.is_virtual:
         return
