@@ -162,9 +162,19 @@ _PARTS_MAX = 1 << 16
 
 
 def _plain_shape(g: h5py.File, dset: str) -> tuple | None:
-    link = g.get(dset, getlink=True)
-    obj = g.get(dset) if isinstance(link, h5py.HardLink) else None
-    if not isinstance(obj, h5py.Dataset) or obj.external or obj.is_virtual:
+    """The shape of dataset ``dset`` of part ``g`` when its last link is a hard link and it is neither virtual nor
+    external, else None (HDF5's low-level calls: a few per dataset, as every table of every part is asked about)."""
+    name = dset.encode()
+    try:
+        if g.id.links.get_info(name).type != h5py.h5l.TYPE_HARD:
+            return None
+        obj = h5py.h5o.open(g.id, name)
+    except KeyError:
+        return None
+    if not isinstance(obj, h5py.h5d.DatasetID):
+        return None
+    dcpl = obj.get_create_plist()
+    if dcpl.get_layout() == h5py.h5d.VIRTUAL or dcpl.get_external_count():
         return None
     return obj.shape
 
