@@ -11,7 +11,10 @@ inside itself.  Readers (:func:`hairlut.assets.open_table`, ``read_table``,
 * **virtual datasets** whose sources are not the asset's own parts: see
   :func:`allowed_virtual_sources` (the one exception, used by sharded bakes); also an own
   part that the environment variable ``HDF5_VDS_PREFIX`` would redirect to another file
-  (HDF5 looks for a relative source under that prefix before the asset's folder);
+  (HDF5 looks for a relative source under that prefix before the asset's folder).  The sources
+  are checked once per opened asset, whatever its number of tables (:func:`check_sources`):
+  each part is stamped (``lstat``) once and opened only when this process has not checked it
+  with that stamp, so reopening an unchanged many-part asset costs a ``stat`` per part;
 * **datasets that do not hold numbers** (strings, compounds, references, opaque,
   variable-length, complex);
 * **declared storage that is not there**: a chunked dataset with unallocated chunks
