@@ -6,6 +6,10 @@ baked part (:func:`synthetic_parts`), the printf mappings against the old one ma
 and what a reader pays on the new asset::
 
     .venv/bin/python benchmarks/_assembly.py [--parts 256,1024,4096,16384] [--block 16] [--repeat 2]
+
+and, with ``--readers 256,1024``, what a reader pays on such an asset, the working tree against ``--base``::
+
+    .venv/bin/python benchmarks/_assembly.py --readers 256,1024 [--base a3c4b35]
 """
 
 from __future__ import annotations
@@ -263,6 +267,103 @@ def print_part_counts(rows: list[dict]) -> None:
     print()
 
 
+# ----------------------------------------------------------------------------- readers, before and after
+
+
+#: Run in a fresh interpreter with the ``hairlut`` under test first on ``sys.path``: each step's CPU seconds (process
+#: time, every thread) in order, and a digest of what ``load_hrir_db`` read (the same bytes before and after).
+_READER = """
+import hashlib, json, sys, time
+from hairlut.hrir import load_hrir_db
+from hairlut.parts import check_virtual
+out, got = sys.argv[1], {}
+for step in sys.argv[2].split(","):
+    c0 = time.process_time()
+    r = check_virtual(out) if step.startswith("check") else load_hrir_db(out)
+    got[step] = time.process_time() - c0
+    if not step.startswith("check"):
+        h = hashlib.sha256()
+        for a in (r.features, r.alpha, r.reflectance, r.density, *r.geometry.values(), *r.params.values()):
+            h.update(a.tobytes())
+        got["digest"] = h.hexdigest()
+print(json.dumps(got))
+"""
+
+
+def tree_at(rev: str, where: Path) -> Path:
+    """A copy of ``hairlut/`` as it was at git revision ``rev`` (``git archive``: the repository is only read)."""
+    import subprocess
+    import tarfile
+
+    root = Path(__file__).resolve().parents[1]
+    where.mkdir(parents=True, exist_ok=True)
+    tar = subprocess.run(["git", "-C", str(root), "archive", rev, "hairlut"], check=True, capture_output=True).stdout
+    import io
+
+    with tarfile.open(fileobj=io.BytesIO(tar)) as t:
+        t.extractall(where, filter="data")
+    return where
+
+
+def reader_steps(tree: Path, out: Path, steps: str) -> dict:
+    """:data:`_READER`'s steps on ``out`` in a fresh interpreter that imports ``hairlut`` from ``tree``."""
+    import json
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tree), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)}
+    code = f"import sys; sys.path.insert(0, {str(tree)!r})\n" + _READER
+    res = subprocess.run([sys.executable, "-c", code, str(out), steps], env=env, capture_output=True, text=True, check=True)
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def readers(counts: list[int], block: int, tmp: Path, base: str) -> list[dict]:
+    """What a reader pays on a virtual ``hrir_db`` of each part count (:func:`synthetic_parts`, written by the leader's
+    step), the working tree's ``hairlut`` against revision ``base``'s on the same asset, each in fresh interpreters:
+    ``load_hrir_db`` in a new process (``load_cold``: every part opened) and again in it (``load_warm``; the parts
+    unchanged), ``check_virtual`` after them, and ``check_virtual`` alone in a new process (``check_cold``)."""
+    from hairlut import registry
+    from hairlut.distributed import Process
+    from hairlut.parts import part_name, stamp
+    from hairlut.sharding import blocks_of, finish
+
+    trees = {"base": tree_at(base, tmp / "base-tree"), "new": Path(__file__).resolve().parents[1]}
+    rows = []
+    for n in counts:
+        recipe, out, index = synthetic_parts(tmp, n, block)
+        total = n * block
+        folder = out.with_name(out.name + ".parts")
+        own = {b: (stamp(folder / part_name(*b, total, block)), index) for b in blocks_of(total, block)}
+        finish(registry.get("hrir_db"), recipe, out, total, block, "virtual", Process(0, 1), own)
+        row = {"parts": n, "sectors": total}
+        for label, tree in trees.items():
+            # the base caches nothing between calls: its load_hrir_db again costs what the first did
+            got = reader_steps(tree, out, "load_cold,check_warm" if label == "base" else "load_cold,load_warm,check_warm")
+            got.update(reader_steps(tree, out, "check_cold"))
+            row.update({f"{label}_{k}": v for k, v in got.items()})
+            print(f"{n} parts, {label}: " + ", ".join(f"{k} {v:.3f}" for k, v in got.items() if k != "digest"),
+                  file=sys.stderr)
+        row["same_data"] = row.pop("base_digest") == row.pop("new_digest")
+        row["load_base_x_new"] = row["base_load_cold"] / row["new_load_cold"]
+        row["load"] = os.getloadavg()[0]
+        rows.append(row)
+        shutil.rmtree(folder)
+        out.unlink()
+    return rows
+
+
+def print_readers(rows: list[dict], base: str) -> None:
+    print(f"a reader of a virtual hrir_db by part count, revision {base} (base) against the working tree (new), same "
+          f"run, same asset, CPU seconds in fresh interpreters (load average {os.getloadavg()[0]:.1f}):\n")
+    cols = [("parts", "parts", ",d")]
+    for label in ("base", "new"):
+        cols += [(f"{label}_load_cold", f"{label} load_hrir_db", ".2f"), (f"{label}_load_warm", f"{label} again", ".2f"),
+                 (f"{label}_check_cold", f"{label} check_virtual", ".3f"),
+                 (f"{label}_check_warm", f"{label} check again", ".3f")]
+    print(table(rows, cols + [("load_base_x_new", "load base/new", ".1f"), ("same_data", "same bytes", ""),
+                              ("load", "load", ".1f")]))
+    print()
+
+
 def main(argv=None) -> list[dict]:
     import argparse
     import tempfile
@@ -275,7 +376,16 @@ def main(argv=None) -> list[dict]:
     ap.add_argument("--repeat", type=int, default=2, help="best of this many assemblies")
     ap.add_argument("--readers-max", type=int, default=4096, help="time the readers' open and check up to this many parts")
     ap.add_argument("--name", default="assembly", help="results/<name>.json")
+    ap.add_argument("--readers", default="", help="part counts (e.g. 256,1024): only a reader's cost, --base against "
+                    "the working tree (results/<name>-readers.json)")
+    ap.add_argument("--base", default="a3c4b35", help="the revision the readers are timed against")
     a = ap.parse_args(argv)
+    if a.readers:
+        with tempfile.TemporaryDirectory() as tmp:
+            rows = readers([int(n) for n in a.readers.split(",") if n], a.block, Path(tmp), a.base)
+        print_readers(rows, a.base)
+        save(f"{a.name}-readers", {"rows": rows, "block": a.block, "base": a.base})
+        return rows
     with tempfile.TemporaryDirectory() as tmp:
         rows = part_counts([int(n) for n in a.parts.split(",") if n], a.block, Path(tmp), a.repeat, a.readers_max)
     print_part_counts(rows)
