@@ -1,11 +1,25 @@
 """The layered model's in-plane α on a straight cylinder against the strands (issue 13).
 
-Measured on H2's straight cylinder (R 0.1, 600 uniform strands r 0.01 over v ∈ [0.25, 1], κ 0.01, seen at ψ = 90°,
-96², direct maps, track reads; the pixel row through the middle of the cluster), the mean α over the hair's pixels
-of each stage: the strands' analytic α 0.506 and the strand reference 0.506; the sector densities' own line
-integral 0.475 (exactly the strand Gaussians cut to the shells: Σρ·area is 0.927 of the strands' π r² here, the
-tails beyond v = 1 and inside the core are lost); the texels the renderer reads (track reads), composited over the
-layer hits, 0.423, and the render 0.408.  Through the axis: 0.632 (strands), 0.606 (density), 0.499 (texels).
+Measured on H2's straight cylinder (tests/test_render_oblique.py's notes: R 0.1, 600 uniform strands r 0.01 over
+v ∈ [0.25, 1], κ 0.01, s_t 4, s_u 8, seen at ψ = 90°, 96², direct maps, oblique off), the pixel row through the
+middle of the cluster, mean α over the hair's 26 pixels (through the axis in brackets) per stage:
+
+| stage | smooth on (default) | smooth off |
+|---|---|---|
+| (a) strands' analytic α / (e) strand reference L0 | 0.506 / 0.506 (0.632) | same |
+| (b) sector densities' chord integral (= strands cut to the shells) | 0.475 (0.606) | same |
+| (c) every sector's direct-map α at the chord, composited | 0.457 | 0.476 |
+| (d) texels the renderer reads, composited over the layer hits, track | 0.423 (0.499) | 0.474 |
+| (d) the same, pair reads | 0.375 | – |
+| (e) the layered render, track | 0.408 | – |
+
+(a)→(b), −6 %: the splats are exact (Σρ·area over a section is the strands' mass inside the shells), but the
+strands' Gaussian tails beyond v = 1 and inside the core are cut (0.927 of the mass here).  (b)→(d), −11 %: the
+direct maps' §5.1 smoothing (σ = 1.5 × the strand's, 16 of a row's 64 pixels in the inner track), normalised over
+the infinite line, moves α past the row's ends and past the sector's own projection, where no read takes it back;
+with smoothing off the track reads give the density's integral (0.474 against 0.475).  Full frame (layered /
+reference mean α, track, oblique off): 0.715 before the crossing fix below, 0.807 after, 0.876 with smoothing off too.
+On the vendored grooms smoothing barely matters (bias +6.81 → +7.26 % Sintel, −1.54 → −1.37 % Ratboy, 128², L0).
 
 Along the cluster (t) the layered α faded over the last HSV row to 0.08 at the t = 0 end: no strand crossed the
 t = 0 cross-section, whose plane holds every generated root (the crossing test was a strict sign change of the
