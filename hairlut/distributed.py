@@ -99,13 +99,32 @@ def current() -> Process:
     return Process(jax.process_index(), jax.process_count())
 
 
-def barrier(name: str) -> None:
-    """Wait until every process of a distributed run reaches ``name`` (no-op for one process)."""
+#: How long a process waits at a barrier for the others (the parts barrier waits for the slowest share's bake).
+BARRIER_TIMEOUT_S = 7 * 24 * 3600
+
+
+def barrier(name: str, timeout_s: float = BARRIER_TIMEOUT_S) -> None:
+    """Wait until every process of a distributed run reaches ``name`` (no-op for one process).
+
+    Through the coordination service that ``jax.distributed.initialize`` started (its client's
+    ``wait_at_barrier``), not a device collective: a collective's first call sets up the CPU transport (gloo),
+    whose connect times out after seconds, so a process that finished its share first would fail while a
+    slower one was still baking."""
     if current().count <= 1:
         return
-    from jax.experimental import multihost_utils
+    from jax._src import distributed as jax_distributed  # the runtime's client: JAX has no public barrier
 
-    multihost_utils.sync_global_devices(name)
+    client = jax_distributed.global_state.client
+    if client is None or not hasattr(client, "wait_at_barrier"):
+        from jax.experimental import multihost_utils
+
+        multihost_utils.sync_global_devices(name)
+        return
+    try:
+        client.wait_at_barrier(str(name), int(timeout_s * 1000))
+    except Exception as exc:  # XlaRuntimeError (deadline, a peer gone): a typed, one-line error
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise errors.ValidationError("distributed", name, f"barrier failed: {first}") from None
 
 
 def local_devices() -> list:

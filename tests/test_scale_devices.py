@@ -66,7 +66,7 @@ def test_two_processes_on_loopback_bake_the_scene_table_of_one(tmp_path):
     outs = [p.communicate(timeout=600) for p in procs]
     assert all(p.returncode == 0 for p in procs), [o[1][-2000:] for o in outs]
     ranges = [next(line.split()[1:] for line in o[0].splitlines() if line.startswith("RANGE")) for o in outs]
-    assert ranges == [["0", "48"], ["48", "76"]]  # 4 blocks of 24 rows: two each
+    assert ranges == [["0", "48"], ["48", "80"]]  # 4 blocks of 24 rows (80 live sectors): two each
     _assert_same_data(one["out"], out)
     assert len(check_virtual(out)) == len(list(parts_dir(out).glob("part-*.h5"))) == 4
     registry.get("scene_maps").load(out)
