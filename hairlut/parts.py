@@ -17,7 +17,7 @@ unlimited regular selection of stride ``block``) over the equal blocks, and one 
 for the last block (shorter or not), which also pins the table's extent.  HDF5 fills a
 missing source with the fill value silently, so :func:`check_virtual` validates every
 source before a reader trusts the file, by the readers' own rule
-(:func:`hairlut.assets.trust.allowed_virtual_sources`: a part inside ``<asset>.parts/``,
+(:func:`hairlut.assets.sources.allowed_virtual_sources`: a part inside ``<asset>.parts/``,
 no symlink, that exists and carries the asset's recipe hash), and names the fault.
 """
 
@@ -42,7 +42,7 @@ from .assets import Axis, Variable, atomic_path, canonical_json, open_table, rec
 from .assets.h5 import LIBVER, dims_of, disk_name
 from .assets.kinds import SCHEMA
 from .assets.layout import layout
-from .assets.trust import check_sources, printf_escape
+from .assets.sources import check_sources, printf_escape
 
 MARKER = ".hairlut-parts"
 MARKER_TEXT = "hairlut parts folder: finished blocks of a bake; hairlut deletes only its own files here\n"
@@ -418,8 +418,8 @@ def check_virtual(path) -> list[Path]:
     """Validate the sources of every virtual dataset of a table file; returns the part files (none: not virtual).
 
     Whether a source may be read is decided in one place, the readers' own rule
-    (:func:`hairlut.assets.trust.allowed_virtual_sources`: a regular file, no symlink, directly in
-    ``<asset>.parts/``, HDF5, the asset's recipe hash), applied by :func:`hairlut.assets.trust.check_sources`:
+    (:func:`hairlut.assets.sources.allowed_virtual_sources`: a regular file, no symlink, directly in
+    ``<asset>.parts/``, HDF5, the asset's recipe hash), applied by :func:`hairlut.assets.sources.check_sources`:
     each part is stamped once per call and opened only when this process has not seen it with that stamp
     (then once for all the tables), so a reopened asset costs a ``stat`` per part.  This names what is wrong
     with a refused one: AssetNotFoundError for a missing part, CorruptAssetError for a source outside the parts

@@ -137,7 +137,7 @@ def test_each_part_is_opened_once_per_asset_and_again_only_when_its_stamp_change
     their stat stamps for the process's lifetime, and open a part again only when it changed."""
     from pathlib import Path
 
-    from hairlut.assets import trust
+    from hairlut.assets import sources
 
     small = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 2, "lights": 2},
              "trace": {"pixels": 4, "steps": 4}}
@@ -145,9 +145,9 @@ def test_each_part_is_opened_once_per_asset_and_again_only_when_its_stamp_change
     bake(small, out, block=5, merge="virtual")
     parts = sorted(parts_dir(out).glob("part-*.h5"))
     opened = []
-    real = trust.guard
-    monkeypatch.setattr(trust, "guard", lambda p, *a: (opened.append(Path(p)), real(p, *a))[1])
-    monkeypatch.setattr(trust, "_PARTS", {})
+    real = sources.guard
+    monkeypatch.setattr(sources, "guard", lambda p, *a: (opened.append(Path(p)), real(p, *a))[1])
+    monkeypatch.setattr(sources, "_PARTS", {})
     first = load_hrir_db(out)  # check_virtual, then read_table's validation of every table
     with h5py.File(out, "r") as f:
         assert sum(f[n].is_virtual for n in ("alpha", "reflectance", "density", "geometry/v0")) == 4

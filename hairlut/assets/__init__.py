@@ -7,7 +7,7 @@ from .preview import encode_png, parse_slice, preview, tonemap
 from .summary import array_stats, sniff, summarize
 from .kinds import KINDS, SCHEMA, register_kind
 from .recipe import canonical_json, recipe_hash
-from .trust import allowed_virtual_sources
+from .sources import allowed_virtual_sources
 
 __all__ = [
     "Axis", "ExrImage", "allowed_virtual_sources", "ExrPart", "KINDS", "SCHEMA", "Table", "Variable",

@@ -1,0 +1,310 @@
+"""A virtual asset's sources: the part files of a sharded bake, checked before anything is read through them.
+
+A virtual dataset may read only the asset's own parts (:func:`allowed_virtual_sources`: a regular file, no
+symlink, directly in ``<asset>.parts/``, with the asset's recipe hash), never a part that the environment variable
+``HDF5_VDS_PREFIX`` would redirect to another file (HDF5 looks for a relative source under that prefix before the
+asset's folder).  Sources named printf-style (``part-<total>x<block>-%b.h5``, one mapping for every whole block)
+are expanded to every block file HDF5 would open.  The sources are checked once per opened asset, whatever its
+number of tables (:func:`check_sources`): each part is stamped (``lstat``) once and opened only when this process
+has not checked it with that stamp, so reopening an unchanged many-part asset costs a ``stat`` per part.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import stat
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+
+from .. import errors
+from .trust import MAX_OBJECTS, PARTS_SUFFIX, VDS_PREFIX_ENV, _first_line, guard
+
+
+def _part_folders(asset: Path) -> tuple[str]:
+    return (os.path.join(os.path.realpath(asset.parent), asset.name + PARTS_SUFFIX),)
+
+
+def file_stamp(path) -> tuple | None:
+    """(device, inode, size, mtime ns, ctime ns, mode) of ``path``, a symlink not followed; None when nothing is there.
+    A part replaced, rewritten or touched since it was checked has another stamp (see :func:`check_sources`)."""
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return None
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns, st.st_mode)
+
+
+@dataclass
+class _Part:
+    """What one look at a part file found: why it may not feed the asset (``fault``, None: it may), and each dataset
+    asked about: its shape when it is a plain dataset of the part (no link, not virtual, not external), else None."""
+
+    fault: str | None
+    datasets: dict = field(default_factory=dict)
+
+
+#: Parts checked in this process, by (path, :func:`file_stamp`, recipe hash): a part whose stamp is unchanged is not
+#: opened again, whichever asset or table asks (cleared when it holds more than ``_PARTS_MAX`` entries).
+_PARTS: dict[tuple, _Part] = {}
+_PARTS_MAX = 1 << 16
+
+
+def _plain_shape(g: h5py.File, dset: str) -> tuple | None:
+    """The shape of dataset ``dset`` of part ``g`` when its last link is a hard link and it is neither virtual nor
+    external, else None (HDF5's low-level calls: a few per dataset, as every table of every part is asked about)."""
+    name = dset.encode()
+    try:
+        if g.id.links.get_info(name).type != h5py.h5l.TYPE_HARD:
+            return None
+        obj = h5py.h5o.open(g.id, name)
+    except KeyError:
+        return None
+    if not isinstance(obj, h5py.h5d.DatasetID):
+        return None
+    dcpl = obj.get_create_plist()
+    if dcpl.get_layout() == h5py.h5d.VIRTUAL or dcpl.get_external_count():
+        return None
+    return obj.shape
+
+
+def _look(candidate: Path, st: tuple | None, recipe_hash: str, dsets=()) -> _Part:
+    """The part file ``candidate`` (stamp ``st``) as a source of an asset of ``recipe_hash``, with datasets ``dsets``:
+    from :data:`_PARTS` when that stamp was looked at before (and those datasets with it), else opened once."""
+    if st is None:
+        return _Part("does not exist")
+    if not stat.S_ISREG(st[5]):
+        return _Part("is not a regular file (symlinks are not followed)")
+    key = (str(candidate), st, recipe_hash)
+    part = _PARTS.get(key)
+    if part is not None and (part.fault is not None or all(d in part.datasets for d in dsets)):
+        return part
+    try:
+        with open(candidate, "rb") as fh:
+            if fh.read(8) != b"\x89HDF\r\n\x1a\n":
+                part = _Part("is not HDF5")
+        if part is None or part.fault is None:
+            with guard(candidate), h5py.File(candidate, "r") as g:
+                if part is None:
+                    theirs = g.attrs.get("recipe_hash")
+                    theirs = theirs.decode("utf-8") if isinstance(theirs, bytes) else theirs
+                    part = _Part(None if theirs == recipe_hash else "carries another recipe hash")
+                if part.fault is None:
+                    part.datasets.update({d: _plain_shape(g, d) for d in dsets if d not in part.datasets})
+    except errors.HairlutError as exc:
+        part = _Part(str(exc))
+    except OSError as exc:  # gone or unreadable since it was stamped
+        return _Part(f"cannot be read ({_first_line(exc)})")
+    if len(_PARTS) >= _PARTS_MAX:
+        _PARTS.clear()
+    _PARTS[key] = part
+    return part
+
+
+def _folder_fault(asset: Path, candidate: Path) -> str | None:
+    if os.path.islink(candidate.parent) or os.path.realpath(candidate.parent) not in _part_folders(asset):
+        return "is not in the asset's parts folder"
+    return None
+
+
+def _part_fault(asset: Path, candidate: Path, recipe_hash: str) -> str | None:
+    """Why ``candidate`` may not feed a virtual dataset of ``asset`` (None: it may)."""
+    return _folder_fault(asset, candidate) or _look(candidate, file_stamp(candidate), recipe_hash).fault
+
+
+def allowed_virtual_sources(path, recipe_hash: str) -> list[Path]:
+    """The part files a virtual dataset in asset ``path`` may read.
+
+    The one exception to "files never reach outside themselves", for sharded bakes
+    that join their parts with an HDF5 virtual dataset (:mod:`hairlut.parts`): a
+    source is allowed when it is a regular file (not a symlink) directly inside the
+    folder ``<asset name>.parts/`` beside the asset (itself not a symlink), is an HDF5
+    file, and its root ``recipe_hash`` attribute equals the asset's (``recipe_hash``).
+    The asset itself ("." in a virtual mapping) is always allowed.  Readers apply the
+    same rule to each source a virtual dataset names, and refuse any other
+    (:class:`~hairlut.errors.ForeignReferenceError`); they also refuse a source
+    dataset that is itself virtual or external.
+    """
+    asset = Path(path)
+    found = []
+    for folder in map(Path, _part_folders(asset)):
+        if not folder.is_dir() or folder.is_symlink():
+            continue
+        for candidate in sorted(folder.iterdir()):
+            if candidate.suffix == ".h5" and _part_fault(asset, candidate, recipe_hash) is None:
+                found.append(candidate)
+    return found
+
+
+def redirected_source(asset, where: str) -> Path | None:
+    """The file HDF5 would open for virtual source ``where`` of ``asset`` under ``$HDF5_VDS_PREFIX``
+    (None: the variable does not redirect it, and HDF5 reads the file beside the asset).
+
+    HDF5 opens an absolute source name as given; a relative one it looks for first under each
+    ``:``-separated entry of the variable (``${ORIGIN}`` standing for the asset's folder), then
+    beside the asset, then in the working directory.  A prefix entry under which the name exists
+    is taken as the file HDF5 opens."""
+    prefix = os.environ.get(VDS_PREFIX_ENV, "")
+    if not prefix or prefix == "." or os.path.isabs(where):
+        return None
+    origin = os.path.dirname(os.path.abspath(asset))
+    for entry in prefix.split(":"):
+        if entry.startswith("${ORIGIN}"):
+            entry = origin + entry[len("${ORIGIN}"):]
+        if entry and os.path.lexists(os.path.join(entry, where)):
+            return Path(entry) / where
+    return None
+
+
+_PRINTF = re.compile(r"%(.)")
+
+
+def printf_name(name: str, block: int | None = None) -> str:
+    """A virtual source name as HDF5 reads it: ``%b`` is the block number (``block``), ``%%`` a literal ``%``
+    (H5Pset_virtual's printf-style names; any other ``%`` sequence is kept as written)."""
+    return _PRINTF.sub(lambda m: "%" if m.group(1) == "%" else str(block) if m.group(1) == "b" else m.group(0), name)
+
+
+def is_printf(name: str) -> bool:
+    """Whether a virtual source name holds ``%b``: one mapping for a run of blocks, one source file each."""
+    return any(m.group(1) == "b" for m in _PRINTF.finditer(name))
+
+
+def printf_escape(name: str) -> str:
+    """``name`` with each ``%`` doubled, so that HDF5 reads it literally as a virtual source name."""
+    return name.replace("%", "%%")
+
+
+def printf_blocks(ds: h5py.Dataset, src) -> int:
+    """How many blocks a printf-style mapping of ``ds`` (``%b`` in its names: :mod:`hairlut.parts`) must read: the
+    blocks of its unlimited regular selection that lie wholly before the next mapping on that axis, or before the
+    end of the dataset's extent, which the writer pins with one fixed mapping for the last block so that a missing
+    part cannot shrink it.  (HDF5 sets the extent of such a dataset from the blocks whose files it finds.)"""
+    start, stride, count, block = src.vspace.get_regular_hyperslab()
+    axis = ([i for i, c in enumerate(count) if c == h5py.h5s.UNLIMITED] or [0])[0]
+    after = [int(other.vspace.get_select_bounds()[0][axis]) for other in ds.virtual_sources()
+             if not (is_printf(other.file_name) or is_printf(other.dset_name))]
+    after = [lo for lo in after if lo >= start[axis]]
+    limit = min(after) if after else int(ds.shape[axis])  # the extent only without a fixed mapping after the blocks
+    return max(0, (limit - int(start[axis]) - int(block[axis])) // int(stride[axis]) + 1)
+
+
+def expand_sources(path: Path, ds: h5py.Dataset, src, memo: dict | None = None) -> list[tuple[str, str]]:
+    """(file name, dataset name) of each source file one virtual mapping of ``ds`` in asset ``path`` reads.
+
+    A printf-style mapping reads blocks 0 .. :func:`printf_blocks` − 1 (each must be there), and HDF5 also opens
+    the files of the blocks after those while they exist (its default printf gap of 0), so those count too.
+    ``memo``: the file names already found for a (name, blocks) pair, shared by the tables of one asset."""
+    where, dset = src.file_name, src.dset_name
+    if not (is_printf(where) or is_printf(dset)):
+        return [(printf_name(where), printf_name(dset))]
+    need = printf_blocks(ds, src)
+    memo = {} if memo is None else memo
+    if (where, need) not in memo:
+        memo[(where, need)] = _block_files(path, where, need)
+    files = memo[(where, need)]
+    if not is_printf(dset):
+        name = printf_name(dset)
+        return [(w, name) for w in files]
+    return [(w, printf_name(dset, block)) for block, w in enumerate(files)]
+
+
+def _block_files(path: Path, where: str, need: int) -> list[str]:
+    found = []
+    for block in range(MAX_OBJECTS):
+        name = printf_name(where, block)
+        if block >= need and not os.path.lexists(name if os.path.isabs(name) else path.parent / name):
+            return found
+        found.append(name)
+    raise errors.CorruptAssetError(path, f"virtual source {where!r} names more than {MAX_OBJECTS} files; not a hairlut table")
+
+
+@dataclass
+class Source:
+    """One part file that virtual datasets of an asset read (see :func:`check_sources`)."""
+
+    path: Path  # the file HDF5 opens (beside the asset)
+    fault: str | None  # why the readers' rule refuses it (None: it may be read)
+    redirect: Path | None  # another file that ``$HDF5_VDS_PREFIX`` makes HDF5 open instead, else None
+    datasets: dict  # dataset name -> shape when a plain dataset of the part, else None
+
+
+@dataclass
+class Sources:
+    """Every source of every virtual dataset of one open asset, each part file stamped and looked at once."""
+
+    tables: dict = field(default_factory=dict)  # dataset name -> [(file name, dataset name, trailing shape), ...]
+    faults: dict = field(default_factory=dict)  # dataset name -> the error its mappings raise when expanded
+    files: dict = field(default_factory=dict)  # file name (as the mapping names it) -> Source
+
+
+#: The last checks of open assets, by (HDF5 id of the open file, asset, recipe hash): each table of an asset being
+#: validated asks for its sources, and its parts are stamped once per opening (HDF5 does not reuse file ids).
+_OPEN: dict[tuple, Sources] = {}
+_OPEN_MAX = 16
+
+
+def check_sources(path, f: h5py.File, recipe_hash: str) -> Sources:
+    """The sources of every virtual dataset of asset ``path`` (open as ``f``), checked by the readers' rule
+    (:func:`allowed_virtual_sources`), whatever the number of tables: each part file is stamped once
+    (:func:`file_stamp`) and opened only if no earlier check in this process saw it with that stamp, then once for
+    every dataset that the asset's tables read from it.  Nothing is raised here for a fault of one table's sources:
+    :func:`check_dataset` and :func:`hairlut.parts.check_virtual` name it."""
+    path = Path(path)
+    key = (f.id.id, str(path), recipe_hash)
+    if key in _OPEN:
+        return _OPEN[key]
+    found = Sources()
+    virtual: list = []
+    f.visititems(lambda n, o: virtual.append(o) if isinstance(o, h5py.Dataset) and o.is_virtual else None)
+    expanded: dict = {}
+    for ds in virtual:
+        try:
+            found.tables[ds.name] = [(where, dset, tuple(vs.vspace.shape[1:])) for vs in ds.virtual_sources()
+                                     for where, dset in expand_sources(path, ds, vs, expanded)]
+        except errors.HairlutError as exc:
+            found.faults[ds.name] = exc
+    wanted: dict = {}
+    for sources in found.tables.values():
+        for where, dset, _ in sources:
+            if where != ".":
+                wanted.setdefault(where, set()).add(dset)
+    folders: dict = {}
+    for where, dsets in wanted.items():
+        candidate = Path(where) if os.path.isabs(where) else path.parent / where
+        if candidate.parent not in folders:
+            folders[candidate.parent] = _folder_fault(path, candidate)
+        fault = folders[candidate.parent]
+        part = _Part(fault) if fault else _look(candidate, file_stamp(candidate), recipe_hash, dsets)
+        found.files[where] = Source(candidate, part.fault, redirected_source(path, where), part.datasets)
+    if len(_OPEN) >= _OPEN_MAX:
+        _OPEN.pop(next(iter(_OPEN)))
+    _OPEN[key] = found
+    return found
+
+
+def check_virtual_dataset(path: Path, name: str, ds: h5py.Dataset, recipe_hash: str) -> None:
+    """Refuse virtual dataset ``name`` unless every source is a plain dataset of the asset's own parts, beside it."""
+    with guard(path):
+        found = check_sources(path, ds.file, recipe_hash)
+    if ds.name in found.faults:
+        raise found.faults[ds.name]
+    for where, dset, _ in found.tables.get(ds.name, ()):
+        if where == ".":
+            continue
+        src = found.files[where]
+        if src.fault is not None:
+            raise errors.ForeignReferenceError(
+                path, f"dataset {name!r} is virtual with source {where}:{dset}, which {src.fault}; "
+                      "only the asset's own parts (<asset>.parts/, same recipe hash) may be sources")
+        if src.redirect is not None and os.path.realpath(src.redirect) != os.path.realpath(src.path):
+            raise errors.ForeignReferenceError(
+                path, f"dataset {name!r} is virtual with source {where}:{dset}, which "
+                      f"{VDS_PREFIX_ENV}={os.environ.get(VDS_PREFIX_ENV)!r} redirects to {src.redirect}; hairlut reads "
+                      f"a virtual asset's parts only from beside it: unset {VDS_PREFIX_ENV}")
+        if src.datasets.get(dset) is None:
+            raise errors.ForeignReferenceError(
+                path, f"dataset {name!r} is virtual with source {where}:{dset}, "
+                      "which is not a plain dataset of that part")
