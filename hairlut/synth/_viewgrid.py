@@ -185,7 +185,7 @@ def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, 
     fields = sector_fields(rho)
     lanes = n_pix * rays
     march_views = views_half if alpha else views_half[::step]
-    tau, gx, gy, rs, rr, inside = march(fields, g, march_views, lanes, n_steps)
+    tau, gx, gy, rs, rr, inside = march(fields, g, march_views, lanes, n_steps, fenced=True)
     w_all, a_all = front_to_back(tau, eps)
     if alpha:
         tau, gx, gy, rs, rr, inside = (x[::step] for x in (tau, gx, gy, rs, rr, inside))
@@ -197,7 +197,7 @@ def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, 
     w_m = jnp.flip(w_m, axis=(1, 2))  # back into the march's order
     front, back = _mirror_phong(rho, gx, gy, rs, rr, inside, views, lights, phong)  # (Vk, L, lanes, K)
     if shadow:
-        depth = light_depth_grid(fields, g, lights, n_steps, min(n_steps, SHADOW_GRID))
+        depth = light_depth_grid(fields, g, lights, n_steps, min(n_steps, SHADOW_GRID), fenced=True)
         t_l = jnp.moveaxis(grid_transmittance(depth, g, views, lanes, n_steps), -1, 1)
         front, back = front * t_l, back * t_l
     r = reflectance(a, front, w, phong)
