@@ -23,7 +23,7 @@ _LAZY = {
     "FAR": "_raster", "raster_kernel": "_raster", "sample_texture": "_raster",
     "FragmentPlan": "_fragments", "composite_kernel": "_fragments", "draw_layers": "_fragments",
     "draw_plan": "_fragments", "plan_fragments": "_fragments", "surface_kernel": "_fragments",
-    "candidates": "_layered", "layout": "_layered", "lengthen": "_layered", "oblique_path": "_layered", "strand_path": "_layered", "crossing_depth": "_layered",
+    "candidates": "_layered", "layout": "_layered", "lengthen": "_layered", "oblique_path": "_layered", "sector_paths": "_layered", "strand_path": "_layered", "crossing_depth": "_layered",
     "OBLIQUE_LAWS": "_layered", "pairs_of": "_layered", "layer_textures": "_layered", "rasterise": "_layered", "render_layered": "_layered",
     "layered_vs_reference": "_pair", "panels": "_pair",
     "compare": "_compare", "block_average": "_compare", "side_by_side": "_compare",

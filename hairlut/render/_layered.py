@@ -10,9 +10,12 @@ fragments, perspective-correct, from ``_raster.surfaces``; per frame the texturi
 a cluster's layers and front-to-back "over" between clusters).  :func:`rasterise` draws the same frame in one pass
 (:func:`raster_kernel`), the reference the two-pass frame is tested against.  The textures
 are eq 13's colour as it comes (already α-premultiplied: :func:`layer_textures`) with α and colour lengthened for
-the camera ray's angle ψ to the layer's tangent (:func:`oblique_path`, :func:`lengthen`) by the exponent of
-Beer–Lambert through randomly placed strands (:func:`strand_path`, Campbell's theorem: weaker than the 1 / sin ψ of a
-continuous medium, since a longer chord through an opaque strand adds little; tests/test_render_oblique.py).
+the camera ray's angle ψ to the layer's tangent (:func:`oblique_path`).  With the direct map method (law ``rays``)
+the maps are traced so: every in-plane ray's optical depth times its sector's 1 / sin ψ before the rays are averaged
+(:func:`sector_paths`, exact for strands parallel to the tangent, whatever their arrangement); with the other
+methods each texel is lengthened (:func:`lengthen`) by the exponent of Beer–Lambert through randomly placed strands
+(:func:`strand_path`, Campbell's theorem: weaker than the 1 / sin ψ of a continuous medium, since a longer chord
+through an opaque strand adds little, and too strong for clumped strands; tests/test_render_oblique.py).
 
 Compile shapes are bucketed: the candidate capacity to an eighth of a power of two, the cluster tile to a
 multiple of :data:`TILE_STEP`.
@@ -39,9 +42,11 @@ MAX_PATH = 10.0
 #: Tile sides are rounded up to a multiple of this (fewer compile shapes).
 TILE_STEP = 32
 MAX_SUBDIV = 32
-#: How :func:`render_layered` lengthens the in-plane α for the camera ray's angle: ``strands`` (:func:`strand_path`,
-#: Beer–Lambert through randomly placed Gaussian tubes), ``volume`` (1 / sin ψ, a continuous medium) or ``off``.
-OBLIQUE_LAWS = ("strands", "volume", "off")
+#: How :func:`render_layered` lengthens the in-plane α for the camera ray's angle: ``rays`` (the direct maps traced
+#: with every ray's optical depth × 1 / sin ψ, per sector: :func:`sector_paths`), ``strands`` (:func:`strand_path`,
+#: Beer–Lambert through randomly placed Gaussian tubes, per texel), ``volume`` (1 / sin ψ per texel, a continuous
+#: medium) or ``off``.
+OBLIQUE_LAWS = ("rays", "strands", "volume", "off")
 
 
 def _bucket(n: float) -> int:
@@ -141,6 +146,22 @@ def oblique_path(cam, tangent, position) -> np.ndarray:
     return 1.0 / np.maximum(s, 1.0 / MAX_PATH)
 
 
+def sector_paths(cam, prepared) -> tuple[np.ndarray, np.ndarray]:
+    """The ``rays`` law's optical-path factors of a ``hairlut.synth.Prepared`` scene with the direct map method:
+    (S,) for the camera ray through each sector (:func:`oblique_path` at the sector's centre and tangent,
+    ``hairlut.synth.sector_tangents``) and (S, L) for each of the scene's lights (1 / sin ψ_l against the same
+    tangent, capped at :data:`MAX_PATH`).  ``hairlut.synth.render(path=, light_path=)`` multiplies every traced ray's
+    optical depth by them before the rays are averaged to pixels (satf eq 4 along the camera ray: exact for strands
+    parallel to the tangent, whatever their arrangement in the cross-section; ``hairlut.synth._direct``)."""
+    from ..synth import sector_tangents
+
+    tangent, position = sector_tangents(prepared.clusters)
+    lights = np.asarray(prepared.scene.lights, np.float64).reshape(-1, 3)
+    lights = lights / np.linalg.norm(lights, axis=-1, keepdims=True)
+    s_l = np.linalg.norm(np.cross(lights[None, :, :], tangent[:, None, :]), axis=-1)
+    return oblique_path(cam, tangent, position), 1.0 / np.maximum(s_l, 1.0 / MAX_PATH)
+
+
 def crossing_depth(a) -> np.ndarray:
     """G(a) = ∫ (1 − exp(−a·e^{−x²})) dx over the whole line (float64, a ≥ 0): a strand crossing's opacity
     integrated over its impact parameter x = b / r, for a Gaussian tube whose optical depth at impact b is
@@ -214,7 +235,7 @@ def rasterise(cam, vertices, triangles, uv, textures, *, tile, origins, repeat: 
 
 
 def render_layered(scene, camera=None, *, db=None, sh=None, maps=None, prepared=None, repeat: int = 1,
-                   edge_pixels: float = EDGE_PIXELS, oblique: bool | str = "strands") -> Frame:
+                   edge_pixels: float = EDGE_PIXELS, oblique: bool | str | None = None) -> Frame:
     """The layered model of ``scene`` through its camera (module docstring).  ``db``/``sh``/``maps``: the
     assets ``hairlut.synth.prepare`` reads (the scene's map method decides which); ``prepared``: a
     ``hairlut.synth.Prepared`` to reuse.  ``info["seconds"]``: ``maps`` and ``shade`` (the online module's
@@ -222,26 +243,33 @@ def render_layered(scene, camera=None, *, db=None, sh=None, maps=None, prepared=
     textures), ``raster_first`` (the first texturing and composite, compile included) and ``raster`` (the best of
     ``repeat`` warm calls: the frame time for this camera, maps and camera pass excluded).  ``oblique``: how each
     texel's α (and colour) is lengthened for the camera ray's angle ψ to the layer's tangent (:func:`oblique_path`):
-    ``"strands"`` (True, the default) by :func:`strand_path`'s exponent, ``"volume"`` by 1 / sin ψ, ``"off"`` (False)
-    not at all (the in-plane α as it is)."""
+    ``"rays"`` (the default, True or None, with the direct map method) in the maps themselves, every traced ray's optical
+    depth times each sector's 1 / sin ψ (and each light's ray in the sector's self-shadow times 1 / sin ψ_l) before the
+    rays are averaged (:func:`sector_paths`); ``"strands"`` (the default with the other map methods) each texel by
+    :func:`strand_path`'s exponent, ``"volume"`` by 1 / sin ψ, ``"off"`` (False) not at all (the in-plane α)."""
     from ..geometry import ClusterGeometry
     from ..scene import as_scene
     from ..synth import prepare, render
     from ._render import extinction, scene_camera
 
-    law = {True: "strands", False: "off"}.get(oblique, oblique) if isinstance(oblique, bool) else oblique
-    if law not in OBLIQUE_LAWS:
-        raise errors.ValidationError("oblique", oblique, f"one of {OBLIQUE_LAWS} (or a bool)")
+    law = None if oblique is True else ("off" if oblique is False else oblique)
+    if law is not None and law not in OBLIQUE_LAWS:
+        raise errors.ValidationError("oblique", oblique, f"one of {OBLIQUE_LAWS}, None or a bool")
     t0 = time.perf_counter()
     sc = as_scene(scene) if prepared is None else prepared.scene
     prep = prepare(sc, db, sh, maps) if prepared is None else prepared
+    law = law or ("rays" if prep.method == "direct" else "strands")
+    if law == "rays" and prep.method != "direct":
+        raise errors.ValidationError("oblique", law, f"the rays law traces the direct maps; this scene's map method "
+                                     f"is {prep.method!r}")
     t1 = time.perf_counter()
-    result = render(prep)
     cam = scene_camera(sc) if camera is None else camera
+    paths = sector_paths(cam, prep) if law == "rays" else (None, None)
+    result = render(prep, path=paths[0], light_path=paths[1])
     geometry = ClusterGeometry([pc.spec for pc in prep.clusters])
     meshes, tile, origins, subdiv = layout(cam, geometry, edge_pixels=edge_pixels)
     tex = layer_textures(result)
-    if law != "off":
+    if law in ("strands", "volume"):
         path = oblique_path(cam, np.stack([pc.tangent for pc in prep.clusters]),
                             np.stack([pc.position for pc in prep.clusters]))
         tex = lengthen(tex, strand_path(path, extinction(sc)) if law == "strands" else path)

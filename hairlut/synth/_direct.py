@@ -25,6 +25,17 @@ Phong terms (``hairlut.hrir.march``, ``normals``, ``phong_direct``, …), so bot
   from the light onto an M × M local grid, M = min(K, 128), sampled bilinearly).
 * **Smoothing** (§5.1): both arrays convolved along the pixels with a Gaussian of σ_px
   pixels (the ``sigma_px`` column), normalised over the infinite line.
+* **Oblique rays** (optional, ``path``/``light_path``).  The maps are in-plane (rays in the
+  cross-section).  A camera ray at angle ψ_v to strands parallel to the layer's tangent ∂P/∂t
+  crosses the same in-plane density over a path 1/sin ψ_v longer, ray by ray: its optical depth is
+  τ_cam = σ_t (1/sin ψ_v) ∫ρ ds_in-plane (eq 4's Beer–Lambert along the camera ray, whose in-plane
+  projection is the traced ray; exact where the density does not change along the tangent).  So the
+  per-step depth of every ray is multiplied by the sector's factor *before* the steps are
+  accumulated, the rays box-averaged to pixels and the pixels smoothed: the average of
+  1 − exp(−τ/sin ψ) over the sector's actual strand positions, not a law for strands at
+  independent random positions applied to the averaged α (``hairlut.render.strand_path``,
+  Campbell).  ``light_path`` does the same for each light's in-sector transmittance (1/sin ψ_l).
+  A factor of 1 gives the in-plane maps bit for bit.
 
 What differs from ``hairlut.hrir.trace_sectors`` is the batching, not the quantity: one
 jitted kernel takes N sectors each with its **own** view angle and its own L light angles
@@ -81,11 +92,14 @@ def _light_depth_at(fields, g, lights, n_steps: int, m: int, qx, qy):
     return ((1 - a) * (1 - b) * p[..., 0] + a * (1 - b) * p[..., 1] + (1 - a) * b * p[..., 2] + a * b * p[..., 3])
 
 
-def _direct_one(rho, g, view, lights, phong, *, n_pix, n_steps, rays, shadow, smooth, eps, shade):
-    """α (P,) and premultiplied re (L, P) of one sector at view ``view`` () and lights ``lights`` (L,)."""
+def _direct_one(rho, g, view, lights, phong, path_v, path_l, *, n_pix, n_steps, rays, shadow, smooth, eps, shade):
+    """α (P,) and premultiplied re (L, P) of one sector at view ``view`` () and lights ``lights`` (L,); the view's
+    optical depth per step times ``path_v`` () and each light's times ``path_l`` (L,) (None: 1, the in-plane maps)."""
     fields = sector_fields(rho)
     lanes = n_pix * rays
     tau, gx, gy, rs, rr, inside = (x[0] for x in march(fields, g, view[None], lanes, n_steps))  # (lanes, K)
+    if path_v is not None:  # per ray and step, before front_to_back and the pixel average (module docstring)
+        tau = tau * path_v
     w, alpha = front_to_back(tau, eps)
     S = smooth_matrix(g[_SIGMA_PX], n_pix) if smooth else None
     alpha_px = to_pixels(alpha, n_pix, rays, S)
@@ -98,17 +112,21 @@ def _direct_one(rho, g, view, lights, phong, *, n_pix, n_steps, rays, shadow, sm
     if shadow:
         m = min(n_steps, SHADOW_GRID)
         if shadow == "grid":  # the tracer's: march → M × M Cartesian grid → samples
-            trans_l = grid_transmittance(light_depth_grid(fields, g, lights, n_steps, m), g, view[None], lanes, n_steps)[0]
+            depth = light_depth_grid(fields, g, lights, n_steps, m)  # (M, M, L)
+            depth = depth if path_l is None else depth * path_l
+            trans_l = grid_transmittance(depth, g, view[None], lanes, n_steps)[0]
             direct = direct * jnp.moveaxis(trans_l, -1, 0)
         else:  # "march": read the light march's lattice directly
             qx, qy = (q[0] for q in view_points(g, view[None], lanes, n_steps))
-            direct = direct * jnp.exp(-_light_depth_at(fields, g, lights, n_steps, m, qx, qy))
+            depth = _light_depth_at(fields, g, lights, n_steps, m, qx, qy)  # (L, lanes, K)
+            direct = direct * jnp.exp(-(depth if path_l is None else depth * path_l[:, None, None]))
     return alpha_px, to_pixels(reflectance(alpha, direct, w, phong), n_pix, rays, S)
 
 
 @partial(jax.jit, static_argnames=("n_pix", "n_steps", "rays", "shadow", "smooth", "eps", "block", "shade"))
-def direct_kernel(rho, geom, theta_v, theta_l, phong, *, n_pix: int, n_steps: int, rays: int = 1,
-                  shadow="march", smooth: bool = True, eps: float = 1e-4, block: int = BLOCK, shade: bool = True):
+def direct_kernel(rho, geom, theta_v, theta_l, phong, path=None, light_path=None, *, n_pix: int, n_steps: int,
+                  rays: int = 1, shadow="march", smooth: bool = True, eps: float = 1e-4, block: int = BLOCK,
+                  shade: bool = True):
     """α (B, P) and premultiplied re (B, L, P) of B sectors, each at its own view and lights.
 
     ``rho`` (B, n_s, n_r), ``geom`` (B, 11) geometry rows (``hairlut.hrir.GEOM``), ``theta_v``
@@ -117,12 +135,14 @@ def direct_kernel(rho, geom, theta_v, theta_l, phong, *, n_pix: int, n_steps: in
     transmittance), "grid" (the tracer's lookup: the light march resampled on an M × M Cartesian
     grid, then at the samples) or "march" (the light march's lattice read directly at the samples:
     one interpolation fewer, a third of the gathers).  ``shade=False``: α only (re is (B, 0, P);
-    ``theta_l`` is then ignored and may be (B, 1)).  See the module docstring.
+    ``theta_l`` is then ignored and may be (B, 1)).  ``path`` (B,) and ``light_path`` (B, L): optional optical-path
+    factors of the view's and the lights' rays (module docstring, "Oblique rays"); None: the in-plane maps.
+    See the module docstring.
     """
     one = partial(_direct_one, n_pix=n_pix, n_steps=n_steps, rays=rays, shadow=shadow, smooth=smooth, eps=eps,
                   shade=shade)
-    alpha, re = jax.lax.map(lambda a: one(a[0], a[1], a[2], a[3], phong), (rho, geom, theta_v, theta_l),
-                            batch_size=block)
+    alpha, re = jax.lax.map(lambda a: one(a[0], a[1], a[2], a[3], phong, a[4], a[5]),
+                            (rho, geom, theta_v, theta_l, path, light_path), batch_size=block)
     return alpha, re if shade else re[:, :0]
 
 
@@ -173,6 +193,23 @@ def _settings(recipe, n_pix, overrides, shadow_lookup="march") -> tuple[dict, np
     return cfg, phong
 
 
+def _check_paths(path, light_path, n: int, n_l: int):
+    """``path`` (N,) and ``light_path`` (N, L) as float64 arrays (or None), finite and > 0."""
+    out = []
+    for name, x, shape in (("path", path, (n,)), ("light_path", light_path, (n, n_l))):
+        if x is None:
+            out.append(None)
+            continue
+        a = np.asarray(x, np.float64)
+        if a.shape != shape:
+            raise errors.ValidationError(name, a.shape, f"need shape {shape}: one optical-path factor per sector"
+                                         + (" and light" if name == "light_path" else ""))
+        if not (np.all(np.isfinite(a)) and (a > 0).all()):
+            raise errors.ValidationError(name, "non-finite or ≤ 0", "optical-path factors (1/sin ψ) are finite and > 0")
+        out.append(a)
+    return out
+
+
 def _check_inputs(density, geometry, theta_v, theta_l):
     rho = np.asarray(density)
     if rho.ndim != 3:
@@ -203,7 +240,8 @@ def _check_inputs(density, geometry, theta_v, theta_l):
 
 
 def direct_sector_maps(density, geometry, theta_v, theta_l, recipe: dict, *, n_pix: int | None = None,
-                       block: int = BLOCK, shadow_lookup: str = "march", **overrides) -> tuple[np.ndarray, np.ndarray]:
+                       block: int = BLOCK, shadow_lookup: str = "march", path=None, light_path=None,
+                       **overrides) -> tuple[np.ndarray, np.ndarray]:
     """α (N, P) and premultiplied re (N, L, P) of N sectors, each at its own exact angles (one jitted kernel).
 
     ``density`` (N, n_s, n_r) sector density grids (``hairlut.geometry.sector_density``);
@@ -218,7 +256,9 @@ def direct_sector_maps(density, geometry, theta_v, theta_l, recipe: dict, *, n_p
     tracer's resampling of the light depth) the two agree to float32 rounding.  The default
     ``shadow_lookup="march"`` reads each light's march directly at the view samples (one
     bilinear resampling instead of two; cheaper, and differs from the tracer only by that).
-    ``block``: sectors vmapped together (larger for a GPU).
+    ``block``: sectors vmapped together (larger for a GPU).  ``path`` (N,) and ``light_path`` (N, L): the
+    optical-path factors of the view's and each light's rays through each sector (1/sin ψ, ψ the ray's angle to
+    the strands: module docstring, "Oblique rays"), applied per ray and step; None (the default): in-plane maps.
 
     Satf eq 4 (α, here Beer–Lambert of the line integral of ρ) and eq 5 (front-to-back
     accumulation of re); the conventions are the tracer's (module docstring).  Sectors whose
@@ -230,6 +270,7 @@ def direct_sector_maps(density, geometry, theta_v, theta_l, recipe: dict, *, n_p
     block = check_int(block, "block", 1)
     rho, g, tv, tl = _check_inputs(density, geometry, theta_v, theta_l)
     n, n_l, P = rho.shape[0], tl.shape[1], cfg["n_pix"]
+    pv, pl = _check_paths(path, light_path, n, n_l)
     alpha = np.zeros((n, P), np.float32)
     re = np.zeros((n, n_l, P), np.float32)
     live = np.flatnonzero(rho.reshape(n, -1).max(axis=1, initial=0.0) > 0) if n else np.zeros(0, np.int64)
@@ -241,7 +282,9 @@ def direct_sector_maps(density, geometry, theta_v, theta_l, recipe: dict, *, n_p
     a, r = direct_kernel(jnp.asarray(rho[rows], jnp.float32), jnp.asarray(g[rows], jnp.float32),
                          jnp.asarray(np.mod(tv[rows], two_pi), jnp.float32),
                          jnp.asarray(np.mod(tl[rows] if n_l else np.zeros((size, 1)), two_pi), jnp.float32),
-                         jnp.asarray(phong, jnp.float32), block=min(block, size), shade=n_l > 0, **cfg)
+                         jnp.asarray(phong, jnp.float32), None if pv is None else jnp.asarray(pv[rows], jnp.float32),
+                         None if pl is None or not n_l else jnp.asarray(pl[rows], jnp.float32),
+                         block=min(block, size), shade=n_l > 0, **cfg)
     a, r = np.asarray(a)[:live.size], np.asarray(r)[:live.size]
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(r))):
         raise errors.HairlutError("direct_sector_maps: the kernel produced non-finite maps (check the density scale)")

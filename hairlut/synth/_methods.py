@@ -53,14 +53,18 @@ class MapSource:
             hit = self.texel_sectors[id(ix)] = (ix, *(jnp.asarray(np.asarray(_texels(ix, x))) for x in ids))
         return hit[1:]
 
-    def frame(self, ix, view, lights):
+    def frame(self, ix, view, lights, path=None, light_path=None):
         """re (C, K, Lt, n_t, n_u) and α (C, K, n_t, n_u) (device arrays) of one frame, and the uniform
-        mask (H,) (all False: every HSV sweeps its two sectors' own rows)."""
+        mask (H,) (all False: every HSV sweeps its two sectors' own rows).  ``path`` (S,) and ``light_path`` (S, Lt):
+        the ``direct`` method's per-sector optical-path factors of the camera's and the lights' rays
+        (``_direct.direct_sector_maps``; :func:`sector_tangents` gives each sector's axis); other methods refuse them."""
         f32 = partial(np.asarray, dtype=np.float32)
+        if self.method != "direct" and (path is not None or light_path is not None):
+            raise errors.ValidationError("path", self.method, "per-ray optical paths need the direct map method")
         tv, tl, cs, _, _ = params_kernel(ix, f32(view), f32(lights), f32(0.0), n_v=1, n_l=1)
         if self.method == "direct":
             alpha, re = direct_sector_maps(self.density, self.geometry, np.asarray(tv, np.float64),
-                                           np.asarray(tl, np.float64), self.recipe)
+                                           np.asarray(tl, np.float64), self.recipe, path=path, light_path=light_path)
             alpha, re = jnp.asarray(alpha), jnp.asarray(re)
         else:
             from ..scenemaps import index_kernel, terms_kernel
@@ -72,6 +76,23 @@ class MapSource:
             return re_map, a_map, np.zeros(int(np.prod(ix.grid)), bool)
         re_map, a_map = sweep_sectors(ix, alpha, re, cs)
         return re_map, a_map, np.zeros(int(np.prod(ix.grid)), bool)
+
+
+def sector_tangents(clusters) -> tuple[np.ndarray, np.ndarray]:
+    """Unit tangent ∂P/∂t/|∂P/∂t| and point P (S, 3) at every sector's parametric centre (its section's t, mid
+    radius, mid phase), for ``prepare``'s clusters (``Prepared.clusters``), in the order of the maps' sectors:
+    the axis the strands of the sector follow, against which a ray's angle ψ sets its optical path 1/sin ψ
+    (``_direct.direct_sector_maps``'s ``path``; the same tangent as the texels' ``PreparedCluster.tangent``)."""
+    from ..geometry import ClusterGeometry
+
+    tangents, points = [], []
+    for pc in clusters:
+        tb = pc.table
+        t, v, u = np.asarray(tb.t, np.float64), tb.v_range.mean(axis=1), tb.u_range.mean(axis=1)
+        p, pt, _ = ClusterGeometry(pc.spec).derivatives_of(np.zeros(len(t), np.int64), t, v, u)
+        tangents.append(pt / np.maximum(np.linalg.norm(pt, axis=-1, keepdims=True), 1e-300))
+        points.append(p)
+    return np.concatenate(tangents), np.concatenate(points)
 
 
 @jax.jit

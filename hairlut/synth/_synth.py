@@ -225,11 +225,13 @@ def shade_kernel(re, alpha, tangent, normal, noise, view, lights, light_rgb, mat
             jnp.concatenate([final, a[..., None]], -1))
 
 
-def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict | None = None, extra=None) -> list:
+def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict | None = None, extra=None,
+                    paths: tuple = (None, None)) -> list:
     """One frame of every prepared cluster, all clusters batched: eqs 6–7 from the index
     (``_frame.frame_maps``: three kernels, timed as "maps"), then eqs 8–14 (:func:`shade_kernel`, "shade");
     ``extra`` (C, K, n_t, n_u, 3), the environment term, is added to each layer's shaded colour.  A light-space
-    shadow method's maps are rebuilt first (timed as "shadows") when ``lights`` differ from the prepared ones."""
+    shadow method's maps are rebuilt first (timed as "shadows") when ``lights`` differ from the prepared ones.
+    ``paths``: the direct method's per-sector optical-path factors (view, lights) (:func:`render`)."""
     timing = {} if timing is None else timing
     scene, db = prepared.scene, prepared.db
     cfg, fx = scene.config, scene.effects
@@ -237,9 +239,11 @@ def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict
     transmittance = prepared.shadows.for_lights(lights, timing) if prepared.shadows is not None else None
     t0 = time.perf_counter()
     if prepared.maps is None:
+        if any(p is not None for p in paths):
+            raise errors.ValidationError("path", prepared.method, "per-ray optical paths need the direct map method")
         re, alpha, uniform = frame_maps(prepared.index, db, view, lights, scene.material["k_threshold"])
     else:
-        re, alpha, uniform = prepared.maps.frame(prepared.index, view, lights)
+        re, alpha, uniform = prepared.maps.frame(prepared.index, view, lights, *paths)
     jax.block_until_ready(alpha)
     t1 = time.perf_counter()
     mat, colours = material_arrays(scene)
@@ -267,9 +271,12 @@ def _direction(name, d) -> np.ndarray:
     return directions(d, name)  # finite, non-zero 3-vectors, normalised (the shared rule)
 
 
-def render(prepared: Prepared, *, view=None, lights=None, light_colors=None) -> SynthResult:
+def render(prepared: Prepared, *, view=None, lights=None, light_colors=None, path=None, light_path=None) -> SynthResult:
     """One frame of a prepared scene, for its own or the given view and lights (directions toward
-    the viewer / lights; ``light_colors`` (L, 3), white by default when ``lights`` is given)."""
+    the viewer / lights; ``light_colors`` (L, 3), white by default when ``lights`` is given).  ``path`` (S,) and
+    ``light_path`` (S, L): with the ``direct`` map method, the optical-path factors 1/sin ψ of the camera's and the
+    lights' rays through each sector (``_methods.sector_tangents``), applied per ray inside the trace
+    (``_direct.direct_sector_maps``): the maps are then what the camera sees, no longer in-plane."""
     sc = prepared.scene
     v = sc.view if view is None else _direction("view", view)
     ls = sc.lights if lights is None else np.atleast_2d(_direction("lights", lights))
@@ -284,7 +291,7 @@ def render(prepared: Prepared, *, view=None, lights=None, light_colors=None) -> 
         t0 = time.perf_counter()
         extra, env_stats["environment_clamped"] = prepared.environment.rgb(v)
         timing["environment"] += time.perf_counter() - t0
-    results = render_clusters(prepared, v, ls, cols, timing, extra)
+    results = render_clusters(prepared, v, ls, cols, timing, extra, (path, light_path))
     stats = {"clusters": len(results), "layers": int(sum(r.alpha.shape[0] for r in results)),
              "hsvs": int(sum(pc.table.n_hsvs for pc in prepared.clusters)),
              "texels_per_layer": list(results[0].alpha.shape[1:]) if results else [],
