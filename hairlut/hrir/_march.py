@@ -31,6 +31,26 @@ def fence(fn, *args):
     return jax.lax.cond(lead == lead, fn, fn, *args)
 
 
+def atan2(y, x):
+    """arctan2(y, x) in float32 arithmetic that vectorises: XLA:CPU calls the scalar libm atan2f per element (30 ns;
+    it was 8 of the scene bake's 39 CPU-ms per paper-model sector), this is ~4 ns.  Octant reduction to
+    t = min/max(|x|, |y|) ≤ 1, then t > tan(π/8) → (t − 1)/(t + 1) + π/4, and Cephes' atanf polynomial (S. L. Moshier,
+    |error| ≈ 1e-7 on [−tan(π/8), tan(π/8)]); measured against float64 arctan2 on 8.4 M normal pairs: 2.7e-7 rad at
+    most (jnp.arctan2: 2.5e-7).  Signed zeros as arctan2's (atan2(±0, −0) = ±π)."""
+    ax, ay = jnp.abs(x), jnp.abs(y)
+    steep = ay > ax
+    num, den = jnp.where(steep, ax, ay), jnp.where(steep, ay, ax)
+    t = num / jnp.where(den > 0, den, 1.0)
+    hi = t > 0.41421356237309503  # tan(π/8)
+    u = jnp.where(hi, (t - 1) / (t + 1), t)
+    z = u * u
+    a = (((8.05374449538e-2 * z - 1.38776856032e-1) * z + 1.99777106478e-1) * z - 3.33329491539e-1) * z * u + u
+    a = jnp.where(hi, a + jnp.pi / 4, a)
+    a = jnp.where(steep, jnp.pi / 2 - a, a)
+    a = jnp.where(jnp.signbit(x), jnp.pi - a, a)
+    return jnp.where(jnp.signbit(y), -a, a)
+
+
 def bilerp_nodes(grid, fi, fj):
     """Bilinear interpolation of ``grid`` (n, m, ...) at fractional cell-centre indices (clamped)."""
     n, m = grid.shape[:2]
@@ -92,8 +112,9 @@ def sample(fields, g, qx, qy, fenced: bool = False):
     ey = g[CY] + sb * qx + cb * qy
     ux, uy = ex, ey / g[ASPECT]
     v = jnp.sqrt(ux * ux + uy * uy)
-    phi = jnp.arctan2(uy, ux)
-    s = jnp.mod(phi - g[PHASE], 2 * jnp.pi) / g[DU]
+    phi = atan2(uy, ux)
+    turn = phi - g[PHASE]
+    s = (turn - 2 * jnp.pi * jnp.floor(turn / (2 * jnp.pi))) / g[DU]  # mod 2π (XLA:CPU's rem is a scalar fmod call)
     r = (v - g[V0]) / (g[V1] - g[V0])
     inside = (s < 1.0) & (r >= 0.0) & (r <= 1.0)
     fi, fj = s * n_s - 0.5, r * n_r - 0.5
