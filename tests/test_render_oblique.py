@@ -29,7 +29,8 @@ its length (a cone: its strands follow the layers, up to 21° off the axis), the
 The layer's tangent keeps the ratio flat where the axis does not; with opaque strands the ``strands`` law keeps it
 flat where 1 / sin ψ drifts up.  Clumped strands are not independent (a clump acts as one thicker, more opaque
 strand): the truth lies between the ``strands`` law and none, so the law still lengthens 6 % too much at 30°.  Exact
-for any arrangement would be the in-plane α traced with σ_t / sin ψ (each crossing longer by 1 / sin ψ), in the maps.  The ratio's level (0.8, not 1, already at 90°) is the maps' in-plane α, not the
+for any arrangement is the in-plane α traced with σ_t / sin ψ (each crossing longer by 1 / sin ψ), in the maps: the
+``rays`` law, the default with direct maps (tests/test_render_oblique_rays.py).  The ratio's level (0.8, not 1, already at 90°) is the maps' in-plane α, not the
 lengthening (on the straight 600-strand cylinder seen at 90°, α through the axis is 0.64 against the reference's 0.71,
 analytic 0.70).
 """
