@@ -99,12 +99,13 @@ def sector_fields(rho):
     return patches(jnp.stack([rho, rs, rr], axis=-1))
 
 
-def sample(fields, g, qx, qy, fenced: bool = False):
+def sample(fields, g, qx, qy, fenced: bool = False, density_only: bool = False):
     """Density, inside mask and local-frame ∇ρ direction at local points (qx, qy).
 
     ``fields`` is (n_s, n_r, 3): ρ, ∂ρ/∂s, ∂ρ/∂r on cell centres.  ``fenced``: the bilinear gather runs behind a
     :func:`fence` (its indices materialised first), for callers that do not vmap it (a ``lax.cond`` under
-    ``vmap`` with a batched predicate becomes a select of both branches).
+    ``vmap`` with a batched predicate becomes a select of both branches).  ``density_only``: (ρ, inside) alone,
+    gathering the ρ corners only (the same ρ).
     """
     n_s, n_r = fields.shape[0] + 1, fields.shape[1] + 1  # fields are patches
     cb, sb = jnp.cos(g[BETA]), jnp.sin(g[BETA])
@@ -118,8 +119,12 @@ def sample(fields, g, qx, qy, fenced: bool = False):
     r = (v - g[V0]) / (g[V1] - g[V0])
     inside = (s < 1.0) & (r >= 0.0) & (r <= 1.0)
     fi, fj = s * n_s - 0.5, r * n_r - 0.5
+    if density_only:
+        fields = fields[..., ::3]  # the corners' ρ (patches: corner-major, (ρ, ρ_s, ρ_r) each)
     f = fence(lambda fi, fj: bilerp_patch(fields, fi, fj), fi, fj) if fenced else bilerp_patch(fields, fi, fj)
     rho = jnp.where(inside, f[..., 0], 0.0)
+    if density_only:
+        return rho, inside
     # ∇ρ = J^{-T} (ρ_s, ρ_r), J = [∂P/∂s ∂P/∂r]; det J = −Δu Δv A B v < 0, so up to the positive
     # factor 1/|det J|, ∇ρ = −(d ρ_s − c ρ_r, −b ρ_s + a ρ_r)
     cp, sp = ux / jnp.maximum(v, 1e-30), uy / jnp.maximum(v, 1e-30)
@@ -132,15 +137,17 @@ def sample(fields, g, qx, qy, fenced: bool = False):
     return rho, inside, lx, ly, f[..., 1], f[..., 2]
 
 
-def march(fields, g, ang, n_lanes: int, n_steps: int, fenced: bool = False):
-    """Optical depth per step (A, lanes, K) and ∇ρ (local) of rays entering along −d(ang).
+def march(fields, g, ang, n_lanes: int, n_steps: int, fenced: bool = False, depth_only: bool = False):
+    """Optical depth per step (A, lanes, K) and ∇ρ (local) of rays entering along −d(ang); with ``depth_only`` the
+    optical depth alone (:func:`sample`'s ``density_only``).
 
     ``fenced`` (for callers that do not vmap it, :func:`sample`): the gather and the whole march run behind
     :func:`fence` calls, so that XLA:CPU computes each sample once instead of once per consumer (the scene bake:
     39 → 29 CPU-ms per paper-model sector, the same bits)."""
     def run(fields, g, ang):
-        rho, inside, gx, gy, rs, rr = sample(fields, g, *view_points(g, ang, n_lanes, n_steps), fenced=fenced)
-        return g[SIGMA_T] * rho * (2 * g[EXTENT] / n_steps), gx, gy, rs, rr, inside
+        rho, inside, *grad = sample(fields, g, *view_points(g, ang, n_lanes, n_steps), fenced, depth_only)
+        tau = g[SIGMA_T] * rho * (2 * g[EXTENT] / n_steps)
+        return tau if depth_only else (tau, *grad, inside)
     return fence(run, fields, g, ang) if fenced else run(fields, g, ang)
 
 
@@ -150,7 +157,7 @@ def light_depth_grid(fields, g, light, n_steps: int, m: int, fenced: bool = Fals
     Light rays: m lanes of ``n_steps`` steps from the light's side, like the view march.  ``fenced``: as
     :func:`march`'s (the depths and the lookup's indices materialised before the gathers).
     """
-    tau, *_ = march(fields, g, light, m, n_steps, fenced=fenced)
+    tau = march(fields, g, light, m, n_steps, fenced=fenced, depth_only=True)
     depth = jnp.cumsum(tau, axis=-1) - 0.5 * tau  # (L, m, K): to each step's midpoint
 
     def corners(g, light):

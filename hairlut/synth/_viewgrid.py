@@ -152,31 +152,43 @@ def _shade_one(rho, g, views_kept, lights, phong, *, n_pix, n_steps, rays, shado
     return a.reshape(*a.shape[:-1], bins, -1).sum(-1), r.reshape(*r.shape[:-1], bins, -1).sum(-1)
 
 
-def _mirror_phong(rho, gx, gy, rs, rr, inside, views, lights, phong):
+def _mirror_phong(rho, gx, gy, rs, rr, inside, views, lights, phong, power: int = 0):
     """The Phong direct term (``hairlut.hrir`` ``phong_direct``, eq 5's shading) at every (view, light, lane, step)
-    sample of a march on ``views`` (V,) and at the same samples seen from the mirror views + π: two (V, L, lanes, K)
-    arrays, both in the march's sample order, from one power per (sample, light).
+    sample of a march on ``views`` (V,) and at the same samples seen from the mirror views + π: two (V, lanes, K, L)
+    arrays (lights minor, as the light transmittance's lookup returns them), both in the march's sample order, from
+    one power per (sample, light).
 
     With d′ = −d: where ∇ρ is resolved the normal is the same, so n·l′ = n·l and r·d′ = −r·d; where it is not
     (n = d, n′ = −d) n′·l = −n·l and r′·d′ = −r·d too.  So |r·d|^p is shared and lands on whichever view of the
-    pair has r·d > 0; the diffuse max(0, n·l) is shared where the normal is resolved."""
+    pair has r·d > 0; the diffuse max(0, n·l) is shared where the normal is resolved.  ``power`` > 0 (static: the
+    shininess p when it is that integer) forms |r·d|^p by repeated multiplication instead of exp(p log |r·d|) (two
+    transcendentals per (sample, light); the same to float32 rounding)."""
     vx, vy = jnp.cos(views)[:, None, None], jnp.sin(views)[:, None, None]
     mag2 = gx * gx + gy * gy
     ok = (rs * rs + rr * rr > (1e-5 * jnp.max(jnp.abs(rho))) ** 2) & (mag2 > 0) & inside
     inv = jnp.where(ok, jax.lax.rsqrt(jnp.where(ok, mag2, 1.0)), 0.0)
-    nx, ny = jnp.where(ok, -gx * inv, vx)[:, None], jnp.where(ok, -gy * inv, vy)[:, None]  # (V, 1, lanes, K)
-    lx, ly = jnp.cos(lights)[None, :, None, None], jnp.sin(lights)[None, :, None, None]
-    vx, vy = vx[:, None], vy[:, None]
+    nx, ny = jnp.where(ok, -gx * inv, vx)[..., None], jnp.where(ok, -gy * inv, vy)[..., None]  # (V, lanes, K, 1)
+    lx, ly = jnp.cos(lights), jnp.sin(lights)
+    vx, vy = vx[..., None], vy[..., None]
     nl = nx * lx + ny * ly
     rv = 2 * nl * (nx * vx + ny * vy) - (lx * vx + ly * vy)
-    spec = phong[2] * jnp.exp(phong[3] * jnp.log(jnp.where(rv != 0, jnp.abs(rv), 1.0)))
-    nl_m = jnp.where(ok[:, None], nl, -nl)
+    if power:
+        spec = phong[2] * jax.lax.integer_pow(jnp.abs(rv), power)
+    else:
+        spec = phong[2] * jnp.exp(phong[3] * jnp.log(jnp.where(rv != 0, jnp.abs(rv), 1.0)))
+    nl_m = jnp.where(ok[..., None], nl, -nl)
     front = phong[1] * jnp.maximum(nl, 0.0) + jnp.where((nl > 0) & (rv > 0), spec, 0.0)
     back = phong[1] * jnp.maximum(nl_m, 0.0) + jnp.where((nl_m > 0) & (rv < 0), spec, 0.0)
     return front, back
 
 
-def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, shadow, smooth, eps, bins, alpha):
+def _weights(opacity, depth_before, eps):
+    """Eq 5's w_k = α_k T_k, T_k = exp(−``depth_before``), zero once T_k < ``eps`` (``hairlut.hrir`` ``front_to_back``)."""
+    trans = jnp.exp(-depth_before)
+    return jnp.where(trans >= eps, opacity * trans, 0.0)
+
+
+def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, shadow, smooth, eps, bins, alpha, power=0):
     """``_shade_one``'s per-bin α and re on the kept views (every ``step``-th of ``views_half``, then the same + π),
     each sample's march, normals, light transmittance and Phong power computed once for a view and its mirror
     (:func:`_mirror_phong`), in the march's sample order (the mirror's weights are reversed instead of its samples).
@@ -184,24 +196,36 @@ def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, 
     comes back too (the shading reads its kept views), else on the kept views only and α is None."""
     fields = sector_fields(rho)
     lanes = n_pix * rays
-    march_views = views_half if alpha else views_half[::step]
-    tau, gx, gy, rs, rr, inside = march(fields, g, march_views, lanes, n_steps, fenced=True)
-    w_all, a_all = front_to_back(tau, eps)
+    views = views_half[::step]
+    tau, gx, gy, rs, rr, inside = march(fields, g, views, lanes, n_steps, fenced=True)
+    if alpha and step > 1:  # the other views' α needs the optical depth alone: the ρ corners gathered, no gradient
+        half = views_half.shape[0]
+        rest = np.flatnonzero(np.arange(half) % step)
+        tau_rest = march(fields, g, views_half[rest], lanes, n_steps, fenced=True, depth_only=True)
+        order = np.argsort(np.concatenate([np.arange(0, half, step), rest]))
+        tau = jnp.concatenate([tau, tau_rest])[order]  # every view of views_half, in order
+    # eq 5's weights both ways along each ray from one prefix sum (as a product with the triangular ones: XLA:CPU's
+    # cumsum is a reduce-window): T_k = exp(−Σ_{i<k} τ_i) from the march's side, exp(−Σ_{i>k} τ_i) from the mirror's
+    depth = jnp.matmul(tau, jnp.triu(jnp.ones((n_steps, n_steps), tau.dtype)), precision=HIGHEST)  # Σ_{i≤k} τ_i
+    opacity = -jnp.expm1(-tau)
+    w_all = _weights(opacity, depth - tau, eps)
+    a_all = jnp.sum(w_all, axis=-1)
     if alpha:
-        tau, gx, gy, rs, rr, inside = (x[::step] for x in (tau, gx, gy, rs, rr, inside))
+        opacity, depth = opacity[::step], depth[::step]
         w, a = w_all[::step], a_all[::step]
     else:
         w, a = w_all, a_all
-    views = views_half[::step]
-    w_m, a_m = front_to_back(jnp.flip(tau, axis=(1, 2)), eps)  # the mirror views' own order
-    w_m = jnp.flip(w_m, axis=(1, 2))  # back into the march's order
-    front, back = _mirror_phong(rho, gx, gy, rs, rr, inside, views, lights, phong)  # (Vk, L, lanes, K)
+    w_m = _weights(opacity, depth[..., -1:] - depth, eps)  # the mirror views' weights, in the march's order
+    a_m = jnp.flip(jnp.sum(w_m, axis=-1), axis=-1)  # lanes in the mirror's order
+    front, back = _mirror_phong(rho, gx, gy, rs, rr, inside, views, lights, phong, power)  # (Vk, lanes, K, L)
     if shadow:
         depth = light_depth_grid(fields, g, lights, n_steps, min(n_steps, SHADOW_GRID), fenced=True)
-        t_l = jnp.moveaxis(grid_transmittance(depth, g, views, lanes, n_steps), -1, 1)
+        t_l = grid_transmittance(depth, g, views, lanes, n_steps)  # (Vk, lanes, K, L)
         front, back = front * t_l, back * t_l
-    r = reflectance(a, front, w, phong)
-    r_m = jnp.flip(reflectance(jnp.flip(a_m, axis=-1), back, w_m, phong), axis=-1)  # lanes back to the mirror's order
+    # eq 5's k_a α + Σ_k w_k direct_k (``hairlut.hrir`` ``reflectance``) in this layout: (Vk, L, lanes)
+    r = phong[0] * a[:, None] + jnp.einsum("vnkl,vnk->vln", front, w, precision=HIGHEST)
+    r_m = phong[0] * a_m[:, None] + jnp.flip(jnp.einsum("vnkl,vnk->vln", back, w_m, precision=HIGHEST), axis=-1)  # lanes in
+    # the mirror's order
     S = smooth_matrix(g[_SIGMA_PX], n_pix) if smooth else None
     ab, rb = (to_pixels(jnp.concatenate(x, axis=0), n_pix, rays, S) for x in ((a, a_m), (r, r_m)))
     binned = tuple(x.reshape(*x.shape[:-1], bins, -1).sum(-1) for x in (ab, rb))
@@ -209,10 +233,10 @@ def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, 
 
 
 @partial(jax.jit, static_argnames=("n_views", "n_pix", "n_steps", "rays", "m", "shade_rays", "shade_steps", "shadow", "smooth",
-                                   "eps", "mirror", "bins"))
+                                   "eps", "mirror", "bins", "power"))
 def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int, n_pix: int, n_steps: int, rays: int, m: int,
                      shade_rays: int, shade_steps: int, shadow: bool = True, smooth: bool = True, eps: float = 1e-4,
-                     mirror: bool = True, bins: int = 8):
+                     mirror: bool = True, bins: int = 8, power: int = 0):
     """The scene bake's arrays of B sectors: α (B, V/2, P) on the views 2πi/V, i < V/2, and per bin of P/Q
     pixels α (B, Vr, Q) and premultiplied re (B, Vr, L, Q) on the ratio's views (:func:`bake_view_grid`).
 
@@ -225,7 +249,7 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
     trace's), on the kept views only; when the kept views' mirrors are kept too (``mirror``), each view and its
     mirror share samples, light lookups and Phong powers (:func:`_bake_one`), and at the trace's own rays and
     steps with ``m`` = 0 the one march gives both α and the shading (the α march above is not run);
-    otherwise :func:`_shade_one`."""
+    otherwise :func:`_shade_one`.  ``power``: the Phong exponent when it is that integer (:func:`_mirror_phong`), else 0."""
     lanes = n_pix * rays
     half = n_views // 2
     sr, sk = shade_rays or rays, shade_steps or n_steps
@@ -235,7 +259,7 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
         # the V/2 views as the host computes them (float64, then rounded): the kept ones bitwise views_kept
         views = jnp.asarray(2 * np.pi * np.arange(half) / n_views, rho.dtype) if shared else views_kept
         shade = partial(_bake_one, n_pix=n_pix, n_steps=sk, rays=sr, step=half // views_kept.shape[0] if shared else 1,
-                        shadow=shadow, smooth=smooth, eps=eps, bins=bins, alpha=shared)
+                        shadow=shadow, smooth=smooth, eps=eps, bins=bins, alpha=shared, power=power)
         alpha, ab, rb = jax.lax.map(lambda a: shade(a[0], a[1], views, lights, phong), (rho, geom))
     else:
         shade = partial(_shade_one, n_pix=n_pix, n_steps=sk, rays=sr, shadow=shadow, smooth=smooth, eps=eps, mirror=False,
@@ -243,14 +267,16 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
         ab, rb = jax.lax.map(lambda a: shade(a[0], a[1], views_kept, lights, phong), (rho, geom))
     if m:
         def nodes(r, g):  # σ_t ρ 2R/m at the m × m node grid (x major): the view-0 march's samples, x reversed
-            return jnp.flip(march(sector_fields(r), g, jnp.zeros(1, rho.dtype), m, m)[0][0], axis=1).T.reshape(-1)
+            return jnp.flip(march(sector_fields(r), g, jnp.zeros(1, rho.dtype), m, m, fenced=True, depth_only=True)[0],
+                            axis=1).T.reshape(-1)
 
         tau_nodes = jax.lax.map(lambda a: nodes(a[0], a[1]), (rho, geom))  # (B, m²)
         tau = jnp.matmul(tau_nodes, proj, precision=HIGHEST).reshape(-1, half, lanes) * (m / n_steps)
         alpha = -jnp.expm1(-tau)
     elif not shared:  # the tracer's march on the V/2 views, eq 5's Σ_k w_k with its cut-off
         views = 2 * jnp.pi * jnp.arange(half, dtype=rho.dtype) / (2 * half)
-        alpha = jax.lax.map(lambda a: front_to_back(march(sector_fields(a[0]), a[1], views, lanes, n_steps)[0], eps)[1],
+        alpha = jax.lax.map(lambda a: front_to_back(march(sector_fields(a[0]), a[1], views, lanes, n_steps, fenced=True,
+                                                          depth_only=True), eps)[1],
                             (rho, geom))
     alpha = to_pixels(alpha, n_pix, rays)
     if smooth:
@@ -306,6 +332,7 @@ def bake_view_grid(density, geometry, recipe: dict, *, views: int, lights: int, 
     lt = jnp.asarray(2 * np.pi * np.arange(L) / L, jnp.float32)
     ph = jnp.asarray(phong, jnp.float32)
     settings = dict(n_views=V, n_pix=P, n_steps=cfg["n_steps"], rays=cfg["rays"], m=m, shade_rays=sr, shade_steps=sk,
-                    shadow=bool(cfg["shadow"]), smooth=cfg["smooth"], eps=cfg["eps"], mirror=mirror, bins=Q)
+                    shadow=bool(cfg["shadow"]), smooth=cfg["smooth"], eps=cfg["eps"], mirror=mirror, bins=Q,
+                    power=int(phong[3]) if phong[3] == int(phong[3]) and 1 <= phong[3] <= 64 else 0)
     kernel = lambda r, gg: bake_grid_kernel(r, gg, _PROJ[key], vk, lt, ph, **settings)  # noqa: E731
     return _live_calls(kernel, rho, g, ((V // 2, P), (Vr, Q), (Vr, L, Q)), 1, "bake_view_grid", progress)
