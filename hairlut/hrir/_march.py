@@ -113,9 +113,11 @@ def sample(fields, g, qx, qy, fenced: bool = False, density_only: bool = False):
     ey = g[CY] + sb * qx + cb * qy
     ux, uy = ex, ey / g[ASPECT]
     v = jnp.sqrt(ux * ux + uy * uy)
-    phi = atan2(uy, ux)
-    turn = phi - g[PHASE]
-    s = (turn - 2 * jnp.pi * jnp.floor(turn / (2 * jnp.pi))) / g[DU]  # mod 2π (XLA:CPU's rem is a scalar fmod call)
+    if fenced:  # vectorising forms; unfenced, XLA fuses them into the gather, once per gathered value (slower)
+        turn = atan2(uy, ux) - g[PHASE]
+        s = (turn - 2 * jnp.pi * jnp.floor(turn / (2 * jnp.pi))) / g[DU]  # mod 2π (XLA:CPU's rem: a scalar fmod)
+    else:
+        s = jnp.mod(jnp.arctan2(uy, ux) - g[PHASE], 2 * jnp.pi) / g[DU]
     r = (v - g[V0]) / (g[V1] - g[V0])
     inside = (s < 1.0) & (r >= 0.0) & (r <= 1.0)
     fi, fj = s * n_s - 0.5, r * n_r - 0.5
