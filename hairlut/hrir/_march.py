@@ -252,12 +252,35 @@ def view_points(g, views, n_lanes: int, n_steps: int):
     return -dy * t + dx * z, dx * t + dy * z
 
 
-def grid_transmittance(depth, g, views, n_lanes: int, n_steps: int):
+def grid_transmittance(depth, g, views, n_lanes: int, n_steps: int, coarse: int = 1):
     """exp(−optical depth toward each light) at every view sample, from :func:`light_depth_grid`'s
-    (M, M, L) nodes: (V, lanes, K, L)."""
+    (M, M, L) nodes: (V, lanes, K, L).
+
+    ``coarse`` > 1 (dividing ``n_lanes``): looked up on n_lanes/coarse lanes only (each the centre of ``coarse``
+    adjacent lanes: the pixel centres when it is the rays per pixel) and linearly interpolated across the lanes
+    between them (:func:`lane_upsample`), a ``coarse``-th of the gathers and exponentials; not the tracer's values
+    (the scene bake's opt-in ``coarse_shadow``; its error is measured in the README's scene-bake paragraph)."""
     m = depth.shape[0]
     R = g[EXTENT]
-    qx, qy = view_points(g, views, n_lanes, n_steps)
+    qx, qy = view_points(g, views, n_lanes // coarse, n_steps)
     fi, fj = (qx + R) / (2 * R) * m - 0.5, (qy + R) / (2 * R) * m - 0.5
     # one view at a time: the loop boundary stops XLA fusing the field into the gather (10x slower)
-    return jax.lax.map(lambda a: jnp.exp(-bilerp_nodes(depth, a[0], a[1])), (fi, fj))
+    if coarse == 1:
+        return jax.lax.map(lambda a: jnp.exp(-bilerp_nodes(depth, a[0], a[1])), (fi, fj))
+    # fenced: the interpolation reads each looked-up value three times, and XLA:CPU would redo the gather per read
+    t = fence(lambda fi, fj: jax.lax.map(lambda a: jnp.exp(-bilerp_nodes(depth, a[0], a[1])), (fi, fj)), fi, fj)
+    return lane_upsample(t, coarse, axis=1)
+
+
+def lane_upsample(t, f: int, axis: int):
+    """Linear interpolation along ``axis`` from n cells to the n·f samples they hold (sample r of a cell sits
+    (r + ½)/f − ½ cells from its centre), by slices (no gather); beyond the first and last centre the edge value."""
+    if f == 1:
+        return t
+    n = t.shape[axis]
+    cut = lambda a, b: jax.lax.slice_in_dim(t, a, b, axis=axis)  # noqa: E731
+    prev = jnp.concatenate([cut(0, 1), cut(0, n - 1)], axis=axis)
+    nxt = jnp.concatenate([cut(1, n), cut(n - 1, n)], axis=axis)
+    offs = [(r + 0.5) / f - 0.5 for r in range(f)]
+    fine = jnp.stack([(1 - abs(o)) * t + abs(o) * (prev if o < 0 else nxt) for o in offs], axis=axis + 1)
+    return fine.reshape(*t.shape[:axis], n * f, *t.shape[axis + 1:])

@@ -188,12 +188,14 @@ def _weights(opacity, depth_before, eps):
     return jnp.where(trans >= eps, opacity * trans, 0.0)
 
 
-def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, shadow, smooth, eps, bins, alpha, power=0):
+def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, shadow, smooth, eps, bins, alpha, power=0,
+              shadow_coarse=1, shadow_grid=0):
     """``_shade_one``'s per-bin α and re on the kept views (every ``step``-th of ``views_half``, then the same + π),
     each sample's march, normals, light transmittance and Phong power computed once for a view and its mirror
     (:func:`_mirror_phong`), in the march's sample order (the mirror's weights are reversed instead of its samples).
     With ``alpha``, the march runs on every view of ``views_half`` and α (V/2, lanes) of all of them (eq 5's Σ_k w_k)
-    comes back too (the shading reads its kept views), else on the kept views only and α is None."""
+    comes back too (the shading reads its kept views), else on the kept views only and α is None.  ``shadow_coarse``,
+    ``shadow_grid``: :func:`bake_view_grid`'s (1 and 0: the tracer's light lookup)."""
     fields = sector_fields(rho)
     lanes = n_pix * rays
     views = views_half[::step]
@@ -219,8 +221,8 @@ def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, 
     a_m = jnp.flip(jnp.sum(w_m, axis=-1), axis=-1)  # lanes in the mirror's order
     front, back = _mirror_phong(rho, gx, gy, rs, rr, inside, views, lights, phong, power)  # (Vk, lanes, K, L)
     if shadow:
-        depth = light_depth_grid(fields, g, lights, n_steps, min(n_steps, SHADOW_GRID), fenced=True)
-        t_l = grid_transmittance(depth, g, views, lanes, n_steps)  # (Vk, lanes, K, L)
+        depth = light_depth_grid(fields, g, lights, n_steps, shadow_grid or min(n_steps, SHADOW_GRID), fenced=True)
+        t_l = grid_transmittance(depth, g, views, lanes, n_steps, shadow_coarse)  # (Vk, lanes, K, L)
         front, back = front * t_l, back * t_l
     # eq 5's k_a α + Σ_k w_k direct_k (``hairlut.hrir`` ``reflectance``) in this layout: (Vk, L, lanes)
     r = phong[0] * a[:, None] + jnp.einsum("vnkl,vnk->vln", front, w, precision=HIGHEST)
@@ -233,10 +235,10 @@ def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, 
 
 
 @partial(jax.jit, static_argnames=("n_views", "n_pix", "n_steps", "rays", "m", "shade_rays", "shade_steps", "shadow", "smooth",
-                                   "eps", "mirror", "bins", "power"))
+                                   "eps", "mirror", "bins", "power", "shadow_coarse", "shadow_grid"))
 def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int, n_pix: int, n_steps: int, rays: int, m: int,
                      shade_rays: int, shade_steps: int, shadow: bool = True, smooth: bool = True, eps: float = 1e-4,
-                     mirror: bool = True, bins: int = 8, power: int = 0):
+                     mirror: bool = True, bins: int = 8, power: int = 0, shadow_coarse: int = 1, shadow_grid: int = 0):
     """The scene bake's arrays of B sectors: α (B, V/2, P) on the views 2πi/V, i < V/2, and per bin of P/Q
     pixels α (B, Vr, Q) and premultiplied re (B, Vr, L, Q) on the ratio's views (:func:`bake_view_grid`).
 
@@ -249,7 +251,8 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
     trace's), on the kept views only; when the kept views' mirrors are kept too (``mirror``), each view and its
     mirror share samples, light lookups and Phong powers (:func:`_bake_one`), and at the trace's own rays and
     steps with ``m`` = 0 the one march gives both α and the shading (the α march above is not run);
-    otherwise :func:`_shade_one`.  ``power``: the Phong exponent when it is that integer (:func:`_mirror_phong`), else 0."""
+    otherwise :func:`_shade_one` (the tracer's light lookup).  ``power``: the Phong exponent when it is that integer
+    (:func:`_mirror_phong`), else 0.  ``shadow_coarse``, ``shadow_grid``: :func:`bake_view_grid`'s, on the mirror path."""
     lanes = n_pix * rays
     half = n_views // 2
     sr, sk = shade_rays or rays, shade_steps or n_steps
@@ -259,7 +262,8 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
         # the V/2 views as the host computes them (float64, then rounded): the kept ones bitwise views_kept
         views = jnp.asarray(2 * np.pi * np.arange(half) / n_views, rho.dtype) if shared else views_kept
         shade = partial(_bake_one, n_pix=n_pix, n_steps=sk, rays=sr, step=half // views_kept.shape[0] if shared else 1,
-                        shadow=shadow, smooth=smooth, eps=eps, bins=bins, alpha=shared, power=power)
+                        shadow=shadow, smooth=smooth, eps=eps, bins=bins, alpha=shared, power=power,
+                        shadow_coarse=shadow_coarse, shadow_grid=shadow_grid)
         alpha, ab, rb = jax.lax.map(lambda a: shade(a[0], a[1], views, lights, phong), (rho, geom))
     else:
         shade = partial(_shade_one, n_pix=n_pix, n_steps=sk, rays=sr, shadow=shadow, smooth=smooth, eps=eps, mirror=False,
@@ -289,7 +293,7 @@ _PROJ: dict[tuple, jax.Array] = {}  # one entry: (m, V, lanes, steps) → projec
 
 def bake_view_grid(density, geometry, recipe: dict, *, views: int, lights: int, ratio_step: int = 1, bins: int,
                    alpha_grid: int, shade_rays: int | None = None, shade_steps: int | None = None,
-                   progress=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                   shadow_coarse: int = 1, shadow_grid: int = 0, progress=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """What the scene table stores, computed directly: α (N, V/2, P) on θv,i = 2πi/V, i < V/2, and per bin
     of P/``bins`` pixels α (N, Vr, Q) and premultiplied re (N, Vr, L, Q) on the ratio's views θv,i,
     i = 0, ``ratio_step``, 2·ratio_step, … (Vr = V/ratio_step) and θl,j = 2πj/L (:func:`bake_grid_kernel`).
@@ -299,7 +303,12 @@ def bake_view_grid(density, geometry, recipe: dict, *, views: int, lights: int, 
     matrix product for all views instead of a polar-coordinate march per view; its error falls with
     ``alpha_grid``: tests/test_view_grid.py states the bound), re on the kept views only and, when
     ``shade_rays`` / ``shade_steps`` are given, with those rays per pixel and march steps instead
-    of the recipe's.  All-zero sectors give 0 and are not traced."""
+    of the recipe's.  The light transmittance (eq 5's self-shadowing, ``shadow="grid"``) is the tracer's unless
+    ``shadow_coarse`` > 1 (looked up on every ``shadow_coarse``-th lane's centre and interpolated across the lanes,
+    ``hairlut.hrir`` ``grid_transmittance``) or ``shadow_grid`` > 0 (the Cartesian light-depth grid's side M instead
+    of min(steps, 128)); both apply where a view and its mirror are shaded together (ratio_step dividing V/2), and
+    their error against the converged truth is the README's scene-bake paragraph's.  All-zero sectors give 0 and are
+    not traced."""
     from ._direct import _check_inputs, _settings
 
     V, L = check_int(views, "views", 2), check_int(lights, "lights", 1)
@@ -317,6 +326,12 @@ def bake_view_grid(density, geometry, recipe: dict, *, views: int, lights: int, 
         raise errors.ValidationError("bins", Q, f"must divide the pixels ({P})")
     sr = cfg["rays"] if shade_rays is None else check_int(shade_rays, "shade_rays", 1)
     sk = cfg["n_steps"] if shade_steps is None else check_int(shade_steps, "shade_steps", 2)
+    coarse = check_int(shadow_coarse, "shadow_coarse", 1)
+    if (P * sr) % coarse:
+        raise errors.ValidationError("shadow_coarse", coarse, f"must divide the shading lanes ({P * sr})")
+    grid = check_int(shadow_grid, "shadow_grid", 0)
+    if grid == 1:
+        raise errors.ValidationError("shadow_grid", grid, "0 (min(steps, 128)) or a grid side ≥ 2")
     n = len(np.asarray(density))
     rho, g, _, _ = _check_inputs(density, geometry, np.zeros(n), np.zeros((n, 1)))
     key = (m, V, P * cfg["rays"], cfg["n_steps"])
@@ -333,6 +348,7 @@ def bake_view_grid(density, geometry, recipe: dict, *, views: int, lights: int, 
     ph = jnp.asarray(phong, jnp.float32)
     settings = dict(n_views=V, n_pix=P, n_steps=cfg["n_steps"], rays=cfg["rays"], m=m, shade_rays=sr, shade_steps=sk,
                     shadow=bool(cfg["shadow"]), smooth=cfg["smooth"], eps=cfg["eps"], mirror=mirror, bins=Q,
-                    power=int(phong[3]) if phong[3] == int(phong[3]) and 1 <= phong[3] <= 64 else 0)
+                    power=int(phong[3]) if phong[3] == int(phong[3]) and 1 <= phong[3] <= 64 else 0,
+                    shadow_coarse=coarse, shadow_grid=grid)
     kernel = lambda r, gg: bake_grid_kernel(r, gg, _PROJ[key], vk, lt, ph, **settings)  # noqa: E731
     return _live_calls(kernel, rho, g, ((V // 2, P), (Vr, Q), (Vr, L, Q)), 1, "bake_view_grid", progress)
