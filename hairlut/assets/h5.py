@@ -24,6 +24,14 @@ still read.  Every dataset (scales included) is chunked with gzip + shuffle +
 fletcher32, and the file is written with ``libver=("earliest", "v110")``.
 Nothing time-dependent is stored except ``created``, which honours
 ``SOURCE_DATE_EPOCH``; so the same recipe gives a bitwise-identical file.
+
+This module holds the table types (:class:`Axis`, :class:`Variable`,
+:class:`Table`), the writer (:func:`write_table`) and the validating readers
+(:func:`open_table`, :func:`read_table`, :func:`dims_of`, :func:`check_file`).
+A sharded asset's virtual tables are read from its parts by
+:func:`hairlut.assets.virtual.read_virtual`, and a failed read is mapped to its
+error by :func:`hairlut.assets.trust.data_fault`; both are importable from here
+too, and ``read_table`` calls ``read_virtual`` through this module's name.
 """
 
 from __future__ import annotations
@@ -45,10 +53,10 @@ from .._version import __version__
 from .atomic import atomic_path, ensure_space, write_bytes
 from .chunks import ChunkWriter
 from .kinds import KINDS, SCHEMA, SUPPORTED_SCHEMAS
-from .layout import AXES_GROUP, NAME_ATTR, check_layout, disk_name, layout, table  # noqa: F401  (re-exported)
+from .layout import AXES_GROUP, NAME_ATTR, _text, check_layout, disk_name, layout, table  # noqa: F401  (re-exported)
 from .recipe import canonical_json, recipe_hash
-from .sources import check_sources, file_stamp, printf_blocks
-from .trust import check_dataset, check_links, check_readable, finite_fault, guard, table_shape
+from .trust import check_dataset, check_links, check_readable, data_fault, finite_fault, guard, table_shape
+from .virtual import read_virtual  # read_table looks it up here at call time (tests patch it)
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 LIBVER = ("earliest", "v110")
@@ -243,10 +251,6 @@ def write_table(
 # ----------------------------------------------------------------------------- reading
 
 
-def _text(value) -> str:
-    return value.decode("utf-8") if isinstance(value, bytes) else str(value)
-
-
 def check_file(path: str | os.PathLike, signature: bytes, what: str) -> Path:
     """Raise unless ``path`` is an existing regular file that starts with ``signature``."""
     path = Path(path)
@@ -260,22 +264,6 @@ def check_file(path: str | os.PathLike, signature: bytes, what: str) -> Path:
         shown = "empty file" if not head else f"starts with {head[:8]!r}"
         raise errors.FormatError(path, f"not {what} ({shown})")
     return path
-
-
-def data_fault(path, ds: h5py.Dataset, exc: Exception) -> errors.CorruptAssetError:
-    """Map an h5py read failure of ``ds`` to the hairlut error that describes it.
-
-    hairlut's filter pipeline is shuffle → gzip → fletcher32, so on read the
-    checksum is the first filter to run: a filter failure on such a dataset is a
-    checksum failure.
-    """
-    msg = str(exc)
-    plist = ds.id.get_create_plist()
-    last = plist.get_filter(plist.get_nfilters() - 1)[0] if plist.get_nfilters() else None
-    if "checksum" in msg.lower() or ("filter" in msg and last == h5py.h5z.FILTER_FLETCHER32):
-        return errors.ChecksumError(path, f"dataset {ds.name.lstrip('/')!r} fails its fletcher32 checksum")
-    first = msg.splitlines()[0] if msg else type(exc).__name__
-    return errors.CorruptAssetError(path, f"dataset {ds.name.lstrip('/')!r} cannot be read ({first})")
 
 
 def _open(path: Path) -> h5py.File:
@@ -447,108 +435,3 @@ def read_table(path: str | os.PathLike, kind: str | None = None, required: Itera
             axes=axes,
             variables=variables,
         )
-
-
-# ----------------------------------------------------------------------------- virtual tables, read from their parts
-
-
-def _box(space) -> tuple[tuple, tuple] | None:
-    """(start, count) of the one hyperslab block a dataspace selects, else None."""
-    if space.get_select_type() == h5py.h5s.SEL_HYPERSLABS and space.is_regular_hyperslab():
-        start, _, count, block = space.get_regular_hyperslab()
-        if all(c == 1 for c in count):
-            return tuple(start), tuple(block)
-    return None
-
-
-def _plan(ds: h5py.Dataset, found) -> list | None:
-    """(part path, its stamp when checked, source dataset, first row, rows) for each block of virtual table ``ds``, the
-    rows in order and covering [0, n) once, every source a part that :func:`~.sources.check_sources` accepted
-    (``found``) with a plain dataset of exactly the block's shape; None for any other layout (HDF5 then reads it).
-
-    hairlut's virtual tables (:func:`hairlut.parts._mappings`) are one printf mapping whose block ``b`` copies the
-    whole source dataset of part ``b`` to rows ``[b·block, (b+1)·block)`` and one fixed mapping of the last part."""
-    shape = table_shape(ds)
-    if not shape or ds.name in found.faults or ds.name not in found.tables:
-        return None
-    rest, sources, plan = tuple(shape[1:]), iter(found.tables[ds.name]), []
-    for vs, n in zip(ds.virtual_sources(), found.counts[ds.name]):
-        space = vs.vspace
-        if space.get_select_type() != h5py.h5s.SEL_HYPERSLABS or not space.is_regular_hyperslab():
-            return None
-        start, stride, count, block = space.get_regular_hyperslab()
-        if tuple(start[1:]) != (0,) * len(rest) or tuple(block[1:]) != rest or any(c != 1 for c in count[1:]):
-            return None
-        if n != (printf_blocks(ds, vs) if count[0] == h5py.h5s.UNLIMITED else 1) or count[0] not in (1, h5py.h5s.UNLIMITED):
-            return None  # block files beyond the pattern's (HDF5 reads them too), or several boxes
-        whole = (int(block[0]), *rest)  # each source dataset: all of it, this shape
-        if vs.src_space.get_select_type() != h5py.h5s.SEL_ALL and _box(vs.src_space) != ((0,) * len(shape), whole):
-            return None
-        for b in range(n):
-            where, dset, _ = next(sources)
-            src = found.files.get(where)
-            if where == "." or src is None or src.fault is not None or src.redirect is not None \
-                    or src.datasets.get(dset) != whole:
-                return None
-            plan.append((src.path, src.stamp, dset, int(start[0]) + b * int(stride[0]), whole[0]))
-    plan.sort(key=lambda p: p[3])
-    ends = [0] + [r0 + n for *_, r0, n in plan]
-    if [p[3] for p in plan] != ends[:-1] or ends[-1] != shape[0]:
-        return None  # gaps or overlaps: HDF5's fill value and precedence rules apply
-    return plan
-
-
-def read_virtual(path: Path, f: h5py.File, tables: dict) -> dict:
-    """The virtual tables of ``tables`` (name -> dataset of asset ``f``) that are plain row blocks of the asset's
-    parts (:func:`_plan`), read from the parts themselves: each part opened once, every table's block read into
-    its rows of one preallocated array, the part closed.  HDF5 reading the same tables through their virtual
-    mappings looks for every block file again for each table and each read (its printf expansion): about
-    0.3 ms per part per table.  Only parts that :func:`~.sources.check_sources` accepted are opened (the tables
-    were validated with them, :func:`check_dataset`); the part datasets' filters verify their fletcher32
-    checksums as they are read, a fault naming the part (:func:`data_fault`); the bytes are those HDF5 gives
-    (the same type conversion, into an array of the virtual table's dtype).  A table of another layout is left
-    out, for HDF5 to read."""
-    virtual = {name: ds for name, ds in tables.items() if ds.is_virtual}
-    if not virtual:
-        return {}
-    with guard(path):
-        found = check_sources(path, f, _text(f.attrs["recipe_hash"]))
-        plans = {name: _plan(ds, found) for name, ds in virtual.items()}
-    out, by_part = {}, {}
-    for name, plan in plans.items():
-        if plan is None:
-            continue
-        ds = virtual[name]
-        out[name] = np.empty(table_shape(ds), dtype=ds.dtype)
-        for part, st, dset, row, rows in plan:
-            by_part.setdefault((part, st), []).append((out[name], dset, row, rows))
-    for (part, st), reads in by_part.items():
-        _read_part(path, part, st, reads)
-    return out
-
-
-def _read_part(path: Path, part: Path, checked: tuple, reads: list) -> None:
-    """Read each (array, dataset, first row, rows) of ``reads`` from part file ``part`` into the array's rows
-    (HDF5's low-level calls: one file open, then one dataset open and read per table), unless the part is gone or
-    its :func:`~.sources.file_stamp` is no longer ``checked``, the one its check saw."""
-    now = file_stamp(part)
-    if now is None:
-        raise errors.AssetNotFoundError(part, f"part of {path} is missing")
-    if now != checked:
-        raise errors.CorruptAssetError(part, f"part of {path} changed since it was checked; open the asset again")
-    try:
-        fid = h5py.h5f.open(os.fsencode(part), h5py.h5f.ACC_RDONLY)
-    except OSError as exc:  # gone or changed since it was stamped
-        raise errors.CorruptAssetError(part, f"part of {path} cannot be opened ({str(exc).splitlines()[0]})") from None
-    try:
-        with guard(part):
-            for arr, dset, row, rows in reads:
-                did = h5py.h5d.open(fid, dset.encode())
-                try:  # rows [row, row + rows) of a C-ordered array: contiguous, the part dataset's shape
-                    did.read(h5py.h5s.ALL, h5py.h5s.ALL, arr[row:row + rows])
-                except OSError as exc:
-                    raise data_fault(part, h5py.Dataset(did), exc) from None
-                finally:
-                    did.close()
-    finally:
-        fid.close()

@@ -17,7 +17,9 @@ inside itself.  Readers (:func:`hairlut.assets.open_table`, ``read_table``,
 * **shapes larger than the memory budget** (:mod:`hairlut.budget`), before a read;
 * metadata that HDF5 cannot decode (a flipped bit): :func:`guard` turns the
   library's KeyError / OSError / ValueError / RuntimeError ... into
-  :class:`~hairlut.errors.CorruptAssetError`.
+  :class:`~hairlut.errors.CorruptAssetError`;
+* data that HDF5 cannot read (a chunk failing its fletcher32 checksum): :func:`data_fault`
+  maps the read's failure to :class:`~hairlut.errors.ChecksumError` or ``CorruptAssetError``.
 
 A flipped bit can still crash the HDF5 C library itself (a double free), which no
 Python code can catch; in a fuzz of every 13th metadata byte of a small table that
@@ -186,6 +188,22 @@ def check_readable(path, sizes: dict[str, h5py.Dataset], limit: int | None = Non
             path, f"declares {budget.describe(total)} of tables (the largest, {biggest!r}, is {ds.shape} {ds.dtype}: "
                   f"{budget.describe(declared_nbytes(ds))}), above the memory limit of {budget.describe(cap)} "
                   f"({'the limit= argument' if limit is not None else budget.source()})")
+
+
+def data_fault(path, ds: h5py.Dataset, exc: Exception) -> errors.CorruptAssetError:
+    """Map an h5py read failure of ``ds`` to the hairlut error that describes it.
+
+    hairlut's filter pipeline is shuffle → gzip → fletcher32, so on read the
+    checksum is the first filter to run: a filter failure on such a dataset is a
+    checksum failure.
+    """
+    msg = str(exc)
+    plist = ds.id.get_create_plist()
+    last = plist.get_filter(plist.get_nfilters() - 1)[0] if plist.get_nfilters() else None
+    if "checksum" in msg.lower() or ("filter" in msg and last == h5py.h5z.FILTER_FLETCHER32):
+        return errors.ChecksumError(path, f"dataset {ds.name.lstrip('/')!r} fails its fletcher32 checksum")
+    first = msg.splitlines()[0] if msg else type(exc).__name__
+    return errors.CorruptAssetError(path, f"dataset {ds.name.lstrip('/')!r} cannot be read ({first})")
 
 
 def finite_fault(data: np.ndarray) -> str | None:
