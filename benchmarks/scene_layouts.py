@@ -91,8 +91,6 @@ def layouts(args) -> list[dict]:
     t = recipe["table"]
     # --bake: the scene's own layout only, computed by bake_view_grid at each (alpha_grid, shade_rays, shade_steps)
     runs = [(L, None) for L in args.lights] if not args.bake else [(t["lights"], kw) for kw in args.bake]
-    if args.bake and args.shadow_coarse > 1:  # each bake setting also with the coarse light lookup (same run)
-        runs = [(L, (*kw, c)) for L, kw in runs for c in (1, args.shadow_coarse)]
     with tempfile.TemporaryDirectory() as tmp:
         for L, knobs in runs:
             t0 = time.perf_counter()
@@ -100,15 +98,14 @@ def layouts(args) -> list[dict]:
                 a, re = trace_view_grid(dens[live], geom[live], full, views=V, lights=L)
                 layouts_here = LAYOUTS
             else:
-                ag, sr, sk, *sc_ = knobs
+                ag, sr, sk = knobs
                 half_b, ab, rb = bake_view_grid(dens[live], geom[live], full, views=V, lights=L, ratio_step=t["ratio_step"],
                                                 bins=t["shading_pixels"], alpha_grid=ag, shade_rays=sr or None,
-                                                shade_steps=sk or None, shadow_coarse=(sc_ or [1])[0])
+                                                shade_steps=sk or None)
                 layouts_here = [(t["terms"], t["shading_pixels"], t["dtype"], t["ratio_step"])]
             trace_s = time.perf_counter() - t0
             print(f"traced {live.size} rows on {V} views × {L} lights in {trace_s:.1f} s"
-                  + (f" (bake_view_grid alpha_grid={ag}, shade_rays={sr}, shade_steps={sk}"
-                     + (f", shadow_coarse={sc_[0]})" if sc_ else ")") if knobs else ""), flush=True)
+                  + (f" (bake_view_grid alpha_grid={ag}, shade_rays={sr}, shade_steps={sk})" if knobs else ""), flush=True)
             for K, Q, dt, step in layouts_here:
                 if 2 * K + 1 > L or full["trace"]["pixels"] % Q:
                     continue
@@ -129,8 +126,7 @@ def layouts(args) -> list[dict]:
                 raw = half.nbytes + coef.nbytes + row.nbytes
                 records.append({"method": "scene", "knobs": f"views={V}, lights={L}, terms={K}, shading_pixels={Q}, {dt}, "
                                                           f"ratio_step={step}"
-                                                          + (f", alpha_grid={ag}, shade_rays={sr}, shade_steps={sk}"
-                                                             + (f", shadow_coarse={sc_[0]}" if sc_ else "") if knobs else ""),
+                                                          + (f", alpha_grid={ag}, shade_rays={sr}, shade_steps={sk}" if knobs else ""),
                                 "bake_knobs": " ".join(map(str, knobs)) if knobs else None,
                                 "views": V, "lights": L, "terms": K, "shading_pixels": Q, "dtype": dt, "ratio_step": step,
                                 "frame_ms": ms, "bake_s": trace_s + comp_s, "bytes": disk, "raw_bytes": raw,
@@ -140,7 +136,7 @@ def layouts(args) -> list[dict]:
                 print(records[-1], flush=True)
     print(f"\n## Scene-table layouts of {args.scene.name} ({live.size} of {len(dens)} sectors live) against the "
           f"converged truth ({truth_s:.1f} s to trace)\n")
-    print(table(records, [("lights", "L", "d"), ("bake_knobs", "alpha_grid, shade_rays, shade_steps[, shadow_coarse]", "s"), ("terms", "K", "d"), ("shading_pixels", "Q", "d"), ("dtype", "dtype", "s"),
+    print(table(records, [("lights", "L", "d"), ("bake_knobs", "alpha_grid, shade_rays, shade_steps", "s"), ("terms", "K", "d"), ("shading_pixels", "Q", "d"), ("dtype", "dtype", "s"),
                           ("ratio_step", "ratio step", "d"),
                           ("re_rel_l2", "re", ".3f"), ("alpha_rel_l2", "α", ".3f"), ("coverage_rel_l2", "coverage", ".3f"),
                           ("alpha_bias", "mean-α bias", "+.3f"), ("frame_ms", "maps ms", ".1f"),
@@ -177,8 +173,6 @@ def paper_subset(args) -> list[dict]:
     V, Q, K, step = t["views"], t["shading_pixels"], t["terms"], t["ratio_step"]
     settings = [dict(alpha_grid=t["alpha_grid"], shade_rays=t["shade_rays"], shade_steps=t["shade_steps"])]
     settings += [dict(zip(("alpha_grid", "shade_rays", "shade_steps"), f)) for f in args.fast]
-    if args.shadow_coarse > 1:  # each setting also with the coarse light lookup (same run)
-        settings = [{**kw, "shadow_coarse": c} for kw in settings for c in (1, args.shadow_coarse)]
 
     def cpu(fn):
         fn()  # compile on the timed shapes
@@ -196,7 +190,6 @@ def paper_subset(args) -> list[dict]:
             (half, ab, rb), c, w = cpu(lambda: bake_view_grid(dens[pick], geom[pick], full, views=V, lights=L,
                                                               ratio_step=step, bins=Q, **{k: v or None for k, v in kw.items()
                                                                                           if k in ("shade_rays", "shade_steps")},
-                                                              shadow_coarse=kw.get("shadow_coarse", 1),
                                                               alpha_grid=kw["alpha_grid"]))
             coef = ratio_terms(ab, rb, V, K, step)
             rows.append((", ".join(f"{k}={v}" for k, v in kw.items()), c, w, rel(half, half_ref), rel(coef, coef_ref)))
@@ -237,9 +230,6 @@ def main(argv=None):
     ap.add_argument("--bake", type=int, nargs=3, action="append", default=[], metavar=("ALPHA_GRID", "RAYS", "STEPS"),
                     help="without --paper-subset: only the scene's own layout, baked by bake_view_grid at these "
                          "table.alpha_grid, shade_rays, shade_steps (0: the trace's), against the converged truth (repeatable)")
-    ap.add_argument("--shadow-coarse", type=int, default=1, metavar="N",
-                    help="with --bake or --paper-subset: run every bake setting also with bake_view_grid's shadow_coarse=N "
-                         "(the light transmittance looked up on every N-th lane's centre, interpolated between)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
     return paper_subset(args) if args.paper_subset else layouts(args)

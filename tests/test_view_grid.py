@@ -110,45 +110,45 @@ def test_bake_grid_coarse_shading_is_the_coarse_tracer(sectors):
     np.testing.assert_allclose(rb, rb_ref, atol=1e-5, rtol=0)
 
 
-def test_lane_upsample_is_linear_interpolation():
-    """grid_transmittance's coarse lanes: a linear ramp of cell centres comes back as the ramp at the fine samples
-    (away from the edges, where the edge value is held)."""
+def test_shading_of_the_live_samples_is_the_dense_contraction(sectors):
+    """_shade_weighted (the bake's compacted shading) against the dense form built from hairlut.hrir's own pieces
+    (Phong at every sample, the light lookup at every sample, the weights' contraction over all steps), for a chunk
+    that divides nothing (many loop steps, a partial last one) and one larger than the live samples (one step)."""
+    import jax
     import jax.numpy as jnp
-    from hairlut.hrir._march import lane_upsample
 
-    for f in (2, 3, 4):
-        n = 6
-        centres = jnp.arange(n, dtype=jnp.float32)[None, :, None] * 2.0 + 1.0  # (1, n, 1): value 2c + 1
-        fine = np.asarray(lane_upsample(centres, f, axis=1))[0, :, 0]
-        pos = (np.arange(n * f) + 0.5) / f - 0.5  # fine samples in cell-centre units
-        want = 2 * np.clip(pos, 0, n - 1) + 1
-        np.testing.assert_allclose(fine, want, atol=1e-6, rtol=0)
+    from hairlut.hrir import (direct_lighting, front_to_back, grid_transmittance, light_depth_grid, march,
+                              sector_fields)
+    from hairlut.synth._viewgrid import _shade_weighted
 
-
-def test_bake_grid_coarse_shadow_lookup(sectors):
-    """shadow_coarse=2: the light transmittance looked up on pixel centres and interpolated across the two rays;
-    α is untouched, re within 2 % (rel-L2) of the tracer's, and with self-shadowing off the same as exact."""
     dens, geom, full = sectors
-    full = resolve_recipe({**full, "trace": {**full["trace"], "rays_per_pixel": 2}})
-    V, L, Q = 8, 3, 4
-    a, re = trace_view_grid(dens, geom, full, views=V, lights=L)
-    ab_ref, rb_ref = _binned(a, re, 2, Q)
-    half, ab, rb = bake_view_grid(dens, geom, full, views=V, lights=L, ratio_step=2, bins=Q, alpha_grid=0, shadow_coarse=2)
-    np.testing.assert_allclose(half, a[:, :V // 2], atol=2e-6, rtol=0)
-    np.testing.assert_allclose(ab, ab_ref, atol=1e-5, rtol=0)
-    err = np.linalg.norm(rb - rb_ref) / np.linalg.norm(rb_ref)
-    assert 0 < err < 0.02, err
-    off = resolve_recipe({**full, "trace": {**full["trace"], "self_shadow": False}})
-    _, _, r1 = bake_view_grid(dens, geom, off, views=V, lights=L, ratio_step=2, bins=Q, alpha_grid=0)
-    _, _, r2 = bake_view_grid(dens, geom, off, views=V, lights=L, ratio_step=2, bins=Q, alpha_grid=0, shadow_coarse=2)
-    np.testing.assert_array_equal(r1, r2)
+    rho, g = jnp.asarray(dens[0], jnp.float32), jnp.asarray(geom[0], jnp.float32)
+    views, lights = jnp.asarray([0.3, 1.9], jnp.float32), jnp.asarray([0.0, 2.0, 4.0], jnp.float32)
+    phong = jnp.asarray([0.1, 0.6, 0.3, 20.0], jnp.float32)
+    lanes, K = 16, 12
+    fields = sector_fields(rho)
+    tau, gx, gy, rs, rr, inside = march(fields, g, views, lanes, K)
+    w, _ = front_to_back(tau, 1e-4)
+    w_m = jnp.flip(front_to_back(jnp.flip(tau, axis=(1, 2)), 1e-4)[0], axis=(1, 2))  # the mirror's, in march order
+    depth = light_depth_grid(fields, g, lights, K, K)
+    t_l = jnp.moveaxis(grid_transmittance(depth, g, views, lanes, K), -1, 1)  # (V, L, lanes, K)
+    want = []
+    for vs, ww in ((views, w), (views + jnp.pi, w_m)):
+        direct = direct_lighting(rho, gx, gy, rs, rr, inside, vs, lights, phong) * t_l
+        want.append(np.asarray(jnp.einsum("vlnk,vnk->vln", direct, ww, precision=jax.lax.Precision.HIGHEST)))
+    live = int(((w > 0) | (w_m > 0)).sum())
+    assert 0 < live < w.size  # some samples are skipped
+    for chunk in (7, live + 100):
+        got = jax.jit(lambda *a: _shade_weighted(fields, jnp.max(rho), g, views, lights, phong, *a, power=20,
+                                                 chunk=chunk))(w, w_m, depth)
+        for x, y in zip(got, want):
+            np.testing.assert_allclose(np.asarray(x), y, atol=2e-6, rtol=0)
 
 
 def test_bake_grid_rejects_bad_layouts(sectors):
     dens, geom, full = sectors
     for kw, field in ((dict(ratio_step=3), "ratio_step"), (dict(bins=3), "bins"), (dict(alpha_grid=1), "alpha_grid"), (dict(alpha_grid=-1), "alpha_grid"),
-                      (dict(views=7), "views"), (dict(shade_steps=1), "shade_steps"), (dict(shadow_coarse=3), "shadow_coarse"),
-                      (dict(shadow_coarse=0), "shadow_coarse"), (dict(shadow_grid=1), "shadow_grid")):
+                      (dict(views=7), "views"), (dict(shade_steps=1), "shade_steps"), (dict(shadow_grid=1), "shadow_grid")):
         args = {"views": 8, "lights": 3, "bins": 4, "alpha_grid": 16, **kw}
         with pytest.raises(errors.ValidationError) as exc:
             bake_view_grid(dens, geom, full, **args)

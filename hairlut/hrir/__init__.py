@@ -28,7 +28,8 @@ _LAZY = {
     "SHADOW_GRID": "_march", "bilerp_nodes": "_march", "direct_lighting": "_march", "front_to_back": "_march", "grid_transmittance": "_march",
     "light_depth_grid": "_march", "march": "_march", "normals": "_march", "phong_direct": "_march",
     "reflectance": "_march", "sector_fields": "_march", "smooth_matrix": "_march", "to_pixels": "_march",
-    "view_points": "_march",
+    "view_points": "_march", "sample_points": "_march", "sample": "_march", "fence": "_march",
+    "transmittance_at": "_march",
 }
 
 __all__ = ["BAKER", "BAKE_OVERHEAD", "KIND", "SHARD_KIND", "TRACE_RATE", "estimate", *sorted(_LAZY)]

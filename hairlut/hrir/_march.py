@@ -245,42 +245,30 @@ def phong_direct(nx, ny, vx, vy, lx, ly, phong):
 
 def view_points(g, views, n_lanes: int, n_steps: int):
     """Local (qx, qy) of every (view, lane, step) sample: (V, lanes, K) each, as :func:`march` places them."""
+    return sample_points(g, jnp.cos(views)[:, None, None], jnp.sin(views)[:, None, None],
+                         jnp.arange(n_lanes)[None, :, None], jnp.arange(n_steps)[None, None, :], n_lanes, n_steps)
+
+
+def sample_points(g, dx, dy, lane, step, n_lanes: int, n_steps: int):
+    """Local (qx, qy) of the samples at integer ``lane`` and ``step`` of the rays entering along −d, d = (``dx``,
+    ``dy``) (all broadcast): lane centres t ∈ (−R, R) along d rotated by +90°, step midpoints z from +R to −R."""
     R = g[EXTENT]
-    dx, dy = jnp.cos(views)[:, None, None], jnp.sin(views)[:, None, None]
-    t = (-R + (jnp.arange(n_lanes) + 0.5) * (2 * R / n_lanes))[None, :, None]
-    z = (R - (jnp.arange(n_steps) + 0.5) * (2 * R / n_steps))[None, None, :]
+    t = -R + (lane + 0.5) * (2 * R / n_lanes)
+    z = R - (step + 0.5) * (2 * R / n_steps)
     return -dy * t + dx * z, dx * t + dy * z
 
 
-def grid_transmittance(depth, g, views, n_lanes: int, n_steps: int, coarse: int = 1):
+def grid_transmittance(depth, g, views, n_lanes: int, n_steps: int):
     """exp(−optical depth toward each light) at every view sample, from :func:`light_depth_grid`'s
-    (M, M, L) nodes: (V, lanes, K, L).
+    (M, M, L) nodes: (V, lanes, K, L)."""
+    qx, qy = view_points(g, views, n_lanes, n_steps)
+    # one view at a time: the loop boundary stops XLA fusing the field into the gather (10x slower)
+    return jax.lax.map(lambda q: transmittance_at(depth, g, q[0], q[1]), (qx, qy))
 
-    ``coarse`` > 1 (dividing ``n_lanes``): looked up on n_lanes/coarse lanes only (each the centre of ``coarse``
-    adjacent lanes: the pixel centres when it is the rays per pixel) and linearly interpolated across the lanes
-    between them (:func:`lane_upsample`), a ``coarse``-th of the gathers and exponentials; not the tracer's values
-    (the scene bake's opt-in ``coarse_shadow``; its error is measured in the README's scene-bake paragraph)."""
+
+def transmittance_at(depth, g, qx, qy):
+    """exp(−optical depth toward each light) at local points (qx, qy) (any shape S), bilinear in
+    :func:`light_depth_grid`'s (M, M, L) nodes on the sector's [−R, R]² box: (*S, L)."""
     m = depth.shape[0]
     R = g[EXTENT]
-    qx, qy = view_points(g, views, n_lanes // coarse, n_steps)
-    fi, fj = (qx + R) / (2 * R) * m - 0.5, (qy + R) / (2 * R) * m - 0.5
-    # one view at a time: the loop boundary stops XLA fusing the field into the gather (10x slower)
-    if coarse == 1:
-        return jax.lax.map(lambda a: jnp.exp(-bilerp_nodes(depth, a[0], a[1])), (fi, fj))
-    # fenced: the interpolation reads each looked-up value three times, and XLA:CPU would redo the gather per read
-    t = fence(lambda fi, fj: jax.lax.map(lambda a: jnp.exp(-bilerp_nodes(depth, a[0], a[1])), (fi, fj)), fi, fj)
-    return lane_upsample(t, coarse, axis=1)
-
-
-def lane_upsample(t, f: int, axis: int):
-    """Linear interpolation along ``axis`` from n cells to the n·f samples they hold (sample r of a cell sits
-    (r + ½)/f − ½ cells from its centre), by slices (no gather); beyond the first and last centre the edge value."""
-    if f == 1:
-        return t
-    n = t.shape[axis]
-    cut = lambda a, b: jax.lax.slice_in_dim(t, a, b, axis=axis)  # noqa: E731
-    prev = jnp.concatenate([cut(0, 1), cut(0, n - 1)], axis=axis)
-    nxt = jnp.concatenate([cut(1, n), cut(n - 1, n)], axis=axis)
-    offs = [(r + 0.5) / f - 0.5 for r in range(f)]
-    fine = jnp.stack([(1 - abs(o)) * t + abs(o) * (prev if o < 0 else nxt) for o in offs], axis=axis + 1)
-    return fine.reshape(*t.shape[:axis], n * f, *t.shape[axis + 1:])
+    return jnp.exp(-bilerp_nodes(depth, (qx + R) / (2 * R) * m - 0.5, (qy + R) / (2 * R) * m - 0.5))

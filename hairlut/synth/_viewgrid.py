@@ -13,10 +13,11 @@ same arrays with less work, using two facts of the planar geometry:
   on the V/2 views θ < π only; the other half reads them reversed.  What depends on the viewing
   direction (the front-to-back weights w_k = α_k T_k, the Phong half vector, the fallback normal
   n = d where ∇ρ vanishes) is still evaluated per view.
-* **The bake shares more** (:func:`bake_view_grid`, :func:`_bake_one`): one march on the V/2 views gives α and,
-  on the kept views, the shading's samples; a view and its mirror share each sample's normal, light
-  transmittance and Phong power |r·d|^p (r·d changes sign, n·l does not where ∇ρ is resolved), and the mirror's
-  weights are reversed instead of its samples.
+* **The bake shares more** (:func:`bake_view_grid`, :func:`_bake_one`): one optical-depth march on the V/2 views
+  gives α and, on the kept views, eq 5's weights both ways along each ray; only the samples where either weight
+  is nonzero are shaded (compacted, :func:`_shade_weighted`: outside the sector, on empty cells and past the
+  termination nothing is computed), and a view and its mirror share each such sample's normal, light
+  transmittance and Phong power |r·d|^p (r·d changes sign, n·l does not where ∇ρ is resolved).
 * **Sectors in blocks.**  ``block`` sectors are vmapped together inside one ``lax.map`` (as the
   direct kernel), and the host pads the live sectors to a few bucketed counts, so one compilation
   serves a whole bake.
@@ -37,8 +38,9 @@ import numpy as np
 
 from .. import errors
 from ..validate import check_int
-from ..hrir import (SHADOW_GRID, direct_lighting, front_to_back, grid_transmittance, light_depth_grid, march,
-                    reflectance, sector_fields, smooth_matrix, to_pixels)
+from ..hrir import (SHADOW_GRID, direct_lighting, fence, front_to_back, grid_transmittance, light_depth_grid, march,
+                    reflectance, sample, sample_points, sector_fields, smooth_matrix, to_pixels, transmittance_at)
+from ._compact import compact
 from ._direct import _SIGMA_PX, bucket
 
 HIGHEST = jax.lax.Precision.HIGHEST
@@ -152,22 +154,21 @@ def _shade_one(rho, g, views_kept, lights, phong, *, n_pix, n_steps, rays, shado
     return a.reshape(*a.shape[:-1], bins, -1).sum(-1), r.reshape(*r.shape[:-1], bins, -1).sum(-1)
 
 
-def _mirror_phong(rho, gx, gy, rs, rr, inside, views, lights, phong, power: int = 0):
-    """The Phong direct term (``hairlut.hrir`` ``phong_direct``, eq 5's shading) at every (view, light, lane, step)
-    sample of a march on ``views`` (V,) and at the same samples seen from the mirror views + π: two (V, lanes, K, L)
-    arrays (lights minor, as the light transmittance's lookup returns them), both in the march's sample order, from
-    one power per (sample, light).
+def _mirror_phong(scale, gx, gy, rs, rr, inside, vx, vy, lights, phong, power: int = 0):
+    """The Phong direct term (``hairlut.hrir`` ``phong_direct``, eq 5's shading) at march samples seen along d = (``vx``,
+    ``vy``) (the samples' shape) and from the mirror view −d: two (..., L) arrays (lights minor), from one power per
+    (sample, light).  ``scale``: the sector's peak density (the normal's resolution threshold, ``hairlut.hrir``
+    ``normals``).
 
     With d′ = −d: where ∇ρ is resolved the normal is the same, so n·l′ = n·l and r·d′ = −r·d; where it is not
     (n = d, n′ = −d) n′·l = −n·l and r′·d′ = −r·d too.  So |r·d|^p is shared and lands on whichever view of the
     pair has r·d > 0; the diffuse max(0, n·l) is shared where the normal is resolved.  ``power`` > 0 (static: the
     shininess p when it is that integer) forms |r·d|^p by repeated multiplication instead of exp(p log |r·d|) (two
     transcendentals per (sample, light); the same to float32 rounding)."""
-    vx, vy = jnp.cos(views)[:, None, None], jnp.sin(views)[:, None, None]
     mag2 = gx * gx + gy * gy
-    ok = (rs * rs + rr * rr > (1e-5 * jnp.max(jnp.abs(rho))) ** 2) & (mag2 > 0) & inside
+    ok = (rs * rs + rr * rr > (1e-5 * scale) ** 2) & (mag2 > 0) & inside
     inv = jnp.where(ok, jax.lax.rsqrt(jnp.where(ok, mag2, 1.0)), 0.0)
-    nx, ny = jnp.where(ok, -gx * inv, vx)[..., None], jnp.where(ok, -gy * inv, vy)[..., None]  # (V, lanes, K, 1)
+    nx, ny = jnp.where(ok, -gx * inv, vx)[..., None], jnp.where(ok, -gy * inv, vy)[..., None]
     lx, ly = jnp.cos(lights), jnp.sin(lights)
     vx, vy = vx[..., None], vy[..., None]
     nl = nx * lx + ny * ly
@@ -188,46 +189,78 @@ def _weights(opacity, depth_before, eps):
     return jnp.where(trans >= eps, opacity * trans, 0.0)
 
 
+#: Samples shaded per step of :func:`_shade_weighted`'s loop (the fastest of 4,096 … 16,384 measured on XLA:CPU).
+SHADE_CHUNK = 8192
+
+
+def _shade_weighted(fields, scale, g, views, lights, phong, w, w_m, light_depth, *, power: int, chunk: int = SHADE_CHUNK):
+    """Eq 5's Σ_k w_k direct_k of a march on ``views`` (Vk,) with weights ``w`` (Vk, lanes, K), and of the mirror views
+    with ``w_m`` (in the march's sample order): two (Vk, L, lanes) arrays, the mirror's lanes in the march's order.
+
+    Only the samples where either weight is nonzero are shaded: they are compacted (``_compact``) and shaded
+    ``chunk`` at a time (a while loop over ⌈count/chunk⌉ steps), each sample's ∇ρ, Phong terms
+    (:func:`_mirror_phong`) and light transmittance (``hairlut.hrir`` ``transmittance_at`` in ``light_depth``, or 1
+    when it is None) computed once for both views, its products with the two weights added into its lane
+    (a sorted scatter-add, in step order).  A sample of zero weight adds nothing, so the sums are the dense
+    contraction's (tests/test_view_grid.py: against the tracer) at a cost that follows the live samples: 30 % of
+    the box on the paper model's sectors, fewer on thin strands.  Each step's pieces run behind
+    ``hairlut.hrir`` ``fence`` calls (XLA:CPU would otherwise recompute a gather's index arithmetic per consumer)."""
+    Vk, lanes, K = w.shape
+    L = lights.shape[0]
+    w, w_m = w.reshape(-1), w_m.reshape(-1)
+    live, count = fence(lambda a, b: compact((a > 0) | (b > 0)), w, w_m)
+    live = jnp.concatenate([live, jnp.zeros(chunk, live.dtype)])  # the last step's slice stays in bounds
+    cv, sv = jnp.cos(views), jnp.sin(views)
+
+    def step(carry):
+        j, acc = carry
+        ids = jax.lax.dynamic_slice(live, (j * chunk,), (chunk,))
+        valid = j * chunk + jnp.arange(chunk) < count
+        v, lane, k = ids // (lanes * K), (ids // K) % lanes, ids % K
+        qx, qy, dx, dy = fence(lambda v, lane, k: (*sample_points(g, cv[v], sv[v], lane, k, lanes, K), cv[v], sv[v]),
+                               v, lane, k)
+        _, inside, gx, gy, rs, rr = fence(lambda x, y: sample(fields, g, x, y, fenced=True), qx, qy)
+        front, back = fence(lambda *a: _mirror_phong(scale, *a, lights, phong, power), gx, gy, rs, rr, inside, dx, dy)
+        if light_depth is not None:
+            t_l = fence(lambda x, y: transmittance_at(light_depth, g, x, y), qx, qy)
+            front, back = front * t_l, back * t_l
+        wk, wmk = (jnp.where(valid, x[ids], 0.0)[:, None] for x in (w, w_m))
+        return j + 1, acc.at[ids // K].add(jnp.concatenate([front * wk, back * wmk], axis=1), indices_are_sorted=True)
+
+    acc = jnp.zeros((Vk * lanes, 2 * L), w.dtype)
+    _, acc = jax.lax.while_loop(lambda c: c[0] * chunk < count, step, (jnp.int32(0), acc))
+    acc = jnp.moveaxis(acc.reshape(Vk, lanes, 2, L), 1, -1)  # (Vk, 2, L, lanes)
+    return acc[:, 0], acc[:, 1]
+
+
 def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, shadow, smooth, eps, bins, alpha, power=0,
-              shadow_coarse=1, shadow_grid=0):
+              shadow_grid=0):
     """``_shade_one``'s per-bin α and re on the kept views (every ``step``-th of ``views_half``, then the same + π),
-    each sample's march, normals, light transmittance and Phong power computed once for a view and its mirror
-    (:func:`_mirror_phong`), in the march's sample order (the mirror's weights are reversed instead of its samples).
-    With ``alpha``, the march runs on every view of ``views_half`` and α (V/2, lanes) of all of them (eq 5's Σ_k w_k)
-    comes back too (the shading reads its kept views), else on the kept views only and α is None.  ``shadow_coarse``,
-    ``shadow_grid``: :func:`bake_view_grid`'s (1 and 0: the tracer's light lookup)."""
+    from one optical-depth march: eq 5's weights both ways along each ray, then the shading of the samples where
+    either is nonzero (:func:`_shade_weighted`: each sample's normal, light transmittance and Phong power computed once
+    for a view and its mirror).  With ``alpha``, the march runs on every view of ``views_half`` and α (V/2, lanes) of
+    all of them (eq 5's Σ_k w_k) comes back too, else on the kept views only and α is None.  ``shadow_grid``:
+    :func:`bake_view_grid`'s (0: the tracer's light grid)."""
     fields = sector_fields(rho)
     lanes = n_pix * rays
     views = views_half[::step]
-    tau, gx, gy, rs, rr, inside = march(fields, g, views, lanes, n_steps, fenced=True)
-    if alpha and step > 1:  # the other views' α needs the optical depth alone: the ρ corners gathered, no gradient
-        half = views_half.shape[0]
-        rest = np.flatnonzero(np.arange(half) % step)
-        tau_rest = march(fields, g, views_half[rest], lanes, n_steps, fenced=True, depth_only=True)
-        order = np.argsort(np.concatenate([np.arange(0, half, step), rest]))
-        tau = jnp.concatenate([tau, tau_rest])[order]  # every view of views_half, in order
+    tau = march(fields, g, views_half if alpha else views, lanes, n_steps, fenced=True, depth_only=True)
     # eq 5's weights both ways along each ray from one prefix sum (as a product with the triangular ones: XLA:CPU's
     # cumsum is a reduce-window): T_k = exp(−Σ_{i<k} τ_i) from the march's side, exp(−Σ_{i>k} τ_i) from the mirror's
     depth = jnp.matmul(tau, jnp.triu(jnp.ones((n_steps, n_steps), tau.dtype)), precision=HIGHEST)  # Σ_{i≤k} τ_i
     opacity = -jnp.expm1(-tau)
     w_all = _weights(opacity, depth - tau, eps)
     a_all = jnp.sum(w_all, axis=-1)
-    if alpha:
-        opacity, depth = opacity[::step], depth[::step]
-        w, a = w_all[::step], a_all[::step]
-    else:
-        w, a = w_all, a_all
+    opacity, depth, w, a = (x[::step] for x in (opacity, depth, w_all, a_all)) if alpha else (opacity, depth, w_all, a_all)
     w_m = _weights(opacity, depth[..., -1:] - depth, eps)  # the mirror views' weights, in the march's order
     a_m = jnp.flip(jnp.sum(w_m, axis=-1), axis=-1)  # lanes in the mirror's order
-    front, back = _mirror_phong(rho, gx, gy, rs, rr, inside, views, lights, phong, power)  # (Vk, lanes, K, L)
-    if shadow:
-        depth = light_depth_grid(fields, g, lights, n_steps, shadow_grid or min(n_steps, SHADOW_GRID), fenced=True)
-        t_l = grid_transmittance(depth, g, views, lanes, n_steps, shadow_coarse)  # (Vk, lanes, K, L)
-        front, back = front * t_l, back * t_l
+    light_depth = (light_depth_grid(fields, g, lights, n_steps, shadow_grid or min(n_steps, SHADOW_GRID), fenced=True)
+                   if shadow else None)
+    direct, direct_m = _shade_weighted(fields, jnp.max(jnp.abs(rho)), g, views, lights, phong, w, w_m, light_depth,
+                                       power=power)
     # eq 5's k_a α + Σ_k w_k direct_k (``hairlut.hrir`` ``reflectance``) in this layout: (Vk, L, lanes)
-    r = phong[0] * a[:, None] + jnp.einsum("vnkl,vnk->vln", front, w, precision=HIGHEST)
-    r_m = phong[0] * a_m[:, None] + jnp.flip(jnp.einsum("vnkl,vnk->vln", back, w_m, precision=HIGHEST), axis=-1)  # lanes in
-    # the mirror's order
+    r = phong[0] * a[:, None] + direct
+    r_m = phong[0] * a_m[:, None] + jnp.flip(direct_m, axis=-1)  # lanes in the mirror's order
     S = smooth_matrix(g[_SIGMA_PX], n_pix) if smooth else None
     ab, rb = (to_pixels(jnp.concatenate(x, axis=0), n_pix, rays, S) for x in ((a, a_m), (r, r_m)))
     binned = tuple(x.reshape(*x.shape[:-1], bins, -1).sum(-1) for x in (ab, rb))
@@ -235,10 +268,10 @@ def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, 
 
 
 @partial(jax.jit, static_argnames=("n_views", "n_pix", "n_steps", "rays", "m", "shade_rays", "shade_steps", "shadow", "smooth",
-                                   "eps", "mirror", "bins", "power", "shadow_coarse", "shadow_grid"))
+                                   "eps", "mirror", "bins", "power", "shadow_grid"))
 def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int, n_pix: int, n_steps: int, rays: int, m: int,
                      shade_rays: int, shade_steps: int, shadow: bool = True, smooth: bool = True, eps: float = 1e-4,
-                     mirror: bool = True, bins: int = 8, power: int = 0, shadow_coarse: int = 1, shadow_grid: int = 0):
+                     mirror: bool = True, bins: int = 8, power: int = 0, shadow_grid: int = 0):
     """The scene bake's arrays of B sectors: α (B, V/2, P) on the views 2πi/V, i < V/2, and per bin of P/Q
     pixels α (B, Vr, Q) and premultiplied re (B, Vr, L, Q) on the ratio's views (:func:`bake_view_grid`).
 
@@ -249,10 +282,11 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
     smoothed; with ``m`` = 0, the tracer's march per view (eq 5's Σ_k w_k; ``proj`` unused).
     re (eq 5): the tracer's own march with ``shade_rays`` rays per pixel and ``shade_steps`` steps (0: the
     trace's), on the kept views only; when the kept views' mirrors are kept too (``mirror``), each view and its
-    mirror share samples, light lookups and Phong powers (:func:`_bake_one`), and at the trace's own rays and
-    steps with ``m`` = 0 the one march gives both α and the shading (the α march above is not run);
-    otherwise :func:`_shade_one` (the tracer's light lookup).  ``power``: the Phong exponent when it is that integer
-    (:func:`_mirror_phong`), else 0.  ``shadow_coarse``, ``shadow_grid``: :func:`bake_view_grid`'s, on the mirror path."""
+    mirror share samples, light lookups and Phong powers, and only the samples of nonzero weight are shaded
+    (:func:`_bake_one`); at the trace's own rays and steps with ``m`` = 0 the one march gives both α and the
+    shading (the α march above is not run); otherwise :func:`_shade_one` (the tracer's dense path).  ``power``: the
+    Phong exponent when it is that integer (:func:`_mirror_phong`), else 0.  ``shadow_grid``:
+    :func:`bake_view_grid`'s, on the mirror path."""
     lanes = n_pix * rays
     half = n_views // 2
     sr, sk = shade_rays or rays, shade_steps or n_steps
@@ -262,8 +296,7 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
         # the V/2 views as the host computes them (float64, then rounded): the kept ones bitwise views_kept
         views = jnp.asarray(2 * np.pi * np.arange(half) / n_views, rho.dtype) if shared else views_kept
         shade = partial(_bake_one, n_pix=n_pix, n_steps=sk, rays=sr, step=half // views_kept.shape[0] if shared else 1,
-                        shadow=shadow, smooth=smooth, eps=eps, bins=bins, alpha=shared, power=power,
-                        shadow_coarse=shadow_coarse, shadow_grid=shadow_grid)
+                        shadow=shadow, smooth=smooth, eps=eps, bins=bins, alpha=shared, power=power, shadow_grid=shadow_grid)
         alpha, ab, rb = jax.lax.map(lambda a: shade(a[0], a[1], views, lights, phong), (rho, geom))
     else:
         shade = partial(_shade_one, n_pix=n_pix, n_steps=sk, rays=sr, shadow=shadow, smooth=smooth, eps=eps, mirror=False,
@@ -293,7 +326,7 @@ _PROJ: dict[tuple, jax.Array] = {}  # one entry: (m, V, lanes, steps) → projec
 
 def bake_view_grid(density, geometry, recipe: dict, *, views: int, lights: int, ratio_step: int = 1, bins: int,
                    alpha_grid: int, shade_rays: int | None = None, shade_steps: int | None = None,
-                   shadow_coarse: int = 1, shadow_grid: int = 0, progress=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                   shadow_grid: int = 0, progress=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """What the scene table stores, computed directly: α (N, V/2, P) on θv,i = 2πi/V, i < V/2, and per bin
     of P/``bins`` pixels α (N, Vr, Q) and premultiplied re (N, Vr, L, Q) on the ratio's views θv,i,
     i = 0, ``ratio_step``, 2·ratio_step, … (Vr = V/ratio_step) and θl,j = 2πj/L (:func:`bake_grid_kernel`).
@@ -304,11 +337,8 @@ def bake_view_grid(density, geometry, recipe: dict, *, views: int, lights: int, 
     ``alpha_grid``: tests/test_view_grid.py states the bound), re on the kept views only and, when
     ``shade_rays`` / ``shade_steps`` are given, with those rays per pixel and march steps instead
     of the recipe's.  The light transmittance (eq 5's self-shadowing, ``shadow="grid"``) is the tracer's unless
-    ``shadow_coarse`` > 1 (looked up on every ``shadow_coarse``-th lane's centre and interpolated across the lanes,
-    ``hairlut.hrir`` ``grid_transmittance``) or ``shadow_grid`` > 0 (the Cartesian light-depth grid's side M instead
-    of min(steps, 128)); both apply where a view and its mirror are shaded together (ratio_step dividing V/2), and
-    their error against the converged truth is the README's scene-bake paragraph's.  All-zero sectors give 0 and are
-    not traced."""
+    ``shadow_grid`` > 0 (the Cartesian light-depth grid's side M instead of min(steps, 128); it applies where a view
+    and its mirror are shaded together, ratio_step dividing V/2).  All-zero sectors give 0 and are not traced."""
     from ._direct import _check_inputs, _settings
 
     V, L = check_int(views, "views", 2), check_int(lights, "lights", 1)
@@ -326,9 +356,6 @@ def bake_view_grid(density, geometry, recipe: dict, *, views: int, lights: int, 
         raise errors.ValidationError("bins", Q, f"must divide the pixels ({P})")
     sr = cfg["rays"] if shade_rays is None else check_int(shade_rays, "shade_rays", 1)
     sk = cfg["n_steps"] if shade_steps is None else check_int(shade_steps, "shade_steps", 2)
-    coarse = check_int(shadow_coarse, "shadow_coarse", 1)
-    if (P * sr) % coarse:
-        raise errors.ValidationError("shadow_coarse", coarse, f"must divide the shading lanes ({P * sr})")
     grid = check_int(shadow_grid, "shadow_grid", 0)
     if grid == 1:
         raise errors.ValidationError("shadow_grid", grid, "0 (min(steps, 128)) or a grid side ≥ 2")
@@ -349,6 +376,6 @@ def bake_view_grid(density, geometry, recipe: dict, *, views: int, lights: int, 
     settings = dict(n_views=V, n_pix=P, n_steps=cfg["n_steps"], rays=cfg["rays"], m=m, shade_rays=sr, shade_steps=sk,
                     shadow=bool(cfg["shadow"]), smooth=cfg["smooth"], eps=cfg["eps"], mirror=mirror, bins=Q,
                     power=int(phong[3]) if phong[3] == int(phong[3]) and 1 <= phong[3] <= 64 else 0,
-                    shadow_coarse=coarse, shadow_grid=grid)
+                    shadow_grid=grid)
     kernel = lambda r, gg: bake_grid_kernel(r, gg, _PROJ[key], vk, lt, ph, **settings)  # noqa: E731
     return _live_calls(kernel, rho, g, ((V // 2, P), (Vr, Q), (Vr, L, Q)), 1, "bake_view_grid", progress)
