@@ -15,11 +15,13 @@ SHARD_KIND = "scene_shard"
 #: Table rows (non-empty sectors) per resumable part (``OUT.parts/``).
 BLOCK = 64
 #: Throughputs of the bake (``hairlut.synth.bake_view_grid``), measured on 64 of the paper model's sectors
-#: (benchmarks/scene_layouts.py --paper-subset, 2-core CPU under load): re/α shading samples (kept view · light
-#: · lane · step, self-shadowed) per CPU second, α march samples (view · lane · step, V/2 views) per CPU second,
-#: and the α projection's multiply-adds (2 · m² · V/2 · lanes with table.alpha_grid m) per CPU second.
-SHADE_RATE = 7.9e7
-MARCH_RATE = 2.4e7
+#: (benchmarks/scene_layouts.py --paper-subset, idle 2-core CPU, 0dd2ae1): re/α shading samples (kept view · light
+#: · lane · step, self-shadowed; the dense count, of which the bake shades the live ones, 30 % on that model, so
+#: thinner grooms bake faster than this says) per CPU second, α march samples (view · lane · step, V/2 views) per
+#: CPU second, and the α projection's multiply-adds (2 · m² · V/2 · lanes with table.alpha_grid m) per CPU second
+#: (measured under load, before 0dd2ae1).
+SHADE_RATE = 4.4e8
+MARCH_RATE = 6.2e7
 PROJECT_RATE = 6.7e10
 BAKE_OVERHEAD = 8.0
 #: Non-empty sectors assumed per sector when the count is unknown (Sintel: 793 of 1,296; ratboy 2,217 of 2,592).
