@@ -1,4 +1,4 @@
-"""Readers take a virtual asset's tables from its checked parts directly (``hairlut.assets.h5.read_virtual``, issue
+"""Readers take a virtual asset's tables from its checked parts directly (``hairlut.assets.virtual.read_virtual``, issue
 16): the same bytes as a ``--merge copy`` asset of the same bake, and the same named errors for a missing part."""
 
 import os

@@ -8,7 +8,7 @@ are expanded to every block file HDF5 would open.  The sources are checked once 
 number of tables (:func:`check_sources`): each part is stamped (``lstat``) once and opened only when this process
 has not checked it with that stamp, so reopening an unchanged many-part asset costs a ``stat`` per part.
 ``read_table`` then reads such an asset's tables from the parts these checks accepted, each part opened once
-(:func:`hairlut.assets.h5.read_virtual`), not through HDF5's virtual mappings.
+(:func:`hairlut.assets.virtual.read_virtual`), not through HDF5's virtual mappings.
 """
 
 from __future__ import annotations
