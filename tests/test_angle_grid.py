@@ -21,12 +21,19 @@ def test_cell_is_the_node_below_with_wrap(theta, n):
     i0, frac = grid_cell(np.array([theta]), n)
     i0, frac = int(i0[0]), float(frac[0])
     assert 0 <= i0 < n and -1e-9 <= frac <= 1 + 1e-9
-    # θ lies between node i0 and the next one, periodically, at the fraction ``frac`` of the step
+    # θ lies between node i0 and the next one, periodically, at the fraction ``frac`` of the step: node i0 + frac·step
+    # is θ modulo 2π (compared as a periodic difference, so that θ a hair below a node may come back either as that
+    # node with frac 0 or as the node before it with frac 1)
     step = 2 * np.pi / n
-    d = np.mod(theta - angle_grid(n)[i0], 2 * np.pi)
-    d = d - 2 * np.pi if d > 2 * np.pi - 1e-9 else d  # rounding just below a node
-    assert -1e-9 <= d < step + 1e-9
-    assert abs(frac - d / step) < 1e-8
+    diff = np.mod(theta - (angle_grid(n)[i0] + frac * step) + np.pi, 2 * np.pi) - np.pi
+    assert abs(diff) < 1e-8
+
+
+def test_cell_of_an_angle_a_hair_below_a_node():
+    """The case hypothesis found: θ = −9.3e-10 on a one-node grid is node 0 at frac ≈ 1 (one turn below), or frac 0."""
+    i0, frac = grid_cell(np.array([-9.27106889436748e-10]), 1)
+    assert int(i0[0]) == 0
+    assert min(abs(float(frac[0])), abs(float(frac[0]) - 1)) < 1e-9
 
 
 def test_coverage_counts_the_two_nodes_each_angle_reads():
