@@ -226,12 +226,17 @@ def front_to_back(tau, eps):
 
 def normals(rho, gx, gy, rs, rr, inside, vx, vy):
     """n = −∇ρ/|∇ρ| at the march's samples, falling back to the view direction d = (vx, vy) where the
-    gradient is unresolved (below 1e-5 of the sector's peak density, or outside the sector)."""
-    mag2 = gx * gx + gy * gy
-    scale = jnp.max(jnp.abs(rho))
-    ok = (rs * rs + rr * rr > (1e-5 * scale) ** 2) & (mag2 > 0) & inside
-    inv = jnp.where(ok, jax.lax.rsqrt(jnp.where(ok, mag2, 1.0)), 0.0)
+    gradient is unresolved (:func:`resolved`, with the sector's peak density |ρ|max)."""
+    ok, inv = resolved(jnp.max(jnp.abs(rho)), gx, gy, rs, rr, inside)
     return jnp.where(ok, -gx * inv, vx), jnp.where(ok, -gy * inv, vy)
+
+
+def resolved(scale, gx, gy, rs, rr, inside):
+    """(ok, 1/|∇ρ|): where the gradient (local ``gx``, ``gy``; parametric ``rs``, ``rr``) is resolved, at least
+    1e-5 of ``scale`` (the sector's peak density) and inside the sector; 1/|∇ρ| there, 0 elsewhere."""
+    mag2 = gx * gx + gy * gy
+    ok = (rs * rs + rr * rr > (1e-5 * scale) ** 2) & (mag2 > 0) & inside
+    return ok, jnp.where(ok, jax.lax.rsqrt(jnp.where(ok, mag2, 1.0)), 0.0)
 
 
 def phong_direct(nx, ny, vx, vy, lx, ly, phong):

@@ -39,7 +39,7 @@ import numpy as np
 from .. import errors
 from ..validate import check_int
 from ..hrir import (SHADOW_GRID, direct_lighting, fence, front_to_back, grid_transmittance, light_depth_grid, march,
-                    reflectance, sample, sample_points, sector_fields, smooth_matrix, to_pixels, transmittance_at)
+                    reflectance, resolved, sample, sample_points, sector_fields, smooth_matrix, to_pixels, transmittance_at)
 from ._compact import compact
 from ._direct import _SIGMA_PX, bucket
 
@@ -165,9 +165,7 @@ def _mirror_phong(scale, gx, gy, rs, rr, inside, vx, vy, lights, phong, power: i
     pair has r·d > 0; the diffuse max(0, n·l) is shared where the normal is resolved.  ``power`` > 0 (static: the
     shininess p when it is that integer) forms |r·d|^p by repeated multiplication instead of exp(p log |r·d|) (two
     transcendentals per (sample, light); the same to float32 rounding)."""
-    mag2 = gx * gx + gy * gy
-    ok = (rs * rs + rr * rr > (1e-5 * scale) ** 2) & (mag2 > 0) & inside
-    inv = jnp.where(ok, jax.lax.rsqrt(jnp.where(ok, mag2, 1.0)), 0.0)
+    ok, inv = resolved(scale, gx, gy, rs, rr, inside)
     nx, ny = jnp.where(ok, -gx * inv, vx)[..., None], jnp.where(ok, -gy * inv, vy)[..., None]
     lx, ly = jnp.cos(lights), jnp.sin(lights)
     vx, vy = vx[..., None], vy[..., None]
