@@ -133,7 +133,7 @@ def print_assembly(asm: list[dict]) -> None:
 
 
 def old_mappings(total: int, block: int, rest: tuple, src: str, names: list[bytes], fill):
-    """The mappings as written before issue 16's printf layout (``hairlut.parts._mappings`` up to 7f422cc): one
+    """The mappings as written before issue 16's printf layout (``hairlut.parts._mappings`` up to 7f422cc, now ``hairlut.virtual_asset._mappings``): one
     hyperslab and one ``H5Pset_virtual`` per part, each part named in full.  Kept here only to time the old
     assembly against the new in the same run, on the same parts (``names``: the new pattern and the last part,
     from which every part's name follows)."""
@@ -200,29 +200,30 @@ def leader_times(recipe: dict, out: Path, block: int, index: dict, repeat: int, 
     ``check_virtual`` (every part checked, as readers, ``inspect`` and the cache do: ``check``)."""
     import h5py
 
-    import hairlut.parts as parts_mod
+    import hairlut.virtual_asset as virtual_mod
     from hairlut import registry
     from hairlut.assets import canonical_json, recipe_hash
     from hairlut.distributed import Process
-    from hairlut.parts import check_virtual, part_name, share_name, stamp, write_share
+    from hairlut.parts import part_name, parts_dir, share_name, stamp, write_share
+    from hairlut.virtual_asset import check_virtual
     from hairlut.sharding import blocks_of, finish
 
     baker = registry.get("hrir_db")
     total = recipe["sectors"]["count"]
-    folder = parts_mod.parts_dir(out)
+    folder = parts_dir(out)
     digest = recipe_hash(canonical_json(recipe))
     entry = {b: (stamp(folder / part_name(*b, total, block)), index) for b in blocks_of(total, block)}
     own = {b: entry[b] for b in blocks_of(total, block, (0, 2))}
     write_share(folder / share_name(1, 2), digest, total, {b: entry[b] for b in blocks_of(total, block, (1, 2))})
     got = {}
-    for label, mappings in (("new", parts_mod._mappings), *((("old", old_mappings),) if old else ())):
+    for label, mappings in (("new", virtual_mod._mappings), *((("old", old_mappings),) if old else ())):
         best = None
         for _ in range(repeat):
-            saved, parts_mod._mappings = parts_mod._mappings, mappings
+            saved, virtual_mod._mappings = virtual_mod._mappings, mappings
             try:
                 (_, c), w = timed(lambda: finish(baker, recipe, out, total, block, "virtual", Process(0, 2), own))
             finally:
-                parts_mod._mappings = saved
+                virtual_mod._mappings = saved
             best = (w, c) if best is None or c < best[1] else best
             got[f"{label}_bytes"] = out.stat().st_size
             out.unlink()
@@ -275,7 +276,7 @@ def print_part_counts(rows: list[dict]) -> None:
 _READER = """
 import hashlib, json, sys, time
 from hairlut.hrir import load_hrir_db
-from hairlut.parts import check_virtual
+from hairlut.virtual_asset import check_virtual
 out, got = sys.argv[1], {}
 for step in sys.argv[2].split(","):
     c0 = time.process_time()

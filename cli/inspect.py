@@ -35,7 +35,7 @@ def inspect_cmd(paths, as_json, png, channel, part, dataset, index, exposure, no
     """
     from hairlut import registry
     from hairlut.assets import preview, summarize
-    from hairlut.parts import check_virtual
+    from hairlut.virtual_asset import check_virtual
 
     if png and len(paths) != 1:
         raise click.UsageError("--png takes exactly one input file")

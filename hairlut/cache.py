@@ -52,7 +52,7 @@ class Entry:
 
 def is_valid(path: Path, kind: str, digest: str) -> bool:
     """Whether ``path`` is a valid ``kind`` asset with recipe hash ``digest``."""
-    from .parts import check_virtual
+    from .virtual_asset import check_virtual
 
     try:
         with open_table(path, kind) as f:

@@ -28,8 +28,9 @@ from . import errors
 from .assets import canonical_json, open_table, read_table, recipe_hash
 from .baker import Baker, parse_shard
 from .distributed import Process, barrier, current
-from .parts import (check_virtual, clean_temporaries, locked, open_folder, part_name, read_share, remove_folder, share_name,
-                    stamp, write_share, write_virtual)
+from .parts import (clean_temporaries, locked, open_folder, part_name, read_share, remove_folder, share_name, stamp,
+                    write_share)
+from .virtual_asset import check_virtual, write_virtual
 
 MERGES = ("virtual", "copy")
 

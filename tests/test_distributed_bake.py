@@ -16,7 +16,8 @@ import pytest
 
 from hairlut import errors
 from hairlut.hrir import bake, load_hrir_db, parts_dir
-from hairlut.parts import MARKER, check_virtual, locked, part_name
+from hairlut.parts import MARKER, locked, part_name
+from hairlut.virtual_asset import check_virtual
 
 RECIPE = '[sectors]\ncount = 12\ngrid = [8, 8]\n[angles]\nviews = 4\nlights = 3\n[trace]\npixels = 8\nsteps = 12\n'
 SMALL = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3}, "trace": {"pixels": 8, "steps": 12}}

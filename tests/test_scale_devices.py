@@ -52,7 +52,8 @@ print("RANGE", *rep["unit_range"])
 
 @pytest.mark.slow
 def test_two_processes_on_loopback_bake_the_scene_table_of_one(tmp_path):
-    from hairlut.parts import check_virtual, parts_dir
+    from hairlut.parts import parts_dir
+    from hairlut.virtual_asset import check_virtual
 
     from .test_distributed_bake import _free_port, split_cases
 

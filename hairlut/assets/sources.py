@@ -271,7 +271,7 @@ def check_sources(path, f: h5py.File, recipe_hash: str) -> Sources:
     (:func:`allowed_virtual_sources`), whatever the number of tables: each part file is stamped once
     (:func:`file_stamp`) and opened only if no earlier check in this process saw it with that stamp, then once for
     every dataset that the asset's tables read from it.  Nothing is raised here for a fault of one table's sources:
-    :func:`check_dataset` and :func:`hairlut.parts.check_virtual` name it."""
+    :func:`check_dataset` and :func:`hairlut.virtual_asset.check_virtual` name it."""
     path = Path(path)
     key = (f.id.id, str(path), recipe_hash)
     if key in _OPEN:

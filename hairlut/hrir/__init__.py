@@ -29,7 +29,7 @@ _LAZY = {
     "light_depth_grid": "_march", "march": "_march", "normals": "_march", "phong_direct": "_march",
     "reflectance": "_march", "sector_fields": "_march", "smooth_matrix": "_march", "to_pixels": "_march",
     "view_points": "_march", "sample_points": "_march", "sample": "_march", "fence": "_march",
-    "transmittance_at": "_march",
+    "transmittance_at": "_march", "resolved": "_march",
 }
 
 __all__ = ["BAKER", "BAKE_OVERHEAD", "KIND", "SHARD_KIND", "TRACE_RATE", "estimate", *sorted(_LAZY)]

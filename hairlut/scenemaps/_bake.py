@@ -35,7 +35,7 @@ import numpy as np
 
 from .. import errors
 from ..assets import read_table
-from ..parts import check_virtual
+from ..virtual_asset import check_virtual
 from ._kind import KIND
 from ._recipe import hrir_recipe
 

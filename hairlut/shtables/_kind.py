@@ -64,7 +64,7 @@ def _check(recipe, path):
 
 
 def _load(path):
-    from ..parts import check_virtual
+    from ..virtual_asset import check_virtual
     from ._tables import load_sh_tables
 
     check_virtual(path)  # a virtual asset: every part present and of this recipe, before a read
