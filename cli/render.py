@@ -63,7 +63,8 @@ def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bo
         click.echo(f"reference {cam.width} x {cam.height} ({cam.projection}): frame "
                    f"{frame.info['seconds']['frame']:.1f} s, level {last['level']} ({last['samples_per_pixel']} spp, "
                    f"{last['steps_per_crossing']} steps), converged={frame.info['converged']} "
-                   + (f"(change RGB {ch['rgb_rmse']:.2g}, alpha {ch['alpha_rmse']:.2g}; bound {bound:g})" if ch else ""))
+                   + (f"(change RGB {ch['rgb_rmse']:.2g}, alpha {ch['alpha_rmse']:.2g}; bound {frame.info['bound']:g})"
+                      if ch else ""))
         ver = frame.info.get("verified")
         if ver:
             vc = ver["change_from_returned"]
