@@ -80,3 +80,57 @@ def test_cli_compare(tmp_path, rng):
     assert fig["flip_mean"] > 0 and (tmp_path / "d.png").is_file()
     bad = CliRunner().invoke(cli, ["compare", str(tmp_path / "a.exr"), str(tmp_path / "nope.exr")])
     assert bad.exit_code == 2 and "nope.exr" in bad.stderr and bad.stdout == ""
+
+
+def _camera_record(**change):
+    cam = make_camera(resolve(CAMERA, {"view": [0.0, 0.0, 1.0], "projection": "perspective", "resolution": [16, 16]},
+                              "camera."), np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]))
+    return {**cam.to_json(), **change}
+
+
+def _frame_with_camera(path, text, rng):
+    """A checksum-valid 16 x 16 RGBA EXR whose ``hairlut:camera`` header is ``text``."""
+    from hairlut.assets import write_exr
+
+    write_exr(path, {c: v for c, v in zip("RGBA", np.moveaxis(_frame(rng, 16, 16), -1, 0))},
+              attributes={"hairlut:camera": text})
+    return path
+
+
+@pytest.mark.parametrize("text, field, reason", [
+    (json.dumps(_camera_record(resolution=[1e999, 1e999])), "hairlut:camera.resolution", "2 integers"),  # Infinity
+    (json.dumps(_camera_record(resolution=[16.0, 16])), "hairlut:camera.resolution", "2 integers"),
+    (json.dumps(_camera_record(resolution=[32, 32])), "hairlut:camera.resolution", "16 x 16 pixels"),
+    (json.dumps(_camera_record(resolution=[10 ** 30, 16])), "hairlut:camera.resolution", "at most"),
+    (json.dumps(_camera_record(eye=[float("nan"), 0.0, 1.0])), "hairlut:camera.eye", "finite"),
+    (json.dumps(_camera_record(view=[0.0, 0.0, 2.0])), "hairlut:camera.view", "unit"),
+    (json.dumps(_camera_record(up=[1.0, 0.0, 0.0])), "hairlut:camera.right", "orthogonal"),
+    (json.dumps(_camera_record(fov=1e999)), "hairlut:camera.fov", "finite"),
+    (json.dumps(_camera_record(fov=180)), "hairlut:camera.fov", "(0, 180)"),
+    (json.dumps(_camera_record(extent=-1.0)), "hairlut:camera.extent", "> 0"),
+    (json.dumps(_camera_record(near="0.1")), "hairlut:camera.near", "finite number"),
+    (json.dumps(_camera_record(near=0.0)), "hairlut:camera.near", "in front of the eye"),
+    (json.dumps(_camera_record(far=-1.0)), "hairlut:camera.far", "beyond the near plane"),
+    (json.dumps(_camera_record(projection="fisheye")), "hairlut:camera.projection", "'perspective'"),
+    (json.dumps(_camera_record(world_to_clip=[[1.0] * 4] * 4)), "hairlut:camera.world_to_clip", "not the matrix"),
+    (json.dumps(_camera_record(world_to_clip=[[1e999] * 4] * 4)), "hairlut:camera.world_to_clip", "finite"),
+    (json.dumps({k: v for k, v in _camera_record().items() if k != "far"}), "hairlut:camera", "missing field(s) far"),
+    (json.dumps([1, 2, 3]), "hairlut:camera", "not a JSON object"),  # m3: valid JSON, not "not JSON"
+    ("{not json", "hairlut:camera", "is not JSON"),
+])
+def test_a_bad_camera_record_is_refused_naming_the_field(tmp_path, rng, text, field, reason):
+    """Issue 29 N3 and m3: every field of the ``hairlut:camera`` record is checked (an infinite resolution raised
+    OverflowError from ``compare``; a JSON list was called "not JSON"); the CLI gives one line naming the file,
+    the attribute's field and the fault, exit status 2."""
+    path = _frame_with_camera(tmp_path / "c.exr", text, rng)
+    with pytest.raises(errors.CorruptAssetError) as exc:
+        read_frame(path)
+    assert str(path) in str(exc.value) and field in str(exc.value) and reason in str(exc.value), str(exc.value)
+    r = CliRunner().invoke(cli, ["compare", str(path), str(path)])
+    assert r.exit_code == 2 and r.stdout == "" and r.stderr.count("\n") == 1 and field in r.stderr, r.output
+
+
+def test_a_good_camera_record_reads_back_exactly(tmp_path, rng):
+    rec = _camera_record()
+    f = read_frame(_frame_with_camera(tmp_path / "c.exr", json.dumps(rec), rng))
+    assert f.camera.to_json() == rec

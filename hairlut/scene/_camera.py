@@ -199,13 +199,68 @@ class Camera:
                 "near": self.near, "far": self.far}
 
     @classmethod
-    def from_json(cls, d: dict) -> Camera:
-        try:
-            w, h = d["resolution"]
-            return cls(d["projection"], *(np.asarray(d[k], np.float64) for k in ("eye", "right", "up", "view")),
-                       int(w), int(h), float(d["extent"]), float(d["fov"]), float(d["near"]), float(d["far"]))
-        except (KeyError, TypeError, ValueError) as exc:
-            raise errors.ValidationError("hairlut:camera", str(d)[:60], f"not a camera record ({exc})") from None
+    def from_json(cls, d) -> Camera:
+        """The camera of a :meth:`to_json` record (an EXR's ``hairlut:camera``), every field checked: its type, finite,
+        in range, the axes orthonormal and the stored ``world_to_clip`` the one the fields give.  A ValidationError
+        names ``hairlut:camera.<field>`` and the value."""
+        return cls(*_record(d))
+
+
+#: The fields of :meth:`Camera.to_json`, in the order the record is checked.
+RECORD_FIELDS = ("projection", "resolution", "eye", "right", "up", "view", "extent", "fov", "near", "far", "world_to_clip")
+
+
+def _number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _record(d) -> tuple:
+    """:class:`Camera`'s fields from a ``to_json`` record (:meth:`Camera.from_json`)."""
+    where = "hairlut:camera"
+    if not isinstance(d, dict):
+        raise errors.ValidationError(where, type(d).__name__, "not a JSON object (a camera record is one)")
+    missing = [k for k in RECORD_FIELDS if k not in d]
+    if missing:
+        raise errors.ValidationError(where, sorted(d)[:12], f"missing field(s) {', '.join(missing)}")
+
+    def bad(key, reason):
+        return errors.ValidationError(f"{where}.{key}", d[key], reason)
+
+    if d["projection"] not in PROJECTIONS:
+        raise bad("projection", "'orthographic' or 'perspective'")
+    if not isinstance(d["resolution"], list) or (reason := _resolution(d["resolution"])):
+        raise bad("resolution", "need [w, h]: 2 integers" if not isinstance(d["resolution"], list) else reason)
+    axes = {}
+    for key in ("eye", "right", "up", "view"):
+        if reason := _finite3(d[key], allow_zero=key == "eye"):
+            raise bad(key, reason)
+        axes[key] = np.asarray(d[key], np.float64)
+        if key != "eye" and abs(float(np.linalg.norm(axes[key])) - 1.0) > 1e-6:
+            raise bad(key, "an axis of the camera is a unit vector")
+    gram = np.stack([axes["right"], axes["up"], axes["view"]])
+    if np.abs(gram @ gram.T - np.eye(3)).max() > 1e-6:
+        raise bad("right", f"right, up and view must be orthogonal (up {d['up']}, view {d['view']})")
+    for key in ("extent", "fov", "near", "far"):
+        if not _number(d[key]):
+            raise bad(key, "need a finite number")
+    if not d["extent"] > 0:
+        raise bad("extent", "the frame height must be > 0")
+    if reason := _fov(d["fov"]):
+        raise bad("fov", reason)
+    if not (d["near"] > 0 if d["projection"] == "perspective" else d["near"] >= 0):
+        raise bad("near", "the near plane lies in front of the eye (> 0; ≥ 0 orthographic)")
+    if not d["far"] > d["near"]:
+        raise bad("far", f"the far plane lies beyond the near plane ({d['near']})")
+    w, h = d["resolution"]
+    cam = (d["projection"], axes["eye"], axes["right"], axes["up"], axes["view"], w, h,
+           float(d["extent"]), float(d["fov"]), float(d["near"]), float(d["far"]))
+    m = d["world_to_clip"]
+    if not (isinstance(m, list) and len(m) == 4 and all(isinstance(r, list) and len(r) == 4 and all(map(_number, r)) for r in m)):
+        raise bad("world_to_clip", "need a 4 x 4 matrix of finite numbers")
+    want = Camera(*cam).matrix
+    if not np.allclose(np.asarray(m, np.float64), want, rtol=1e-6, atol=1e-9 * float(np.abs(want).max())):
+        raise bad("world_to_clip", "not the matrix the record's eye, axes and frame give")
+    return cam
 
 
 def make_camera(cam: dict, points) -> Camera:
