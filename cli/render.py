@@ -99,7 +99,7 @@ def compare_cmd(a, b, diff_png, as_json):
         atomic_write_bytes(diff_png, encode_png(np.round(np.clip(heat, 0, 1) * 255).astype(np.uint8)))
         figures["png"] = diff_png
     if as_json:
-        click.echo(json.dumps(figures, indent=2))
+        click.echo(json.dumps(figures, indent=2, allow_nan=False))
         return
     for k, v in figures.items():
-        click.echo(f"{k:<20} {v:.6g}" if isinstance(v, float) else f"{k:<20} {v}")
+        click.echo(f"{k:<20} {v:.6g}" if isinstance(v, float) else f"{k:<20} {'n/a' if v is None else v}")

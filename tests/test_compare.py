@@ -134,3 +134,25 @@ def test_a_good_camera_record_reads_back_exactly(tmp_path, rng):
     rec = _camera_record()
     f = read_frame(_frame_with_camera(tmp_path / "c.exr", json.dumps(rec), rng))
     assert f.camera.to_json() == rec
+
+
+def test_json_is_strict_when_the_reference_alpha_is_zero(tmp_path, rng):
+    """Issue 29 m1: against a reference with α = 0 everywhere the relative α bias is undefined: None with its reason,
+    never a bare NaN (not JSON); the other figures stay numbers (the bias is a's mean α)."""
+    cam = make_camera(resolve(CAMERA, {"view": [0.0, 0.0, 1.0], "resolution": [16, 16]}, "camera."), rng.normal(size=(9, 3)))
+    a = _frame(rng, 16, 16)
+    write_frame(Frame(a, np.ones((16, 16), np.float32), cam), tmp_path / "a.exr")
+    write_frame(Frame(np.zeros_like(a), np.ones((16, 16), np.float32), cam), tmp_path / "empty.exr")
+    r = CliRunner().invoke(cli, ["compare", str(tmp_path / "a.exr"), str(tmp_path / "empty.exr"), "--json"])
+    assert r.exit_code == 0, r.output
+
+    def refuse(name):
+        raise AssertionError(f"{name} is not JSON")
+
+    fig = json.loads(r.stdout, parse_constant=refuse)
+    assert fig["alpha_bias_relative"] is None and "zero everywhere" in fig["alpha_bias_relative_undefined"]
+    assert fig["alpha_mean_b"] == 0.0 and np.isclose(fig["alpha_bias"], a[..., 3].astype(np.float64).mean(), rtol=1e-6)
+    assert all(isinstance(v, (int, float)) for k, v in fig.items() if not k.startswith("alpha_bias_relative"))
+    text = CliRunner().invoke(cli, ["compare", str(tmp_path / "a.exr"), str(tmp_path / "empty.exr")])
+    assert text.exit_code == 0 and "alpha_bias_relative  n/a" in text.stdout
+
