@@ -40,8 +40,8 @@ def _rmse(a, b) -> float:
 
 def compare(a, b, *, flip: bool = True) -> tuple[dict, np.ndarray | None]:
     """Figures (module docstring) of RGBA frames ``a`` against ``b`` ((h, w, 4) arrays or Frames), and the
-    FLIP heat map (h, w, 3) in [0, 1] (magma), None without ``flip``.  Every figure of frames in float32 range is a finite number (their
-    squares are summed in float64) or None with its reason: strict JSON."""
+    FLIP heat map (h, w, 3) in [0, 1] (magma), None without ``flip``.  Every figure of frames in float32 range is a
+    finite number (their squares are summed in float64) or None with its reason: strict JSON."""
     ra, rb = (np.asarray(getattr(x, "rgba", x), np.float64) for x in (a, b))
     for name, x in (("a", ra), ("b", rb)):
         if x.ndim != 3 or x.shape[2] != 4:
