@@ -156,3 +156,42 @@ def test_json_is_strict_when_the_reference_alpha_is_zero(tmp_path, rng):
     text = CliRunner().invoke(cli, ["compare", str(tmp_path / "a.exr"), str(tmp_path / "empty.exr")])
     assert text.exit_code == 0 and "alpha_bias_relative  n/a" in text.stdout
 
+
+
+def _multipart(path, parts):
+    """A multi-part EXR written with OpenEXR's own binding (no hairlut metadata): ``parts`` (name, channels)."""
+    import OpenEXR
+
+    out = []
+    display = (np.array([0, 0], np.int32), np.array([31, 31], np.int32))  # every part's, as EXR requires
+    for name, ch in parts:
+        h, w = next(iter(ch.values())).shape
+        header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, "displayWindow": display,
+                  "dataWindow": (np.array([0, 0], np.int32), np.array([w - 1, h - 1], np.int32))}
+        out.append(OpenEXR.Part(header, {k: np.ascontiguousarray(v, np.float32) for k, v in ch.items()}, name))
+    OpenEXR.File(out).write(str(path))
+    return path
+
+
+def test_compare_reads_the_part_that_holds_the_frame(tmp_path, rng):
+    """Issue 29 m4: in a multi-part EXR the frame is the part with R, G, B and A, wherever it stands (compare read
+    the first part only); several such parts are refused as ambiguous, naming them; none, naming every part's
+    channels."""
+    a, b = _frame(rng, 16, 24), _frame(rng, 16, 24)
+    rgba = lambda x: {c: x[..., i] for i, c in enumerate("RGBA")}  # noqa: E731
+    mask = {"Y": rng.uniform(size=(8, 8))}
+    pa = _multipart(tmp_path / "a.exr", [("mask", mask), ("beauty", {**rgba(a), "Z": np.full((16, 24), 2.0)})])
+    pb = _multipart(tmp_path / "b.exr", [("mask", mask), ("beauty", rgba(b))])
+    fa = read_frame(pa)
+    assert np.array_equal(fa.rgba, a) and np.all(fa.depth == 2.0) and fa.camera is None
+    r = CliRunner().invoke(cli, ["compare", str(pa), str(pb), "--json"])
+    assert r.exit_code == 0, r.output
+    want, _ = compare(a, b, flip=False)
+    got = json.loads(r.stdout)
+    assert all(np.isclose(got[k], v, rtol=1e-6) for k, v in want.items())
+    two = _multipart(tmp_path / "two.exr", [("left", rgba(a)), ("right", rgba(b))])
+    r = CliRunner().invoke(cli, ["compare", str(two), str(pb)])
+    assert r.exit_code == 2 and "2 of its 2 parts" in r.stderr and "'left', 'right'" in r.stderr, r.output
+    none = _multipart(tmp_path / "none.exr", [("mask", mask), ("rgb", {c: a[..., i] for i, c in enumerate("RGB")})])
+    r = CliRunner().invoke(cli, ["compare", str(none), str(pb)])
+    assert r.exit_code == 2 and "no part has channels R, G, B, A" in r.stderr and "'rgb': ['B', 'G', 'R']" in r.stderr, r.output

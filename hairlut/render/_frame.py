@@ -66,14 +66,12 @@ def write_frame(frame: Frame, path, png: bool = False) -> dict:
 
 
 def read_frame(path) -> Frame:
-    """A frame back from its EXR (any EXR with R, G, B and A reads; the camera only from a hairlut frame)."""
+    """A frame back from its EXR (any EXR with R, G, B and A in one part reads, multi-part too; the camera only
+    from a hairlut frame)."""
     from ..scene import Camera
 
     img = read_exr(path)
-    part = img.part()
-    for c in "RGBA":
-        if c not in part.channels:
-            raise errors.MissingDatasetError(path, f"no channel {c!r} (channels: {sorted(part.channels)})")
+    part = img.part_with("RGBA")
     rgba = np.stack([np.asarray(part.channels[c], np.float32) for c in "RGBA"], -1)
     depth = np.asarray(part.channels["Z"], np.float32) if "Z" in part.channels else np.zeros(rgba.shape[:2], np.float32)
     rec = img.recipe if isinstance(img.recipe, dict) else {}
