@@ -83,3 +83,32 @@ def test_matrix_agrees_with_rays(view, pts, projection, fov):
     assert np.allclose((ndc[:, 0] + 1) / 2 * cam.width, p[:, 0], atol=1e-6 * cam.width)
     assert np.allclose((1 - ndc[:, 1]) / 2 * cam.height, p[:, 1], atol=1e-6 * cam.height)
     assert math.isclose(np.linalg.norm(d[0]), 1.0, rel_tol=1e-9)
+
+
+def test_view_is_derived_from_position_and_look_at():
+    """Issue 29 m15: a camera with ``position`` and ``look_at`` needs no ``view``: it is the unit direction from
+    look_at to the eye (and the scene's view, the online maps' angle, is that one)."""
+    sc = resolve_scene({**BASE, "camera": {"projection": "perspective", "position": [3.0, 1.0, 4.0], "look_at": [0.0, 1.0, 0.0]}})
+    assert np.allclose(sc.view, [0.6, 0.0, 0.8], rtol=0, atol=1e-15)
+    assert np.allclose(sc.config["camera"]["view"], [0.6, 0.0, 0.8], rtol=0, atol=1e-15)
+    cam = make_camera(sc.config["camera"], BOX)
+    assert np.allclose(cam.eye, [3.0, 1.0, 4.0]) and np.allclose(cam.back, [0.6, 0.0, 0.8])
+    # the same with a given view that agrees (any length), and coordinates near the float64 limit (no overflow)
+    agree = resolve_scene({**BASE, "camera": {"view": [6.0, 0.0, 8.0], "position": [3.0, 1.0, 4.0], "look_at": [0.0, 1.0, 0.0]}})
+    assert np.allclose(agree.view, sc.view)
+    far = resolve_scene({**BASE, "camera": {"position": [1e308, 0.0, 1e308], "look_at": [-1e308, 0.0, -1e308]}})
+    assert np.allclose(far.view, [2 ** -0.5, 0.0, 2 ** -0.5])
+
+
+@pytest.mark.parametrize("cam, key, words", [
+    ({"position": [3.0, 1.0, 4.0], "look_at": [0.0, 1.0, 0.0], "view": [0.0, 0.0, 1.0]}, "camera.position",
+     ["camera.view [0.0, 0.0, 1.0]", "look_at [0.0, 1.0, 0.0]"]),
+    ({"position": [1.0, 1.0, 1.0], "look_at": [1.0, 1.0, 1.0]}, "camera.position", ["equals camera.look_at"]),
+    ({"position": [1.0, 1.0, 1.0]}, "camera.view", ["missing required key", "camera.position and camera.look_at"]),
+    ({"look_at": [1.0, 1.0, 1.0]}, "camera.view", ["missing required key"]),
+    ({"position": [1.0, float("inf"), 1.0], "look_at": [0.0, 0.0, 0.0]}, "camera.position", ["finite"]),
+])
+def test_view_position_and_look_at_refusals_name_the_keys(cam, key, words):
+    with pytest.raises(errors.ValidationError) as exc:
+        resolve_scene({**BASE, "camera": cam})
+    assert exc.value.field == key and all(w in str(exc.value) for w in words), str(exc.value)

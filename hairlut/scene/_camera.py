@@ -1,8 +1,9 @@
 """The scene's camera: the ``[camera]`` table and its projection (world → clip → pixels).
 
-``[camera]`` keys (every one but ``view`` optional):
+``[camera]`` keys (every one but ``view`` optional; ``view`` too when ``position`` and ``look_at`` are both given):
 
-``view``        the direction *toward* the viewer (DESIGN.md); the online maps' view angle;
+``view``        the direction *toward* the viewer (DESIGN.md); the online maps' view angle; missing, with
+                ``position`` and ``look_at`` both given, the direction from look_at to position (:func:`derive_view`);
 ``projection``  ``"orthographic"`` (default) or ``"perspective"``;
 ``look_at``     the point the camera looks at (default: the centre of the groom's bounds);
 ``position``    the eye (default: on the line look_at + d·view, d fitted so the groom is in front
@@ -25,6 +26,7 @@ integers + ½.  ``depth`` is the eye-space distance along the viewing axis (the 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -105,6 +107,34 @@ def _unit(x) -> np.ndarray:
     return direction(x, "camera")  # normalised without overflow (view = [1e300, 1e300, 1e300])
 
 
+def _toward(position, look_at) -> np.ndarray | None:
+    """The unit direction from ``look_at`` to ``position`` (None where they coincide), taken without overflow for
+    coordinates near the float64 limit."""
+    p, q = np.asarray(position, np.float64), np.asarray(look_at, np.float64)
+    scale = max(float(np.abs(p).max()), float(np.abs(q).max()), 1e-300)
+    d = p / scale - q / scale
+    n = float(np.hypot(np.hypot(d[0], d[1]), d[2]))
+    return d / n if n > 0 else None
+
+
+def derive_view(given):
+    """The ``[camera]`` table as given, with ``view`` filled in where it is missing and both ``position`` and
+    ``look_at`` are points: the unit direction from look_at to position (a perspective camera placed by its eye
+    and target needs nothing more).  Where ``view`` is given too, :func:`check_camera` refuses it unless the
+    three agree."""
+    if not isinstance(given, Mapping) or "view" in given or "position" not in given or "look_at" not in given:
+        return given
+    if "auto" in (given["position"], given["look_at"]):
+        return given
+    for key in ("position", "look_at"):
+        if reason := _finite3(given[key]):
+            raise errors.ValidationError(f"camera.{key}", given[key], reason)
+    view = _toward(given["position"], given["look_at"])
+    if view is None:
+        raise errors.ValidationError("camera.position", given["position"], "equals camera.look_at: no view direction")
+    return {**given, "view": view.tolist()}
+
+
 def check_camera(cam: dict) -> None:
     """Checks across ``[camera]`` keys (each key alone is checked by :data:`CAMERA`): ``up`` not parallel
     to ``view``; a frame that fits in memory; a given ``position`` on the line look_at + d·view, d > 0."""
@@ -113,13 +143,14 @@ def check_camera(cam: dict) -> None:
         raise errors.ValidationError("camera.up", cam["up"], f"parallel to camera.view {cam['view']}: no way to tell up")
     check_memory(cam["resolution"])
     if cam["position"] != "auto" and cam["look_at"] != "auto":
-        p, q = np.asarray(cam["position"], np.float64), np.asarray(cam["look_at"], np.float64)
-        scale = max(float(np.abs(p).max()), float(np.abs(q).max()), 1e-300)
-        d = p / scale - q / scale  # scaled: no overflow for coordinates near the float64 limit
-        n = float(np.hypot(np.hypot(d[0], d[1]), d[2]))
-        if n == 0 or float(d @ view) < n * (1.0 - 1e-6):
-            raise errors.ValidationError("camera.position", cam["position"], "must lie on look_at + d·view with d > 0 "
-                                         f"(look_at {cam['look_at']}, view {cam['view']})")
+        d = _toward(cam["position"], cam["look_at"])
+        if d is None:
+            raise errors.ValidationError("camera.position", cam["position"], "equals camera.look_at: no view direction")
+        if float(d @ view) < 1.0 - 1e-6:
+            raise errors.ValidationError("camera.position", cam["position"], f"disagrees with camera.view {cam['view']}: "
+                                         f"the eye must lie on camera.look_at {cam['look_at']} + d·view with d > 0 (the "
+                                         f"direction from look_at to position is {np.round(d, 6).tolist()}; give view "
+                                         "or drop it to derive it)")
 
 
 @dataclass(frozen=True, eq=False)
