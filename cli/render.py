@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import logging
 
 import click
 
@@ -52,6 +53,9 @@ def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bo
         db_path, sh_path, maps_path = scene_assets(sc, cache_root, db=db_path, sh=sh_path)
         frame = render_layered(sc, db=db_path, sh=sh_path, maps=maps_path)
     files = write_frame(frame, out_path, png=png)
+    if not frame.rgba[..., 3].any() and logging.getLogger("hairlut").isEnabledFor(logging.WARNING):  # not under -q
+        click.echo("hairlut: warning: the frame catches no hair (alpha = 0 everywhere): the hair lies outside [camera]'s "
+                   "frame or shrinks below a pixel (extent, fov, position, look_at)", err=True)
     report = {**files, **frame.info, "camera": frame.camera.to_json()}
     if as_json:
         click.echo(json.dumps(report, indent=2, default=str))

@@ -112,3 +112,43 @@ def test_view_position_and_look_at_refusals_name_the_keys(cam, key, words):
     with pytest.raises(errors.ValidationError) as exc:
         resolve_scene({**BASE, "camera": cam})
     assert exc.value.field == key and all(w in str(exc.value) for w in words), str(exc.value)
+
+
+@pytest.mark.parametrize("keys, key", [
+    ({"projection": "perspective", "fov": 1e-6}, "camera.fov"),  # the fitted eye stands ~1e8 radii away
+    ({"projection": "perspective", "position": [0.0, 0.0, 1e12], "look_at": [0.0, 0.0, 0.0]}, "camera.position"),
+    ({"position": [0.0, 0.0, 1e12], "look_at": [0.0, 0.0, 0.0]}, "camera.position"),
+    ({"look_at": [1e9, 0.0, 0.0]}, "camera.look_at"),
+    ({"extent": 1e-30}, "camera.extent"),  # a pixel 1e-32 wide
+])
+def test_a_camera_float32_cannot_draw_is_refused_naming_the_key(keys, key):
+    """Issue 29 N2: where float32 (both renderers' precision) would lose the hair (its step at the eye's distance
+    above 1/16 of the thinnest strand's radius, or a pixel narrower than 16 steps), the camera is refused naming
+    the key and its value (fov 1e-6 and a position 1e12 away crashed the layered render, or drew nothing)."""
+    with pytest.raises(errors.ValidationError) as exc:
+        make_camera(_cam(**keys), BOX, detail=0.01)
+    assert exc.value.field == key and "float32" in str(exc.value)
+
+
+def test_the_float32_reach_is_where_the_step_is_a_sixteenth_of_the_detail():
+    """The eye may stand up to detail / (16 ε₃₂) from the farthest hair (BOX's farthest point from the eye on the
+    +z axis is 0.5 nearer than its distance, at (±1, ±2, −0.5)): just inside accepted, just outside refused."""
+    detail = 1e-3
+    reach = detail / (16 * float(np.finfo(np.float32).eps))
+    far = lambda d: math.sqrt(1 + 4 + (d + 0.5) ** 2)  # noqa: E731
+    inside, outside = reach * 0.999 - 0.5, reach * 1.001 - 0.5
+    assert far(inside) < reach < far(outside)
+    for projection in ("orthographic", "perspective"):
+        cam = make_camera(_cam(projection=projection, position=[0.0, 0.0, inside], look_at=[0.0, 0.0, 0.0]), BOX, detail)
+        assert cam.eye[2] == pytest.approx(inside)
+        with pytest.raises(errors.ValidationError, match="camera.position"):
+            make_camera(_cam(projection=projection, position=[0.0, 0.0, outside], look_at=[0.0, 0.0, 0.0]), BOX, detail)
+
+
+@pytest.mark.parametrize("keys", [{"extent": 1e30}, {"projection": "perspective", "fov": 179.9999}])
+def test_a_camera_that_shrinks_the_hair_below_a_pixel_is_legal(keys):
+    """A frame that catches no hair is a correct (empty) frame, not a refusal: the hair projects within a pixel
+    of the frame's centre."""
+    cam = make_camera(_cam(**keys), BOX, detail=0.01)
+    x, y, _ = cam.project(BOX)
+    assert np.abs(x - cam.width / 2).max() < 1 and np.abs(y - cam.height / 2).max() < 1

@@ -21,6 +21,18 @@ OpenGL convention (right-handed eye space looking down −z; clip w = eye distan
 camera, 1 for an orthographic one; NDC in [−1, 1]); pixel (x, y) of NDC (X, Y) is
 ((X + 1)/2 · w, (1 − Y)/2 · h): x to the right, y downward from the top row, pixel centres at
 integers + ½.  ``depth`` is the eye-space distance along the viewing axis (the EXR ``Z``).
+
+*Precision.*  Both renderers work in float32 world coordinates (the strand reference marches rays from the eye;
+the rasteriser projects and depth-sorts from it), so a float32 step at the eye's distance D from the hair,
+ε₃₂·D, is their resolution there.  :func:`make_camera` refuses, naming the key that placed the eye or the frame
+(``position``; ``fov``, whose fitted eye stands at radius / sin(fov/2); ``look_at``; ``extent``):
+
+- an eye so far that ε₃₂·D exceeds 1/16 of the thinnest strand's radius (``position`` 1e12 away; ``fov`` 1e-6,
+  which fits the eye 1e8 radii away): the reference would lose the strands and the rasteriser the depth order;
+- a pixel at the nearest hair narrower than 16 such steps (``extent`` 1e-30): neither could place an edge in it.
+
+A frame that is legal but catches no hair (``extent`` 1e30 or ``fov`` 179.9999, where the hair shrinks below a
+pixel and no pixel centre falls on it) is a correct, empty frame: α = 0 everywhere, and ``hairlut render`` says so.
 """
 
 from __future__ import annotations
@@ -41,6 +53,12 @@ BYTES_PER_SAMPLE = 256
 #: Most pixels on a side.
 MAX_SIDE = 16384
 MARGIN = 0.05
+#: float32's relative spacing (the renderers' precision, module docstring *Precision*).
+FLOAT32_EPS = float(np.finfo(np.float32).eps)
+#: A length the frame must show spans at least this many float32 steps (about 1e-3 α RMSE in the strand reference).
+RESOLVE = 16
+#: Without a strand radius, the detail a frame must resolve is the hair's radius over this.
+DETAIL = 1024
 
 
 def _finite3(x, allow_zero=True):
@@ -294,10 +312,11 @@ def _record(d) -> tuple:
     return cam
 
 
-def make_camera(cam: dict, points) -> Camera:
+def make_camera(cam: dict, points, detail: float | None = None) -> Camera:
     """The :class:`Camera` of a resolved ``[camera]`` table, fitted to the hair's ``points`` (n, 3) where
     keys are 'auto'.  Raises when the eye lies inside the hair's bounds (or, perspective, any hair lies
-    behind the near plane)."""
+    behind the near plane), and when float32 cannot draw the frame (module docstring, *Precision*; ``detail``:
+    the smallest length the frame must resolve, the thinnest strand's radius; default the hair's radius / 1024)."""
     pts = np.asarray(points, np.float64).reshape(-1, 3)
     lo, hi = pts.min(0), pts.max(0)
     back = _unit(cam["view"])
@@ -338,4 +357,33 @@ def make_camera(cam: dict, points) -> Camera:
         raise errors.ValidationError("camera.position", eye.tolist(), "hair lies behind the camera")
     near = near_need * 0.5 if cam["projection"] == "perspective" else 0.0
     far = float(depth.max()) * 1.5 + 1e-9
-    return Camera(cam["projection"], eye, right, up, back, int(w), int(h), float(ext), fov, near, far)
+    camera = Camera(cam["projection"], eye, right, up, back, int(w), int(h), float(ext), fov, near, far)
+    _check_precision(cam, camera, pts, centre, near_need, *((radius / DETAIL, f"the hair's radius / {DETAIL}")
+                                                            if detail is None else (float(detail), "the thinnest strand's radius")))
+    return camera
+
+
+def _check_precision(cam: dict, camera: Camera, pts: np.ndarray, centre: np.ndarray, nearest: float, detail: float,
+                     what: str) -> None:
+    """Refuse a camera the float32 renderers cannot draw (module docstring, *Precision*), naming the key that put
+    the eye or the frame there: float32's spacing at the eye's distance from the farthest hair must be at most
+    ``detail`` / :data:`RESOLVE`, and at most a 1 / :data:`RESOLVE` of a pixel at the nearest hair."""
+    reach = float(np.linalg.norm(camera.eye - pts, axis=1).max())
+    spacing = FLOAT32_EPS * reach
+    if spacing * RESOLVE > detail:  # the eye is given far away, or fitted far for a tiny fov, or beside a far look_at
+        fitted = float(np.linalg.norm(camera.eye - centre))
+        key = "position" if cam["position"] != "auto" else \
+            "fov" if camera.projection == "perspective" and FLOAT32_EPS * RESOLVE * fitted > detail else "look_at"
+        raise errors.ValidationError(f"camera.{key}", cam[key], f"puts the eye {reach:.3g} from the hair: float32 (the "
+                                     f"renderers' precision) then resolves only {spacing:.2g} there, coarser than "
+                                     f"1/{RESOLVE} of the detail the frame must show ({detail:.2g}, {what}); keep the eye within {detail / (RESOLVE * FLOAT32_EPS):.3g} of the hair"
+                                     + (" (a wider fov fits it closer)" if key == "fov" else ""))
+    if camera.projection == "perspective":
+        pixel = 2 * nearest * math.tan(math.radians(camera.fov) / 2) / camera.height
+        key = "position" if cam["position"] != "auto" else "fov"
+    else:
+        pixel, key = camera.extent / camera.height, "extent"
+    if spacing * RESOLVE > pixel:
+        raise errors.ValidationError(f"camera.{key}", cam[key], f"makes a pixel {pixel:.2g} wide at the hair, but float32 "
+                                     f"(the renderers' precision) steps by {spacing:.2g} at {reach:.3g} from the eye, and "
+                                     f"a pixel must span {RESOLVE} steps")
