@@ -43,9 +43,14 @@ def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bo
       hairlut render tables/scenes/sintel-groom.toml --out out/sintel.exr --png
       hairlut render tables/scenes/sintel-groom.toml --reference --out out/sintel-ref.exr --png
     """
+    from pathlib import Path
+
+    from hairlut.assets.atomic import check_writable
     from hairlut.render import render_layered, render_reference, write_frame
     from hairlut.scene import load_scene, scene_assets
 
+    for path in [out_path] + ([Path(out_path).with_suffix(".png")] if png else []):
+        check_writable(path)  # before the frame is computed
     sc = load_scene(scene)
     if reference:
         frame = render_reference(sc, bound=bound, max_level=max_level, verify=verify)
@@ -96,8 +101,11 @@ def compare_cmd(a, b, diff_png, as_json):
     import numpy as np
 
     from hairlut.assets import atomic_write_bytes, encode_png
+    from hairlut.assets.atomic import check_writable
     from hairlut.render import compare, read_frame
 
+    if diff_png:
+        check_writable(diff_png)
     figures, heat = compare(read_frame(a), read_frame(b))
     if diff_png:
         atomic_write_bytes(diff_png, encode_png(np.round(np.clip(heat, 0, 1) * 255).astype(np.uint8)))
