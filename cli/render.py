@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import logging
 
 import click
 
@@ -42,9 +43,14 @@ def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bo
       hairlut render tables/scenes/sintel-groom.toml --out out/sintel.exr --png
       hairlut render tables/scenes/sintel-groom.toml --reference --out out/sintel-ref.exr --png
     """
+    from pathlib import Path
+
+    from hairlut.assets.atomic import check_writable
     from hairlut.render import render_layered, render_reference, write_frame
     from hairlut.scene import load_scene, scene_assets
 
+    for path in [out_path] + ([Path(out_path).with_suffix(".png")] if png else []):
+        check_writable(path)  # before the frame is computed
     sc = load_scene(scene)
     if reference:
         frame = render_reference(sc, bound=bound, max_level=max_level, verify=verify)
@@ -52,6 +58,9 @@ def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bo
         db_path, sh_path, maps_path = scene_assets(sc, cache_root, db=db_path, sh=sh_path)
         frame = render_layered(sc, db=db_path, sh=sh_path, maps=maps_path)
     files = write_frame(frame, out_path, png=png)
+    if not frame.rgba[..., 3].any() and logging.getLogger("hairlut").isEnabledFor(logging.WARNING):  # not under -q
+        click.echo("hairlut: warning: the frame catches no hair (alpha = 0 everywhere): the hair lies outside [camera]'s "
+                   "frame or shrinks below a pixel (extent, fov, position, look_at)", err=True)
     report = {**files, **frame.info, "camera": frame.camera.to_json()}
     if as_json:
         click.echo(json.dumps(report, indent=2, default=str))
@@ -63,7 +72,8 @@ def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bo
         click.echo(f"reference {cam.width} x {cam.height} ({cam.projection}): frame "
                    f"{frame.info['seconds']['frame']:.1f} s, level {last['level']} ({last['samples_per_pixel']} spp, "
                    f"{last['steps_per_crossing']} steps), converged={frame.info['converged']} "
-                   + (f"(change RGB {ch['rgb_rmse']:.2g}, alpha {ch['alpha_rmse']:.2g}; bound {bound:g})" if ch else ""))
+                   + (f"(change RGB {ch['rgb_rmse']:.2g}, alpha {ch['alpha_rmse']:.2g}; bound {frame.info['bound']:g})"
+                      if ch else ""))
         ver = frame.info.get("verified")
         if ver:
             vc = ver["change_from_returned"]
@@ -91,14 +101,17 @@ def compare_cmd(a, b, diff_png, as_json):
     import numpy as np
 
     from hairlut.assets import atomic_write_bytes, encode_png
+    from hairlut.assets.atomic import check_writable
     from hairlut.render import compare, read_frame
 
+    if diff_png:
+        check_writable(diff_png)
     figures, heat = compare(read_frame(a), read_frame(b))
     if diff_png:
         atomic_write_bytes(diff_png, encode_png(np.round(np.clip(heat, 0, 1) * 255).astype(np.uint8)))
         figures["png"] = diff_png
     if as_json:
-        click.echo(json.dumps(figures, indent=2))
+        click.echo(json.dumps(figures, indent=2, allow_nan=False))
         return
     for k, v in figures.items():
-        click.echo(f"{k:<20} {v:.6g}" if isinstance(v, float) else f"{k:<20} {v}")
+        click.echo(f"{k:<20} {v:.6g}" if isinstance(v, float) else f"{k:<20} {'n/a' if v is None else v}")

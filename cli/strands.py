@@ -69,8 +69,10 @@ def convert_cmd(src, dst):
       hairlut strands convert tables/grooms/ratboy_mohawk.tfx ratboy.hair
       hairlut strands convert tables/grooms/sintel_lite.tfx sintel.usda   # needs the usd extra
     """
+    from hairlut.assets.atomic import check_writable
     from hairlut.geometry import read_strands, write_strands
 
+    check_writable(dst)
     strands = read_strands(src)
     write_strands(dst, strands)
     click.echo(f"wrote {dst}: {strands.n_strands} strands, {strands.n_points} vertices")

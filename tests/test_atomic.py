@@ -13,6 +13,7 @@ import pytest
 from hairlut.assets import atomic_path, read_exr, read_table, stale_temporaries
 
 from . import _tables  # noqa: F401  (declares the test kind kk_lobes)
+from ._readonly import read_only_dir  # noqa: F401  (a fixture)
 
 WRITER = textwrap.dedent(
     """
@@ -80,3 +81,28 @@ def test_failed_body_leaves_target_untouched(tmp_path):
             raise RuntimeError("boom")
     assert target.read_bytes() == b"old"
     assert os.listdir(tmp_path) == ["x.bin"]
+
+
+def test_check_writable_refuses_what_cannot_be_written_and_creates_nothing(tmp_path, read_only_dir):
+    """Issue 29 m5: an output that cannot be written is refused before any work, naming the user's path (a
+    render computed its whole frame, then named its hidden temporary file)."""
+    from hairlut import errors
+    from hairlut.assets.atomic import atomic_write_bytes, check_writable
+
+    for target, folder in ((read_only_dir / "r.exr", False), (read_only_dir / "a" / "b" / "r.exr", False),
+                           (read_only_dir / "out", True)):
+        with pytest.raises(errors.AssetError, match="cannot write") as exc:
+            check_writable(target, folder=folder)
+        assert exc.value.path == str(target) and str(read_only_dir) in str(exc.value)
+    with pytest.raises(errors.AssetError) as exc:  # the write itself, past the check, names the user's file too
+        atomic_write_bytes(read_only_dir / "r.png", b"x")
+    assert exc.value.path == str(read_only_dir / "r.png") and ".tmp" not in str(exc.value)
+    (tmp_path / "file").write_bytes(b"")
+    for target, folder, words in ((tmp_path / "file" / "r.exr", False, "is a file, not a folder"),
+                                  (tmp_path, False, "is a folder"), (tmp_path / "file", True, "is a file")):
+        with pytest.raises(errors.AssetError, match=words):
+            check_writable(target, folder=folder)
+    fresh = tmp_path / "new" / "deeper" / "r.exr"
+    assert check_writable(fresh) == fresh and check_writable(tmp_path / "new2", folder=True) == tmp_path / "new2"
+    assert not (tmp_path / "new").exists() and not (tmp_path / "new2").exists()
+    assert sorted(os.listdir(tmp_path)) == ["file", "ro"] and os.listdir(read_only_dir) == []

@@ -13,6 +13,7 @@ from hairlut import __version__
 from hairlut.assets import SCHEMA, Axis, ExrPart, Variable, write_exr, write_table
 from hairlut_cli.main import cli
 
+from ._readonly import read_only_dir  # noqa: F401  (a fixture)
 from ._tables import lobes_table
 
 
@@ -171,6 +172,28 @@ def test_usage_errors_are_status_2(tmp_path):
     assert CliRunner().invoke(cli, ["inspect"]).exit_code == 2
     assert CliRunner().invoke(cli, ["inspect", "--bogus", "x"]).exit_code == 2
     assert CliRunner().invoke(cli, ["nonsense"]).exit_code == 2
+
+
+@pytest.mark.parametrize("command", [
+    ["render", "{missing}/s.toml", "--out", "{out}/r.exr"],
+    ["render", "{missing}/s.toml", "--reference", "--out", "{out}/sub/r.exr", "--png"],
+    ["compare", "{missing}/a.exr", "{missing}/b.exr", "--png", "{out}/d.png"],
+    ["strands", "convert", "{missing}/a.tfx", "{out}/a.hair"],
+    ["synth", "{missing}/s.toml", "--out", "{out}/maps"],
+])
+@pytest.mark.parametrize("folder", ["read_only", "under_a_file"])
+def test_outputs_are_checked_before_any_work(tmp_path, read_only_dir, command, folder):
+    """Issue 29 m5: an output that cannot be written is refused first, one line naming the user's path (render
+    computed the whole frame, then named a hidden temporary file).  The inputs do not exist: a command that read
+    them (did any work) before checking its output would name them instead."""
+    (tmp_path / "file").write_bytes(b"")
+    out = read_only_dir if folder == "read_only" else tmp_path / "file"
+    args = [a.format(missing=tmp_path / "missing", out=out) for a in command]
+    target = next(a for a in args if a.startswith(str(out)))
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code == 2 and r.stdout == "", r.output
+    assert r.stderr.startswith(f"hairlut: error: {target}: cannot write") and r.stderr.count("\n") == 1, r.stderr
+    assert "missing" not in r.stderr and ".tmp" not in r.stderr
 
 
 def test_demo_writes_and_inspects(tmp_path):

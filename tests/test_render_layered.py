@@ -181,6 +181,17 @@ def test_back_faces_compose_behind_front_faces(draw):
     assert depth[16, 16] == pytest.approx(4.8, abs=1e-5)
 
 
+@pytest.mark.parametrize("where", ["outside", "between_centres"])
+def test_a_frame_that_catches_no_fragment_is_empty(draw, where):
+    """Issue 29 N2: layers that cover no pixel centre (outside the frame, or a sliver between two rows of centres)
+    make an empty frame, α = 0 and depth FAR everywhere (the camera pass crashed in order_fragments)."""
+    cam = camera(res=(16, 12))
+    x0, x1, y0, y1 = (5.0, 6.0, -0.5, 0.5) if where == "outside" else (-0.5, 0.5, 0.01, 0.02)  # pixel rows 1/6 apart
+    v, uv, tri = quad([(x0, y0, 0.0), (x1, y0, 0.0), (x0, y1, 0.0), (x1, y1, 0.0)], rows=2, cols=2)
+    rgba, depth = draw(cam, v[None, None], uv, tri, constant([1.0, 0.5, 0.2], 0.9)[None, None])
+    assert rgba.shape == (12, 16, 4) and not rgba.any() and np.all(depth == FAR)
+
+
 def test_sample_texture_periodic_and_clamped():
     tex = np.random.default_rng(0).random((5, 6, 4)).astype(np.float32)
     n_t, n_u = 5, 6
@@ -247,6 +258,24 @@ def test_cli_render_layered(tmp_path):
     scene.write_text(TINY.replace("resolution = [48, 40]", "resolution = [0, 40]"))
     r = CliRunner().invoke(cli, ["render", str(scene), "--out", str(out)])
     assert r.exit_code == 2 and "camera.resolution" in r.output
+
+
+@pytest.mark.parametrize("keys", ["extent = 1e30", 'projection = "perspective"\nfov = 179.9999'])
+def test_cli_render_of_a_frame_with_no_hair_is_empty_and_says_so(tmp_path, keys):
+    """Issue 29 N2: a legal camera whose frame catches no hair (the hair shrinks far below a pixel, about the
+    frame's centre, a pixel corner of this even-sized frame) renders α = 0 everywhere with a warning line, both
+    the layered model and the strand reference (the layered render crashed with an IndexError)."""
+    from hairlut_cli.main import cli
+
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(TINY.replace("resolution = [48, 40]", f"resolution = [24, 20]\n{keys}"))
+    for extra in ([], ["--reference", "--max-level", "1"]):
+        out = tmp_path / f"f{len(extra)}.exr"
+        r = CliRunner().invoke(cli, ["render", str(scene), "--out", str(out), *extra])
+        assert r.exit_code == 0, r.output
+        assert "catches no hair" in r.stderr and r.stderr.count("\n") == 1
+        f = read_frame(out)
+        assert f.rgba.shape == (20, 24, 4) and not f.rgba.any() and np.all(f.depth == FAR)
 
 
 def test_write_exr_attributes_round_trip_and_refusals(tmp_path):

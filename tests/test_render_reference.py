@@ -126,6 +126,26 @@ def test_cli_render_reference(tmp_path):
     assert a[int(y), int(x)] > 0.05
 
 
+def test_cli_render_reference_without_a_bound_reports_the_scene_default(tmp_path):
+    """Issue 29 N1: no ``--bound`` and no ``[render] reference_bound``: the text report shows the default bound
+    the render used (it formatted the option, None, and crashed after writing the EXR)."""
+    from click.testing import CliRunner
+
+    from hairlut.render import BOUND, read_frame
+    from hairlut_cli.main import cli
+    from tests.test_render_layered import TINY
+
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(TINY.replace("resolution = [48, 40]", "resolution = [16, 12]").replace("radius = 0.006", "radius = 0.025")
+                     + '[shadows]\nmethod = "none"\n')
+    assert "reference_bound" not in scene.read_text()
+    out = tmp_path / "ref.exr"
+    r = CliRunner().invoke(cli, ["render", str(scene), "--reference", "--max-level", "1", "--out", str(out)])
+    assert r.exit_code == 0, r.output
+    assert f"bound {BOUND:g})" in r.output and f"wrote {out}" in r.output
+    assert read_frame(out).info["bound"] == BOUND
+
+
 @pytest.mark.slow
 def test_reference_bound_holds_one_level_finer(tmp_path):
     """``verify``: the converged image against one more refinement changes by less than the bound too."""

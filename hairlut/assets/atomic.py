@@ -7,6 +7,8 @@ beside it, which :func:`stale_temporaries` finds.
 A full disk (``ENOSPC``, a quota's ``EDQUOT``, a file-size limit's ``EFBIG``) while
 writing, syncing or moving becomes :class:`hairlut.errors.DiskFullError` naming the
 final path; the temporary file is removed, so nothing partial is left under any name.
+A refused write (permissions, a read-only file system) is an AssetError naming the final
+path too; commands check their outputs with :func:`check_writable` before any work.
 Writers whose C libraries do not survive a full disk (HDF5 can segfault) build the
 file in memory and hand the bytes to :func:`write_bytes`, after :func:`ensure_space`.
 """
@@ -23,6 +25,8 @@ from .. import errors
 
 TMP_SUFFIX = ".tmp"
 FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+#: A folder that refuses the write (permissions, a read-only file system).
+DENIED_ERRNOS = frozenset({errno.EACCES, errno.EPERM, errno.EROFS})
 
 
 def _size(n: float) -> str:
@@ -54,6 +58,34 @@ def ensure_space(final: str | os.PathLike, nbytes: int) -> None:
         raise errors.DiskFullError(final, f"needs {_size(nbytes)} but only {_size(free)} are free on its file system; nothing was written")
 
 
+def check_writable(path: str | os.PathLike, *, folder: bool = False) -> Path:
+    """Refuse an output hairlut could not write, before any work is done: an AssetError naming ``path`` (the
+    user's name, never a temporary one).  ``path`` is a file (``folder`` False: not an existing folder) or a
+    folder (``folder``: not an existing file).  The folder that must take the file is the nearest one that exists
+    (:func:`atomic_path` creates the rest): it must be a folder, on a writable file system, writable by this user.
+    Nothing is created or changed here."""
+    target = Path(path)
+    if not folder and target.is_dir():
+        raise errors.AssetError(target, "is a folder; give a file name")
+    if folder and target.exists() and not target.is_dir():
+        raise errors.AssetError(target, "is a file; give a folder")
+    where = (target if folder else target.parent).absolute()
+    while not where.exists() and where.parent != where:
+        where = where.parent
+    if not where.is_dir():
+        raise errors.AssetError(target, f"cannot write: {where} is a file, not a folder")
+    try:
+        read_only = bool(os.statvfs(where).f_flag & os.ST_RDONLY)
+    except (AttributeError, OSError):
+        read_only = False
+    if read_only:
+        raise errors.AssetError(target, f"cannot write: {where} is on a read-only file system; nothing was written")
+    if not os.access(where, os.W_OK | os.X_OK):
+        raise errors.AssetError(target, f"cannot write: the folder {where} is not writable (permission denied); "
+                                        "nothing was written")
+    return target
+
+
 def _fsync_path(path: Path) -> None:
     flags = os.O_RDONLY | getattr(os, "O_DIRECTORY", 0) if path.is_dir() else os.O_RDONLY
     fd = os.open(path, flags)
@@ -83,9 +115,11 @@ def atomic_path(path: str | os.PathLike):
     except OSError as exc:
         if exc.errno in FULL_ERRNOS:
             raise disk_full(final, exc) from None
+        if exc.errno in DENIED_ERRNOS:  # name the user's file, not the temporary one
+            raise errors.AssetError(final, f"cannot write: {os.strerror(exc.errno)}; nothing was written") from None
         raise
     finally:
-        with contextlib.suppress(FileNotFoundError):
+        with contextlib.suppress(OSError):  # never made (a refused folder), or moved into place
             tmp.unlink()
 
 

@@ -77,6 +77,21 @@ class ExrImage:
                 return p
         raise errors.MissingDatasetError(self.path, f"no part named {name!r} (parts: {[p.name for p in self.parts]})")
 
+    def part_with(self, channels) -> ExrPart:
+        """The one part holding every one of ``channels`` (names), whichever its place in the file: a reader that
+        needs a frame's R, G, B and A finds them in a multi-part file too.  A MissingDatasetError when no part holds
+        them all, a FormatError naming the parts when several do (which one is meant is ambiguous)."""
+        want = list(channels)
+        found = [p for p in self.parts if all(c in p.channels for c in want)]
+        if len(found) == 1:
+            return found[0]
+        if not found:
+            have = {p.name or f"part {i}": sorted(p.channels) for i, p in enumerate(self.parts)}
+            raise errors.MissingDatasetError(self.path, f"no part has channels {', '.join(want)} "
+                                                        f"({len(self.parts)} part(s): {have})")
+        raise errors.FormatError(self.path, f"{len(found)} of its {len(self.parts)} parts hold channels {', '.join(want)} "
+                                            f"({', '.join(repr(p.name) for p in found)}): which one is meant is ambiguous")
+
     def channel(self, name: str, part: str | None = None) -> np.ndarray:
         p = self.part(part)
         if name not in p.channels:

@@ -3,7 +3,8 @@
 ``compare(a, b)`` (b the reference) returns, over the whole frame:
 
 - ``rgb_rmse``: RMSE of the premultiplied linear RGB; ``alpha_rmse``: RMSE of α;
-- ``alpha_bias``: mean α of a minus mean α of b, and ``alpha_bias_relative`` (over b's mean α);
+- ``alpha_bias``: mean α of a minus mean α of b, and ``alpha_bias_relative`` (over b's mean α; None, with the
+  reason in ``alpha_bias_relative_undefined``, when b's α is zero everywhere: there is no coverage to be relative to);
 - the same RMSEs after 8 × 8 block averaging (``rgb_rmse_8x8``, ``alpha_rmse_8x8``): coverage and tone,
   apart from where single strands fall;
 - ``flip_mean`` and the FLIP heat map (LDR-FLIP of NVIDIA's ``flip-evaluator`` package, on the frames
@@ -39,7 +40,8 @@ def _rmse(a, b) -> float:
 
 def compare(a, b, *, flip: bool = True) -> tuple[dict, np.ndarray | None]:
     """Figures (module docstring) of RGBA frames ``a`` against ``b`` ((h, w, 4) arrays or Frames), and the
-    FLIP heat map (h, w, 3) in [0, 1] (magma), None without ``flip``."""
+    FLIP heat map (h, w, 3) in [0, 1] (magma), None without ``flip``.  Every figure of frames in float32 range is a
+    finite number (their squares are summed in float64) or None with its reason: strict JSON."""
     ra, rb = (np.asarray(getattr(x, "rgba", x), np.float64) for x in (a, b))
     for name, x in (("a", ra), ("b", rb)):
         if x.ndim != 3 or x.shape[2] != 4:
@@ -52,8 +54,10 @@ def compare(a, b, *, flip: bool = True) -> tuple[dict, np.ndarray | None]:
     ba, bb = block_average(ra), block_average(rb)
     out = {"rgb_rmse": _rmse(ra[..., :3], rb[..., :3]), "alpha_rmse": _rmse(ra[..., 3], rb[..., 3]),
            "alpha_mean_a": ma, "alpha_mean_b": mb, "alpha_bias": ma - mb,
-           "alpha_bias_relative": (ma - mb) / mb if mb > 0 else float("nan"),
+           "alpha_bias_relative": (ma - mb) / mb if mb > 0 else None,
            "rgb_rmse_8x8": _rmse(ba[..., :3], bb[..., :3]), "alpha_rmse_8x8": _rmse(ba[..., 3], bb[..., 3])}
+    if mb <= 0:
+        out["alpha_bias_relative_undefined"] = "b's alpha is zero everywhere"
     heat = None
     if flip:
         import flip_evaluator

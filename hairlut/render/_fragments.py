@@ -79,6 +79,9 @@ def order_fragments(z, tuv, origins, size, n_t: int, n_u: int):
     W, H = size
     C, S, th, tw = z.shape
     drawn = np.isfinite(z)
+    if not drawn.any():  # a frame that catches no hair: no slabs, every pixel the composite's empty last row
+        return (np.zeros(0, np.int32), np.zeros((0, 2), np.float32), np.zeros(W * H, np.int32), (),
+                np.full((H, W), FAR, np.float32))
     near = np.where(drawn, z, np.inf).min(1)  # (C, th, tw)
     ox, oy = np.asarray(origins, np.int64)[:, 0], np.asarray(origins, np.int64)[:, 1]
     # clusters at each pixel, nearest first (ties: the lower index), as in the reference's composite

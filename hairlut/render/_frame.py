@@ -66,22 +66,27 @@ def write_frame(frame: Frame, path, png: bool = False) -> dict:
 
 
 def read_frame(path) -> Frame:
-    """A frame back from its EXR (any EXR with R, G, B and A reads; the camera only from a hairlut frame)."""
+    """A frame back from its EXR (any EXR with R, G, B and A in one part reads, multi-part too; the camera only
+    from a hairlut frame)."""
     from ..scene import Camera
 
     img = read_exr(path)
-    part = img.part()
-    for c in "RGBA":
-        if c not in part.channels:
-            raise errors.MissingDatasetError(path, f"no channel {c!r} (channels: {sorted(part.channels)})")
+    part = img.part_with("RGBA")
     rgba = np.stack([np.asarray(part.channels[c], np.float32) for c in "RGBA"], -1)
     depth = np.asarray(part.channels["Z"], np.float32) if "Z" in part.channels else np.zeros(rgba.shape[:2], np.float32)
-    rec = img.recipe or {}
+    rec = img.recipe if isinstance(img.recipe, dict) else {}
     if CAMERA_KEY in img.attributes:
         try:
-            cam = Camera.from_json(json.loads(img.attributes[CAMERA_KEY]))
+            record = json.loads(img.attributes[CAMERA_KEY])
         except ValueError as exc:  # JSONDecodeError
             raise errors.CorruptAssetError(path, f"{CAMERA_KEY} is not JSON ({exc})") from None
     else:
-        cam = Camera.from_json(rec["camera"]) if "camera" in rec else None
+        record = rec.get("camera")
+    try:
+        cam = None if record is None else Camera.from_json(record)
+    except errors.ValidationError as exc:
+        raise errors.CorruptAssetError(path, str(exc)) from None
+    if cam is not None and (cam.height, cam.width) != rgba.shape[:2]:
+        raise errors.CorruptAssetError(path, f"{CAMERA_KEY}.resolution=[{cam.width}, {cam.height}]: the image is "
+                                             f"{rgba.shape[1]} x {rgba.shape[0]} pixels")
     return Frame(rgba, depth, cam, {k: v for k, v in rec.items() if k != "camera"})

@@ -48,12 +48,22 @@ def scene_strands(scene) -> list:
     return [s for _, s in scene_clusters(scene)]
 
 
+def thinnest_radius(strands) -> float | None:
+    """Half the smallest positive strand thickness of ``strands`` (the detail a frame must resolve), None without
+    thicknesses."""
+    th = [np.asarray(s.thickness, np.float64) for s in strands if s.thickness is not None]
+    th = np.concatenate(th) if th else np.zeros(0)
+    th = th[th > 0]
+    return 0.5 * float(th.min()) if len(th) else None
+
+
 def scene_camera(scene, strands=None):
-    """The scene's :class:`~hairlut.scene.Camera`, fitted to its strands where ``[camera]`` says 'auto'."""
+    """The scene's :class:`~hairlut.scene.Camera`, fitted to its strands where ``[camera]`` says 'auto' and refused
+    where float32 could not resolve their thinnest radius (``hairlut.scene.make_camera``)."""
     from ..scene import make_camera
 
     strands = scene_strands(scene) if strands is None else strands
-    return make_camera(scene.config["camera"], np.concatenate([s.points for s in strands]))
+    return make_camera(scene.config["camera"], np.concatenate([s.points for s in strands]), thinnest_radius(strands))
 
 
 def _change(a: np.ndarray, b: np.ndarray) -> dict:

@@ -1,8 +1,9 @@
 """The scene's camera: the ``[camera]`` table and its projection (world → clip → pixels).
 
-``[camera]`` keys (every one but ``view`` optional):
+``[camera]`` keys (every one but ``view`` optional; ``view`` too when ``position`` and ``look_at`` are both given):
 
-``view``        the direction *toward* the viewer (DESIGN.md); the online maps' view angle;
+``view``        the direction *toward* the viewer (DESIGN.md); the online maps' view angle; missing, with
+                ``position`` and ``look_at`` both given, the direction from look_at to position (:func:`derive_view`);
 ``projection``  ``"orthographic"`` (default) or ``"perspective"``;
 ``look_at``     the point the camera looks at (default: the centre of the groom's bounds);
 ``position``    the eye (default: on the line look_at + d·view, d fitted so the groom is in front
@@ -20,11 +21,24 @@ OpenGL convention (right-handed eye space looking down −z; clip w = eye distan
 camera, 1 for an orthographic one; NDC in [−1, 1]); pixel (x, y) of NDC (X, Y) is
 ((X + 1)/2 · w, (1 − Y)/2 · h): x to the right, y downward from the top row, pixel centres at
 integers + ½.  ``depth`` is the eye-space distance along the viewing axis (the EXR ``Z``).
+
+*Precision.*  Both renderers work in float32 world coordinates (the strand reference marches rays from the eye;
+the rasteriser projects and depth-sorts from it), so a float32 step at the eye's distance D from the hair,
+ε₃₂·D, is their resolution there.  :func:`make_camera` refuses, naming the key that placed the eye or the frame
+(``position``; ``fov``, whose fitted eye stands at radius / sin(fov/2); ``look_at``; ``extent``):
+
+- an eye so far that ε₃₂·D exceeds 1/16 of the thinnest strand's radius (``position`` 1e12 away; ``fov`` 1e-6,
+  which fits the eye 1e8 radii away): the reference would lose the strands and the rasteriser the depth order;
+- a pixel at the nearest hair narrower than 16 such steps (``extent`` 1e-30): neither could place an edge in it.
+
+A frame that is legal but catches no hair (``extent`` 1e30 or ``fov`` 179.9999, where the hair shrinks below a
+pixel and no pixel centre falls on it) is a correct, empty frame: α = 0 everywhere, and ``hairlut render`` says so.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,6 +53,12 @@ BYTES_PER_SAMPLE = 256
 #: Most pixels on a side.
 MAX_SIDE = 16384
 MARGIN = 0.05
+#: float32's relative spacing (the renderers' precision, module docstring *Precision*).
+FLOAT32_EPS = float(np.finfo(np.float32).eps)
+#: A length the frame must show spans at least this many float32 steps (about 1e-3 α RMSE in the strand reference).
+RESOLVE = 16
+#: Without a strand radius, the detail a frame must resolve is the hair's radius over this.
+DETAIL = 1024
 
 
 def _finite3(x, allow_zero=True):
@@ -105,6 +125,34 @@ def _unit(x) -> np.ndarray:
     return direction(x, "camera")  # normalised without overflow (view = [1e300, 1e300, 1e300])
 
 
+def _toward(position, look_at) -> np.ndarray | None:
+    """The unit direction from ``look_at`` to ``position`` (None where they coincide), taken without overflow for
+    coordinates near the float64 limit."""
+    p, q = np.asarray(position, np.float64), np.asarray(look_at, np.float64)
+    scale = max(float(np.abs(p).max()), float(np.abs(q).max()), 1e-300)
+    d = p / scale - q / scale
+    n = float(np.hypot(np.hypot(d[0], d[1]), d[2]))
+    return d / n if n > 0 else None
+
+
+def derive_view(given):
+    """The ``[camera]`` table as given, with ``view`` filled in where it is missing and both ``position`` and
+    ``look_at`` are points: the unit direction from look_at to position (a perspective camera placed by its eye
+    and target needs nothing more).  Where ``view`` is given too, :func:`check_camera` refuses it unless the
+    three agree."""
+    if not isinstance(given, Mapping) or "view" in given or "position" not in given or "look_at" not in given:
+        return given
+    if "auto" in (given["position"], given["look_at"]):
+        return given
+    for key in ("position", "look_at"):
+        if reason := _finite3(given[key]):
+            raise errors.ValidationError(f"camera.{key}", given[key], reason)
+    view = _toward(given["position"], given["look_at"])
+    if view is None:
+        raise errors.ValidationError("camera.position", given["position"], "equals camera.look_at: no view direction")
+    return {**given, "view": view.tolist()}
+
+
 def check_camera(cam: dict) -> None:
     """Checks across ``[camera]`` keys (each key alone is checked by :data:`CAMERA`): ``up`` not parallel
     to ``view``; a frame that fits in memory; a given ``position`` on the line look_at + d·view, d > 0."""
@@ -113,13 +161,14 @@ def check_camera(cam: dict) -> None:
         raise errors.ValidationError("camera.up", cam["up"], f"parallel to camera.view {cam['view']}: no way to tell up")
     check_memory(cam["resolution"])
     if cam["position"] != "auto" and cam["look_at"] != "auto":
-        p, q = np.asarray(cam["position"], np.float64), np.asarray(cam["look_at"], np.float64)
-        scale = max(float(np.abs(p).max()), float(np.abs(q).max()), 1e-300)
-        d = p / scale - q / scale  # scaled: no overflow for coordinates near the float64 limit
-        n = float(np.hypot(np.hypot(d[0], d[1]), d[2]))
-        if n == 0 or float(d @ view) < n * (1.0 - 1e-6):
-            raise errors.ValidationError("camera.position", cam["position"], "must lie on look_at + d·view with d > 0 "
-                                         f"(look_at {cam['look_at']}, view {cam['view']})")
+        d = _toward(cam["position"], cam["look_at"])
+        if d is None:
+            raise errors.ValidationError("camera.position", cam["position"], "equals camera.look_at: no view direction")
+        if float(d @ view) < 1.0 - 1e-6:
+            raise errors.ValidationError("camera.position", cam["position"], f"disagrees with camera.view {cam['view']}: "
+                                         f"the eye must lie on camera.look_at {cam['look_at']} + d·view with d > 0 (the "
+                                         f"direction from look_at to position is {np.round(d, 6).tolist()}; give view "
+                                         "or drop it to derive it)")
 
 
 @dataclass(frozen=True, eq=False)
@@ -199,19 +248,75 @@ class Camera:
                 "near": self.near, "far": self.far}
 
     @classmethod
-    def from_json(cls, d: dict) -> Camera:
-        try:
-            w, h = d["resolution"]
-            return cls(d["projection"], *(np.asarray(d[k], np.float64) for k in ("eye", "right", "up", "view")),
-                       int(w), int(h), float(d["extent"]), float(d["fov"]), float(d["near"]), float(d["far"]))
-        except (KeyError, TypeError, ValueError) as exc:
-            raise errors.ValidationError("hairlut:camera", str(d)[:60], f"not a camera record ({exc})") from None
+    def from_json(cls, d) -> Camera:
+        """The camera of a :meth:`to_json` record (an EXR's ``hairlut:camera``), every field checked: its type, finite,
+        in range, the axes orthonormal and the stored ``world_to_clip`` the one the fields give.  A ValidationError
+        names ``hairlut:camera.<field>`` and the value."""
+        return cls(*_record(d))
 
 
-def make_camera(cam: dict, points) -> Camera:
+#: The fields of :meth:`Camera.to_json`, in the order the record is checked.
+RECORD_FIELDS = ("projection", "resolution", "eye", "right", "up", "view", "extent", "fov", "near", "far", "world_to_clip")
+
+
+def _number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _record(d) -> tuple:
+    """:class:`Camera`'s fields from a ``to_json`` record (:meth:`Camera.from_json`)."""
+    where = "hairlut:camera"
+    if not isinstance(d, dict):
+        raise errors.ValidationError(where, type(d).__name__, "not a JSON object (a camera record is one)")
+    missing = [k for k in RECORD_FIELDS if k not in d]
+    if missing:
+        raise errors.ValidationError(where, sorted(d)[:12], f"missing field(s) {', '.join(missing)}")
+
+    def bad(key, reason):
+        return errors.ValidationError(f"{where}.{key}", d[key], reason)
+
+    if d["projection"] not in PROJECTIONS:
+        raise bad("projection", "'orthographic' or 'perspective'")
+    if not isinstance(d["resolution"], list) or (reason := _resolution(d["resolution"])):
+        raise bad("resolution", "need [w, h]: 2 integers" if not isinstance(d["resolution"], list) else reason)
+    axes = {}
+    for key in ("eye", "right", "up", "view"):
+        if reason := _finite3(d[key], allow_zero=key == "eye"):
+            raise bad(key, reason)
+        axes[key] = np.asarray(d[key], np.float64)
+        if key != "eye" and abs(float(np.linalg.norm(axes[key])) - 1.0) > 1e-6:
+            raise bad(key, "an axis of the camera is a unit vector")
+    gram = np.stack([axes["right"], axes["up"], axes["view"]])
+    if np.abs(gram @ gram.T - np.eye(3)).max() > 1e-6:
+        raise bad("right", f"right, up and view must be orthogonal (up {d['up']}, view {d['view']})")
+    for key in ("extent", "fov", "near", "far"):
+        if not _number(d[key]):
+            raise bad(key, "need a finite number")
+    if not d["extent"] > 0:
+        raise bad("extent", "the frame height must be > 0")
+    if reason := _fov(d["fov"]):
+        raise bad("fov", reason)
+    if not (d["near"] > 0 if d["projection"] == "perspective" else d["near"] >= 0):
+        raise bad("near", "the near plane lies in front of the eye (> 0; ≥ 0 orthographic)")
+    if not d["far"] > d["near"]:
+        raise bad("far", f"the far plane lies beyond the near plane ({d['near']})")
+    w, h = d["resolution"]
+    cam = (d["projection"], axes["eye"], axes["right"], axes["up"], axes["view"], w, h,
+           float(d["extent"]), float(d["fov"]), float(d["near"]), float(d["far"]))
+    m = d["world_to_clip"]
+    if not (isinstance(m, list) and len(m) == 4 and all(isinstance(r, list) and len(r) == 4 and all(map(_number, r)) for r in m)):
+        raise bad("world_to_clip", "need a 4 x 4 matrix of finite numbers")
+    want = Camera(*cam).matrix
+    if not np.allclose(np.asarray(m, np.float64), want, rtol=1e-6, atol=1e-9 * float(np.abs(want).max())):
+        raise bad("world_to_clip", "not the matrix the record's eye, axes and frame give")
+    return cam
+
+
+def make_camera(cam: dict, points, detail: float | None = None) -> Camera:
     """The :class:`Camera` of a resolved ``[camera]`` table, fitted to the hair's ``points`` (n, 3) where
     keys are 'auto'.  Raises when the eye lies inside the hair's bounds (or, perspective, any hair lies
-    behind the near plane)."""
+    behind the near plane), and when float32 cannot draw the frame (module docstring, *Precision*; ``detail``:
+    the smallest length the frame must resolve, the thinnest strand's radius; default the hair's radius / 1024)."""
     pts = np.asarray(points, np.float64).reshape(-1, 3)
     lo, hi = pts.min(0), pts.max(0)
     back = _unit(cam["view"])
@@ -252,4 +357,33 @@ def make_camera(cam: dict, points) -> Camera:
         raise errors.ValidationError("camera.position", eye.tolist(), "hair lies behind the camera")
     near = near_need * 0.5 if cam["projection"] == "perspective" else 0.0
     far = float(depth.max()) * 1.5 + 1e-9
-    return Camera(cam["projection"], eye, right, up, back, int(w), int(h), float(ext), fov, near, far)
+    camera = Camera(cam["projection"], eye, right, up, back, int(w), int(h), float(ext), fov, near, far)
+    _check_precision(cam, camera, pts, centre, near_need, *((radius / DETAIL, f"the hair's radius / {DETAIL}")
+                                                            if detail is None else (float(detail), "the thinnest strand's radius")))
+    return camera
+
+
+def _check_precision(cam: dict, camera: Camera, pts: np.ndarray, centre: np.ndarray, nearest: float, detail: float,
+                     what: str) -> None:
+    """Refuse a camera the float32 renderers cannot draw (module docstring, *Precision*), naming the key that put
+    the eye or the frame there: float32's spacing at the eye's distance from the farthest hair must be at most
+    ``detail`` / :data:`RESOLVE`, and at most a 1 / :data:`RESOLVE` of a pixel at the nearest hair."""
+    reach = float(np.linalg.norm(camera.eye - pts, axis=1).max())
+    spacing = FLOAT32_EPS * reach
+    if spacing * RESOLVE > detail:  # the eye is given far away, or fitted far for a tiny fov, or beside a far look_at
+        fitted = float(np.linalg.norm(camera.eye - centre))
+        key = "position" if cam["position"] != "auto" else \
+            "fov" if camera.projection == "perspective" and FLOAT32_EPS * RESOLVE * fitted > detail else "look_at"
+        raise errors.ValidationError(f"camera.{key}", cam[key], f"puts the eye {reach:.3g} from the hair: float32 (the "
+                                     f"renderers' precision) then resolves only {spacing:.2g} there, coarser than "
+                                     f"1/{RESOLVE} of the detail the frame must show ({detail:.2g}, {what}); keep the eye within {detail / (RESOLVE * FLOAT32_EPS):.3g} of the hair"
+                                     + (" (a wider fov fits it closer)" if key == "fov" else ""))
+    if camera.projection == "perspective":
+        pixel = 2 * nearest * math.tan(math.radians(camera.fov) / 2) / camera.height
+        key = "position" if cam["position"] != "auto" else "fov"
+    else:
+        pixel, key = camera.extent / camera.height, "extent"
+    if spacing * RESOLVE > pixel:
+        raise errors.ValidationError(f"camera.{key}", cam[key], f"makes a pixel {pixel:.2g} wide at the hair, but float32 "
+                                     f"(the renderers' precision) steps by {spacing:.2g} at {reach:.3g} from the eye, and "
+                                     f"a pixel must span {RESOLVE} steps")

@@ -39,7 +39,7 @@ from ..validate import nonneg as _nonneg
 from ..validate import positive as _pos
 from ..validate import unit_interval as _unit_interval
 from ..validate import vec3 as _vec3
-from ._camera import CAMERA, check_camera
+from ._camera import CAMERA, check_camera, derive_view
 
 
 def _colour(x):
@@ -56,7 +56,10 @@ def _pair(check):
     return run
 
 
-REQUIRED = ("camera.view", "lights.directions")
+#: Keys without a default, and why each is refused when missing.
+REQUIRED = {"camera.view": "missing required key (or give both camera.position and camera.look_at: the view is "
+                           "derived from them)",
+            "lights.directions": "missing required key"}
 
 #: ``[shadows] method``: where each light's transmittance at a texel comes from (eq 13 with one τ per light).
 SHADOW_METHODS = ("smap", "light_oriented", "opacity_maps", "none")
@@ -295,9 +298,11 @@ def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -
         raise errors.ValidationError("scene", type(given).__name__, "expected a table of keys")
     given = dict(given)
     clusters, groom = given.pop("clusters", None), given.pop("groom", None)
-    for key in REQUIRED:
+    if "camera" in given:
+        given["camera"] = derive_view(given["camera"])
+    for key, reason in REQUIRED.items():
         if _get(given, key) is None:
-            raise errors.ValidationError(key, None, "missing required key")
+            raise errors.ValidationError(key, None, reason)
     cfg = resolve(SCHEMA, given)
     method, shadow_given = cfg["shadows"]["method"], given.get("shadows", {})
     for key in shadow_given:
