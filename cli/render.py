@@ -91,8 +91,10 @@ def compare_cmd(a, b, diff_png, as_json):
     import numpy as np
 
     from hairlut.assets import atomic_write_bytes, encode_png
+    from hairlut.files import not_an_input
     from hairlut.render import compare, read_frame
 
+    not_an_input(diff_png, [a, b], "png")
     figures, heat = compare(read_frame(a), read_frame(b))
     if diff_png:
         atomic_write_bytes(diff_png, encode_png(np.round(np.clip(heat, 0, 1) * 255).astype(np.uint8)))

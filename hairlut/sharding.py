@@ -28,6 +28,7 @@ from . import errors
 from .assets import canonical_json, open_table, read_table, recipe_hash
 from .baker import Baker, parse_shard
 from .distributed import Process, barrier, current
+from .files import not_an_input
 from .parts import (clean_temporaries, locked, open_folder, part_name, read_share, remove_folder, share_name, stamp,
                     write_share)
 from .virtual_asset import check_virtual, write_virtual
@@ -293,6 +294,7 @@ def merge(baker: Baker, shards, out) -> dict:
     shards = [Path(p) for p in shards]
     if not shards:
         raise errors.ValidationError("shards", shards, "give at least one shard")
+    not_an_input(out, shards)
     items = sorted(((*header(p, baker), p) for p in shards), key=lambda x: x[0])
     total, digest, recipe = items[0][2], items[0][3], items[0][4]
     pos = 0
