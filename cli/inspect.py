@@ -35,10 +35,12 @@ def inspect_cmd(paths, as_json, png, channel, part, dataset, index, exposure, no
     """
     from hairlut import registry
     from hairlut.assets import preview, summarize
+    from hairlut.files import not_an_input
     from hairlut.virtual_asset import check_virtual
 
     if png and len(paths) != 1:
         raise click.UsageError("--png takes exactly one input file")
+    not_an_input(png, paths, "png")
     for p in paths:
         check_virtual(p)  # a virtual table (a sharded bake's) only with every part, of its recipe: else one line naming it
     summaries = [summarize(p) for p in paths]

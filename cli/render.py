@@ -102,9 +102,11 @@ def compare_cmd(a, b, diff_png, as_json):
 
     from hairlut.assets import atomic_write_bytes, encode_png
     from hairlut.assets.atomic import check_writable
+    from hairlut.files import not_an_input
     from hairlut.render import compare, read_frame
 
     if diff_png:
+        not_an_input(diff_png, [a, b], "png")
         check_writable(diff_png)
     figures, heat = compare(read_frame(a), read_frame(b))
     if diff_png:

@@ -15,8 +15,6 @@ cached bake of a registered kind.
 from __future__ import annotations
 
 import contextlib
-import errno
-import fcntl
 import json
 import os
 import time
@@ -43,26 +41,50 @@ def asset_path(kind: str, recipe: dict, root=None) -> Path:
 
 @dataclass(frozen=True)
 class Entry:
+    """One file of the cache folder named like an asset.  ``status``: ``ok``; ``foreign``, a valid asset under
+    another asset's name (its own, from its kind and recipe hash, is in ``fault``): :func:`ensure` never reuses it
+    under that name; ``corrupt``, a file that fails validation (``fault`` says why; kind and recipe hash empty)."""
+
     path: Path
     kind: str
     recipe_hash: str
     created: str
     bytes: int
+    status: str = "ok"
+    fault: str = ""
+
+    @property
+    def usable(self) -> bool:
+        return self.status != "corrupt"
+
+
+def _validated(path: Path, kind: str | None = None) -> dict:
+    """The root attributes (text) of asset ``path`` once it validates as a table (``kind`` when given), a virtual
+    one with every part it reads through to; else the :class:`~hairlut.errors.AssetError` naming the fault."""
+    from .virtual_asset import check_virtual
+
+    with open_table(path, kind) as f:
+        attrs = {k: (v.decode() if isinstance(v, bytes) else str(v)) for k, v in f.attrs.items()
+                 if k in ("kind", "recipe_hash", "created")}
+    check_virtual(path)
+    return attrs
+
+
+def check(path: Path, kind: str, digest: str) -> None:
+    """Raise the :class:`~hairlut.errors.AssetError` that says why ``path`` is not a valid ``kind`` asset with
+    recipe hash ``digest`` (the one validity rule of cached and split-bake outputs); return when it is one."""
+    stored = _validated(path, kind)["recipe_hash"]
+    if stored != digest:
+        raise errors.CorruptAssetError(path, f"holds another recipe (hash {stored[:16]}, not {digest[:16]})")
 
 
 def is_valid(path: Path, kind: str, digest: str) -> bool:
-    """Whether ``path`` is a valid ``kind`` asset with recipe hash ``digest``."""
-    from .virtual_asset import check_virtual
-
+    """Whether ``path`` is a valid ``kind`` asset with recipe hash ``digest`` (:func:`check`)."""
     try:
-        with open_table(path, kind) as f:
-            stored = f.attrs["recipe_hash"]
-            if (stored.decode() if isinstance(stored, bytes) else str(stored)) != digest:
-                return False
-        check_virtual(path)  # a virtual asset is valid only with every part it reads through to
-        return True
-    except errors.AssetError:
+        check(path, kind, digest)
+    except (errors.AssetError, OSError):
         return False
+    return True
 
 
 @contextlib.contextmanager
@@ -101,16 +123,22 @@ def recipe_of(path) -> dict:
 
 
 def entries(root=None) -> list[Entry]:
-    """Valid cached assets, newest first; files that fail validation are skipped."""
+    """Every file of the cache folder named like an asset (``*-*.h5``), newest first, each with its status
+    (:class:`Entry`): valid assets under their own names, valid ones under another's name (``foreign``), and files
+    that fail validation (``corrupt``, last).  Callers that use the assets take the ``usable`` ones."""
     out = []
     for path in sorted(cache_dir(root).glob("*-*.h5")):
+        size = path.lstat().st_size
         try:
-            with open_table(path) as f:
-                attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in f.attrs.items()}
-        except errors.AssetError:
+            attrs = _validated(path)
+        except errors.AssetError as exc:
+            out.append(Entry(path, "", "", "", size, "corrupt", exc.fault))
             continue
-        out.append(Entry(path, str(attrs["kind"]), str(attrs["recipe_hash"]), str(attrs.get("created", "")), path.stat().st_size))
-    return sorted(out, key=lambda e: e.created, reverse=True)
+        kind, digest = attrs["kind"], attrs["recipe_hash"]
+        own = f"{kind}-{digest[:16]}.h5"
+        out.append(Entry(path, kind, digest, attrs.get("created", ""), size, *(("ok", "") if path.name == own else
+                   ("foreign", f"its kind and recipe hash name it {own}"))))
+    return sorted(out, key=lambda e: (e.usable, e.created), reverse=True)
 
 
 def prune(root=None, *, kinds=None, older_than_days: float | None = None, everything: bool = False,
@@ -123,8 +151,8 @@ def prune(root=None, *, kinds=None, older_than_days: float | None = None, everyt
         victims = []
     else:
         now = time.time()
-        victims = [e.path for e in entries(root)
-                   if (everything or not kinds or e.kind in kinds)
+        victims = [e.path for e in entries(root) if e.usable
+                   and (everything or not kinds or e.kind in kinds)
                    and (older_than_days is None or now - e.path.stat().st_mtime > older_than_days * 86400)]
     folder = cache_dir(root)
     now = time.time()

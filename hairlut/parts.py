@@ -28,6 +28,7 @@ import numpy as np
 
 from . import errors
 from .assets import atomic_path
+from .files import regular_file
 
 MARKER = ".hairlut-parts"
 MARKER_TEXT = "hairlut parts folder: finished blocks of a bake; hairlut deletes only its own files here\n"
@@ -230,9 +231,9 @@ def write_share(path, digest: str, total: int, blocks: dict) -> Path:
 def read_share(path, digest: str, total: int, block: int, folder: Path) -> dict:
     """{(start, stop): index dict} of the blocks of a share index whose parts are unchanged since they were
     indexed (same inode, size and mtime) and which matches this recipe hash and unit count; {} for a missing
-    or foreign share index (the leader then opens those parts itself)."""
+    or foreign share index, or one that is not a regular file (the leader then opens those parts itself)."""
     try:
-        with np.load(path, allow_pickle=False) as z:
+        with np.load(regular_file(path, "a share index"), allow_pickle=False) as z:
             head = [str(x) for x in z["head"]]
             if head[:2] != [digest, str(int(total))]:
                 return {}
@@ -242,7 +243,7 @@ def read_share(path, digest: str, total: int, block: int, folder: Path) -> dict:
             for i, k in enumerate(keys):
                 rows = z[f"rows{i}"]
                 split[k] = np.split(z[f"data{i}"], np.cumsum(rows)[:-1]) if len(rows) else []
-    except (OSError, KeyError, ValueError, IndexError):
+    except (OSError, KeyError, ValueError, IndexError, errors.AssetError):
         return {}
     got = {}
     for j, ((s, e), st) in enumerate(zip(spans.tolist(), stamps)):

@@ -12,9 +12,9 @@ import os
 import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from pathlib import Path
 
 from . import errors
+from .files import regular_file
 
 
 @dataclass(frozen=True)
@@ -55,9 +55,7 @@ def resolve(schema: Mapping, given: Mapping | None, where: str = "") -> dict:
 
 def load_toml(path: str | os.PathLike) -> dict:
     """Parse a TOML recipe file, with hairlut errors for a missing or malformed file."""
-    path = Path(path)
-    if not path.is_file():
-        raise errors.AssetNotFoundError(path, "no such recipe file")
+    path = regular_file(path, "a TOML file", missing="no such recipe file")
     try:
         return tomllib.loads(path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:

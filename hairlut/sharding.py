@@ -27,10 +27,12 @@ import numpy as np
 from . import errors
 from .assets import canonical_json, open_table, read_table, recipe_hash
 from .baker import Baker, parse_shard
+from .cache import is_valid
 from .distributed import Process, barrier, current
+from .files import not_an_input
 from .parts import (clean_temporaries, locked, open_folder, part_name, read_share, remove_folder, share_name, stamp,
                     write_share)
-from .virtual_asset import check_virtual, write_virtual
+from .virtual_asset import write_virtual
 
 MERGES = ("virtual", "copy")
 
@@ -140,19 +142,6 @@ def _bake_blocks(units, recipe: dict, todo, parts, total: int, digest: str, bake
         complete(*pending)
 
 
-def valid_asset(path, kind: str, digest: str) -> bool:
-    """Whether ``path`` is a valid ``kind`` asset of this recipe hash, virtual parts included."""
-    try:
-        with open_table(path, kind) as f:
-            stored = f.attrs["recipe_hash"]
-            if (stored.decode() if isinstance(stored, bytes) else str(stored)) != digest:
-                return False
-        check_virtual(path)
-    except (errors.AssetError, OSError):
-        return False
-    return True
-
-
 def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: int | None = None,
         keep_parts: bool = False, distributed: bool | Process = False, merge: str | None = None, **inputs) -> dict:
     """Bake (or resume) ``recipe`` of ``baker``'s kind into ``out`` along its units; returns a report.
@@ -198,7 +187,7 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
               "process": proc.index, "processes": proc.count, "merge": merge if shard is None else "shard",
               "recipe_hash": digest}
     with locked(out, f".{proc.index}" if proc.count > 1 else "") as waited:
-        if waited and share is None and valid_asset(out, baker.kind, digest):
+        if waited and share is None and is_valid(out, baker.kind, digest):
             report.update(resumed=want, seconds=time.perf_counter() - t0, bytes=out.stat().st_size, status="reused")
             return report  # another bake of this output finished while we waited for it
         folder = open_folder(out)
@@ -293,6 +282,7 @@ def merge(baker: Baker, shards, out) -> dict:
     shards = [Path(p) for p in shards]
     if not shards:
         raise errors.ValidationError("shards", shards, "give at least one shard")
+    not_an_input(out, shards)
     items = sorted(((*header(p, baker), p) for p in shards), key=lambda x: x[0])
     total, digest, recipe = items[0][2], items[0][3], items[0][4]
     pos = 0

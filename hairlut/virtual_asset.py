@@ -31,6 +31,7 @@ from .assets.h5 import LIBVER, dims_of, disk_name
 from .assets.kinds import SCHEMA
 from .assets.layout import _text, layout
 from .assets.sources import check_sources, printf_escape
+from .files import not_regular, regular_file
 from .parts import part_name, part_pattern, parts_dir
 
 ATTR = "hairlut_parts"  # root attribute of a virtual asset: its parts (JSON: folder, block, total, part count)
@@ -168,7 +169,7 @@ def _mappings(total: int, block: int, rest: tuple, src: str, names: list[bytes],
 def is_virtual(path) -> bool:
     """Whether a table file stores any table as a virtual dataset."""
     found = []
-    with h5py.File(path, "r") as f:
+    with h5py.File(regular_file(path, "an HDF5 file"), "r") as f:
         f.visititems(lambda n, o: found.append(n) if isinstance(o, h5py.Dataset) and o.is_virtual else None)
     return bool(found)
 
@@ -182,8 +183,9 @@ def check_virtual(path) -> list[Path]:
     each part is stamped once per call and opened only when this process has not seen it with that stamp
     (then once for all the tables), so a reopened asset costs a ``stat`` per part.  This names what is wrong
     with a refused one: AssetNotFoundError for a missing part, CorruptAssetError for a source outside the parts
-    folder, a symlink, a part of another recipe, or a part lacking its dataset."""
-    path = Path(path)
+    folder, a symlink, a FIFO or other file that is not regular, a part of another recipe, a part lacking its dataset,
+    or a part whose declared range is not the slot the asset maps it to (:func:`hairlut.assets.sources.slot_fault`)."""
+    path = regular_file(path, "an HDF5 file")  # a FIFO would block h5py's open
     try:
         with h5py.File(path, "r") as f:
             digest = _text(f.attrs.get("recipe_hash", ""))
@@ -194,14 +196,17 @@ def check_virtual(path) -> list[Path]:
         raise exc
     by_part: dict[Path, list] = {}
     for name, sources in found.tables.items():
-        for file_name, dset, shape in sources:
+        for file_name, dset, shape, _ in sources:
             if file_name == ".":
                 continue
             src = found.files[file_name]
             if src.fault is not None:
                 raise _refused(path, name.lstrip("/"), file_name, src.path, digest)
             by_part.setdefault(src.path, []).append((dset, shape))
-    return _lacking(path, found, by_part)
+    parts = _lacking(path, found, by_part)
+    for exc in found.slots.values():
+        raise exc
+    return parts
 
 
 def _lacking(path: Path, found, by_part: dict) -> list[Path]:
@@ -228,6 +233,8 @@ def _refused(path: Path, name: str, file_name: str, part: Path, digest: str) -> 
         return errors.CorruptAssetError(part, f"part of {path} is a symlink; parts are regular files")
     if not part.exists():
         return errors.AssetNotFoundError(part, f"part of {path} is missing (rebake, or copy the parts folder with the asset)")
+    if (what := not_regular(part.stat().st_mode)) is not None:  # a FIFO would block the open below
+        return errors.CorruptAssetError(part, f"part of {path} is {what}; parts are regular files")
     try:
         with h5py.File(part, "r") as pf:
             got = _text(pf.attrs.get("recipe_hash", ""))

@@ -29,3 +29,24 @@ def lobes_table(path, recipe=RECIPE, rng=None, size=(2, 33, 17)):
     ]
     write_table(path, "kk_lobes", recipe, axes, variables, attrs={"note": "test"})
     return path, {"diffuse": diffuse, "specular": specular, "theta": theta, "theta_v": theta_v}
+
+
+def virtual_over(path, source, dset="specular", shape=(2, 33, 17), axis="exponent"):
+    """Give table ``path`` a dataset 'ext', virtual over dataset ``dset`` of file ``source`` (its rows [0, n) along
+    ``axis``, the label of its first dimension); returns ``path``."""
+    import h5py
+
+    with h5py.File(path, "r+") as f:
+        lay = h5py.VirtualLayout(shape=shape, dtype="f4")
+        lay[...] = h5py.VirtualSource(str(source), dset, shape=shape)
+        f.create_virtual_dataset("ext", lay, fillvalue=0).dims[0].label = axis
+    return path
+
+
+def declare_rows(part, start: int, stop: int, axis="exponent"):
+    """Write the range a part of a split bake declares it holds (``<axis>_start``, ``<axis>_stop``); returns it."""
+    import h5py
+
+    with h5py.File(part, "r+") as f:
+        f.attrs[f"{axis}_start"], f.attrs[f"{axis}_stop"] = np.int64(start), np.int64(stop)
+    return part

@@ -19,7 +19,7 @@ from hairlut.hrir import load_hrir_db
 from hairlut.shtables import SHTables
 
 from ._hostile import cli_fails, copy, hrir_file, poke, set_recipe, sh_file  # noqa: F401  (module fixtures)
-from ._tables import lobes_table
+from ._tables import declare_rows, lobes_table, virtual_over
 
 # ----------------------------------------------------------------------------- item 2: unexpected types, groups, text
 
@@ -164,17 +164,9 @@ def test_links_are_refused(tmp_path, link):
     cli_fails("inspect", path)
 
 
-def _virtual(path, source, dset="specular", shape=(2, 33, 17)):
-    def add(f):
-        lay = h5py.VirtualLayout(shape=shape, dtype="f4")
-        lay[...] = h5py.VirtualSource(str(source), dset, shape=shape)
-        f.create_virtual_dataset("ext", lay, fillvalue=0)
-    return poke(path, add)
-
-
 def test_virtual_dataset_pointing_elsewhere_is_refused(tmp_path):
     other = lobes_table(tmp_path / "other.h5")[0]  # same recipe, but not one of the asset's parts
-    path = _virtual(lobes_table(tmp_path / "t.h5")[0], other)
+    path = virtual_over(lobes_table(tmp_path / "t.h5")[0], other)
     for fn in _readers(path):
         with pytest.raises(errors.ForeignReferenceError, match="'ext' is virtual.*parts folder"):
             fn(path)
@@ -185,11 +177,11 @@ def test_virtual_dataset_over_the_assets_own_parts_is_allowed(tmp_path):
     path = lobes_table(tmp_path / "t.h5")[0]
     parts = tmp_path / "t.h5.parts"
     parts.mkdir()
-    part = lobes_table(parts / "part-0.h5")[0]
+    part = declare_rows(lobes_table(parts / "part-0.h5")[0], 0, 2)
     with h5py.File(path, "r") as f:
         digest = f.attrs["recipe_hash"]
     assert allowed_virtual_sources(path, digest) == [part]
-    _virtual(path, "t.h5.parts/part-0.h5")
+    virtual_over(path, "t.h5.parts/part-0.h5")
     t = read_table(path)
     np.testing.assert_array_equal(t["ext"], read_table(part)["specular"])
     assert summarize(path)["datasets"][-1]["name"] == "ext"
@@ -197,12 +189,12 @@ def test_virtual_dataset_over_the_assets_own_parts_is_allowed(tmp_path):
     foreign = lobes_table(parts / "part-1.h5", recipe={"other": 1})[0]  # another recipe hash
     assert allowed_virtual_sources(path, digest) == [part]
     poke(path, lambda f: f.__delitem__("ext"))
-    _virtual(path, "t.h5.parts/part-1.h5")
+    virtual_over(path, "t.h5.parts/part-1.h5")
     with pytest.raises(errors.ForeignReferenceError, match="another recipe hash"):
         read_table(path)
     poke(path, lambda f: f.__delitem__("ext"))
     os.symlink(part, parts / "part-2.h5")
-    _virtual(path, "t.h5.parts/part-2.h5")
+    virtual_over(path, "t.h5.parts/part-2.h5")
     with pytest.raises(errors.ForeignReferenceError, match="not a regular file"):
         read_table(path)
     assert foreign.exists()

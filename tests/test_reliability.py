@@ -23,15 +23,7 @@ from hairlut import errors
 from hairlut.assets import allowed_virtual_sources, read_table, summarize
 
 from ._synth_fixtures import scene, synthetic_db
-from ._tables import lobes_table
-
-
-def _virtual(path, source, dset="specular", shape=(2, 33, 17)):
-    with h5py.File(path, "r+") as f:
-        lay = h5py.VirtualLayout(shape=shape, dtype="f4")
-        lay[...] = h5py.VirtualSource(str(source), dset, shape=shape)
-        f.create_virtual_dataset("ext", lay, fillvalue=0)
-    return path
+from ._tables import declare_rows, lobes_table, virtual_over
 
 
 # ----------------------------------------------------------------------------- item 4: HDF5_VDS_PREFIX
@@ -45,10 +37,11 @@ def own_virtual(tmp_path):
     (asset / "t.h5.parts").mkdir(parents=True)
     path = lobes_table(asset / "t.h5")[0]
     part, want = lobes_table(asset / "t.h5.parts" / "part-0.h5", rng=np.random.default_rng(1))
+    declare_rows(part, 0, 2)
     decoy = tmp_path / "decoy"
     (decoy / "t.h5.parts").mkdir(parents=True)
     lobes_table(decoy / "t.h5.parts" / "part-0.h5", rng=np.random.default_rng(2))
-    _virtual(path, "t.h5.parts/part-0.h5")
+    virtual_over(path, "t.h5.parts/part-0.h5")
     with h5py.File(path, "r") as f:
         assert allowed_virtual_sources(path, f.attrs["recipe_hash"]) == [part]
     return path, want["specular"], decoy

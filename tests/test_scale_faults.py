@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from hairlut import errors, registry
 from hairlut.parts import parts_dir
-from hairlut.sharding import valid_asset
+from hairlut.cache import is_valid
 from hairlut_cli.main import cli
 
 from .test_distributed_bake import _assert_same_data, split_cases
@@ -57,7 +57,7 @@ def test_a_missing_or_foreign_part_is_an_error_naming_it(kind, cases, tmp_path):
     res = CliRunner().invoke(cli, ["inspect", str(out)])
     assert res.exit_code == 2 and str(parts[1]) in res.output and "another recipe" in res.output
     assert len(res.output.strip().splitlines()) == 1
-    assert not valid_asset(out, kind, rep["recipe_hash"])  # the cache would bake it again
+    assert not is_valid(out, kind, rep["recipe_hash"])  # the cache would bake it again
     parts[1].unlink()
     with pytest.raises(errors.AssetNotFoundError) as exc:
         load(out)
@@ -66,7 +66,7 @@ def test_a_missing_or_foreign_part_is_an_error_naming_it(kind, cases, tmp_path):
     assert res.exit_code == 2 and str(parts[1]) in res.output and "missing" in res.output
     parts[1].write_bytes(saved)
     load(out)
-    assert valid_asset(out, kind, rep["recipe_hash"])
+    assert is_valid(out, kind, rep["recipe_hash"])
 
 
 class Interrupted(Exception):

@@ -8,7 +8,7 @@ import subprocess
 import h5py
 import numpy as np
 import pytest
-from ._tables import RECIPE, lobes_table
+from ._tables import RECIPE, declare_rows, lobes_table
 
 from hairlut import errors
 from hairlut.assets import Axis, Variable, read_table
@@ -35,6 +35,7 @@ def _parts(out, total: int, block: int, recipe=RECIPE) -> tuple[list, np.ndarray
             lobes_table(path, recipe=recipe, size=(stop - start, NT, NV))
         with h5py.File(path, "r+") as f:
             f["specular"][...] = whole[start:stop]
+        declare_rows(path, start, stop)  # as every kind's parts do
         parts.append((path, start, stop))
     first.unlink()
     return parts, whole

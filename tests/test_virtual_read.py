@@ -6,13 +6,15 @@ import os
 import h5py
 import numpy as np
 import pytest
+from click.testing import CliRunner
 
 from hairlut import errors
 from hairlut.assets import h5 as store
-from hairlut.assets import read_table
+from hairlut.assets import read_table, summarize
 from hairlut.assets.layout import layout
 from hairlut.hrir import bake, load_hrir_db
 from hairlut.parts import parts_dir
+from hairlut_cli.main import cli
 
 SMALL = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 3, "lights": 2},
          "trace": {"pixels": 4, "steps": 4}}
@@ -96,21 +98,38 @@ def test_a_flipped_chunk_byte_in_a_part_fails_its_checksum_naming_the_part(tmp_p
     with pytest.raises(errors.ChecksumError) as exc:
         read_table(out, kind="hrir_db")
     assert exc.value.path == str(part) and "'density'" in str(exc.value) and "fletcher32" in str(exc.value)
+    with pytest.raises(errors.ChecksumError) as exc:  # issue 29 m8: inspect named neither the part nor the checksum
+        summarize(out)
+    assert exc.value.path == str(part) and "'density'" in str(exc.value) and "fletcher32" in str(exc.value)
+    res = CliRunner().invoke(cli, ["inspect", str(out)])
+    assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1
+    assert str(part) in res.output and "'density' fails its fletcher32 checksum" in res.output
+
+
+def test_inspect_reads_a_virtual_table_part_by_part_with_the_figures_of_hdf5s_own_read(assets):
+    virtual, _ = assets
+    got = {d["name"]: d for d in summarize(virtual)["datasets"]}
+    with h5py.File(virtual, "r") as f:
+        for name, ds in layout(f)[1].items():
+            data = ds[()].astype(np.float64)
+            assert got[name]["count"] == data.size, name
+            assert (got[name]["min"], got[name]["max"]) == (float(np.min(data)), float(np.max(data))), name
 
 
 def test_a_table_hdf5_must_fill_is_left_to_hdf5(tmp_path):
     """A mapping that leaves rows to the fill value is not read from the parts: HDF5 reads it, fill and all."""
-    from ._tables import lobes_table
+    from ._tables import declare_rows, lobes_table
 
     path = lobes_table(tmp_path / "t.h5")[0]
     (tmp_path / "t.h5.parts").mkdir()
     part = lobes_table(tmp_path / "t.h5.parts" / "part-0.h5")[0]
     with h5py.File(part, "r") as f:
         spec = f["specular"][()]
+    declare_rows(part, 0, spec.shape[0])
     with h5py.File(path, "r+") as f:
         lay = h5py.VirtualLayout(shape=(spec.shape[0] + 3, *spec.shape[1:]), dtype=spec.dtype)
         lay[:spec.shape[0]] = h5py.VirtualSource("t.h5.parts/part-0.h5", "specular", shape=spec.shape)
-        f.create_virtual_dataset("ext", lay, fillvalue=7)
+        f.create_virtual_dataset("ext", lay, fillvalue=7).dims[0].label = "exponent"
     with store.open_table(path) as f:
         assert store.read_virtual(path, f, layout(f)[1]) == {}
     got = read_table(path)["ext"]

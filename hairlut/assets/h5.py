@@ -50,6 +50,7 @@ import numpy as np
 
 from .. import errors
 from .._version import __version__
+from ..files import regular_file
 from .atomic import atomic_path, ensure_space, write_bytes
 from .chunks import ChunkWriter
 from .kinds import KINDS, SCHEMA, SUPPORTED_SCHEMAS
@@ -253,11 +254,7 @@ def write_table(
 
 def check_file(path: str | os.PathLike, signature: bytes, what: str) -> Path:
     """Raise unless ``path`` is an existing regular file that starts with ``signature``."""
-    path = Path(path)
-    if not path.exists():
-        raise errors.AssetNotFoundError(path, "no such file")
-    if not path.is_file():
-        raise errors.FormatError(path, f"not a regular file, so not {what}")
+    path = regular_file(path, what)
     with path.open("rb") as fh:
         head = fh.read(len(signature))
     if head != signature:

@@ -1,7 +1,8 @@
 """What ``hairlut inspect`` reports: a JSON-ready summary of a table or image file.
 
 Statistics are computed block by block, so a table larger than memory can be
-summarised; every block read also verifies the HDF5 fletcher32 checksums.
+summarised; every block read also verifies the HDF5 fletcher32 checksums.  A virtual table (a split bake's) is
+read one part at a time from its parts, as the table readers read it, so that a fault names the part.
 """
 
 from __future__ import annotations
@@ -13,8 +14,10 @@ import h5py
 import numpy as np
 
 from .. import errors
+from ..files import regular_file
 from .exr import EXR_MAGIC, read_exr
 from .h5 import HDF5_SIGNATURE, data_fault, dims_of, layout, open_table, stored_recipe
+from .virtual import virtual_blocks
 
 _BLOCK_ELEMENTS = 1 << 22
 
@@ -64,7 +67,11 @@ def array_stats(data: np.ndarray) -> dict:
 
 def _dataset_stats(path: Path, ds: h5py.Dataset) -> dict:
     s = _Stats()
-    if ds.size:
+    parts = virtual_blocks(path, ds.file, ds) if ds.is_virtual else None
+    if parts is not None:  # read from each part as the table readers do, so that a fault names the part
+        for block in parts:
+            s.add(block)
+    elif ds.size:
         rows = max(1, _BLOCK_ELEMENTS // max(1, ds.size // max(1, ds.shape[0]))) if ds.ndim else 1
         try:
             if ds.ndim == 0:
@@ -163,11 +170,7 @@ def _summarize_exr(path: Path) -> dict:
 
 def sniff(path: str | os.PathLike) -> str:
     """'hdf5' or 'openexr', from the file's signature (not its name)."""
-    path = Path(path)
-    if not path.exists():
-        raise errors.AssetNotFoundError(path, "no such file")
-    if not path.is_file():
-        raise errors.FormatError(path, "not a regular file")
+    path = regular_file(path, "a table or image")
     with path.open("rb") as fh:
         head = fh.read(8)
     if head == HDF5_SIGNATURE:

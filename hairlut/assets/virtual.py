@@ -39,6 +39,8 @@ def _plan(ds: h5py.Dataset, found) -> list | None:
 
     hairlut's virtual tables (:func:`hairlut.virtual_asset._mappings`) are one printf mapping whose block ``b`` copies the
     whole source dataset of part ``b`` to rows ``[b·block, (b+1)·block)`` and one fixed mapping of the last part."""
+    if ds.name in found.slots:  # a part read into another's slot: refused on every path, not left to HDF5
+        raise found.slots[ds.name]
     shape = table_shape(ds)
     if not shape or ds.name in found.faults or ds.name not in found.tables:
         return None
@@ -56,7 +58,7 @@ def _plan(ds: h5py.Dataset, found) -> list | None:
         if vs.src_space.get_select_type() != h5py.h5s.SEL_ALL and _box(vs.src_space) != ((0,) * len(shape), whole):
             return None
         for b in range(n):
-            where, dset, _ = next(sources)
+            where, dset, _, _ = next(sources)
             src = found.files.get(where)
             if where == "." or src is None or src.fault is not None or src.redirect is not None \
                     or src.datasets.get(dset) != whole:
@@ -96,6 +98,26 @@ def read_virtual(path: Path, f: h5py.File, tables: dict) -> dict:
     for (part, st), reads in by_part.items():
         _read_part(path, part, st, reads)
     return out
+
+
+def virtual_blocks(path: Path, f: h5py.File, ds: h5py.Dataset):
+    """The rows of virtual table ``ds`` of asset ``f``, one part's block at a time and in order, each read from its
+    part as :func:`read_virtual` reads it (a checksum or other fault names the part, not the asset); None for a
+    table that is not plain row blocks of its parts (:func:`_plan`), which HDF5 then reads.  For readers that
+    hold one block at a time (``summarize``, behind ``hairlut inspect``)."""
+    with guard(path):
+        plan = _plan(ds, check_sources(path, f, _text(f.attrs["recipe_hash"])))
+    if plan is None:
+        return None
+
+    rest = table_shape(ds)[1:]
+
+    def blocks():
+        for part, st, dset, _, rows in plan:
+            block = np.empty((rows, *rest), dtype=ds.dtype)
+            _read_part(path, part, st, [(block, dset, 0, rows)])
+            yield block
+    return blocks()
 
 
 def _read_part(path: Path, part: Path, checked: tuple, reads: list) -> None:

@@ -3,24 +3,23 @@
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 import numpy as np
 
-from ..errors import AssetNotFoundError, CorruptAssetError, FormatError, ValidationError
+from ..errors import AssetNotFoundError, CorruptAssetError, ValidationError
+from ..files import regular_file
 from .strands import Strands
 
 F32_MAX = float(np.finfo(np.float32).max)
 
 
 def read_bytes(path: str | os.PathLike) -> bytes:
-    """The whole file; a missing file or a folder raises the matching hairlut error."""
-    p = Path(path)
-    if p.is_dir():
-        raise FormatError(p, "is a folder, not a hair file")
+    """The whole file; a missing file, a folder, a FIFO or a device raises the matching hairlut error
+    (:func:`hairlut.files.regular_file`) before anything is opened."""
+    p = regular_file(path, "a hair file")
     try:
         return p.read_bytes()
-    except FileNotFoundError:
+    except FileNotFoundError:  # removed since the check
         raise AssetNotFoundError(p, "no such file") from None
 
 

@@ -22,7 +22,8 @@ import numpy as np
 
 from ..assets.atomic import atomic_path
 from ..errors import AssetError, CorruptAssetError, FormatError, MissingDependencyError, ValidationError
-from ._binio import as_f32, build, read_bytes
+from ..files import regular_file
+from ._binio import as_f32, build
 from .strands import Strands
 
 SUFFIXES = (".usda", ".usdc", ".usd")
@@ -103,8 +104,7 @@ def read_usd(path: str | os.PathLike) -> Strands:
     """Read every linear BasisCurves prim of a USD stage as one set of strands."""
     usd = _pxr(path)
     Gf, Sdf, Tf, Usd, UsdGeom, Vt = usd
-    if not Path(path).is_file():
-        read_bytes(path)  # raises the missing-file or folder error
+    regular_file(path, "a USD stage")  # a missing file, a folder, a FIFO or a device: before USD opens it
     try:
         stage = Usd.Stage.Open(os.fspath(path))
     except Tf.ErrorException as exc:

@@ -39,6 +39,7 @@ without baking.  A bake's size and time are its kind's ``estimate`` (throughputs
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -417,8 +418,15 @@ def find_assets(scene, cache_root=None) -> dict[str, Path]:
         if s.kind is None or s.action == "skip":
             continue
         if s.action != "reuse":
-            raise errors.AssetNotFoundError(s.path, f"the scene's {s.kind} is not in the cache; run "
-                                            f"`hairlut bake --scene {p.scene.source}` (or give its path)")
+            bake_it = f"run `hairlut bake --scene {p.scene.source}` (or give its path)"
+            if os.path.lexists(s.path):  # there, but unusable: say why rather than "not in the cache"
+                try:
+                    cache.check(Path(s.path), s.kind, recipe_hash(s.recipe))
+                except errors.AssetError as exc:
+                    why = exc.fault if exc.path == s.path else str(exc)  # a part's fault names the part
+                    raise errors.CorruptAssetError(s.path, f"the scene's cached {s.kind} is unusable ({why}); "
+                                                   f"{bake_it} to bake it again") from None
+            raise errors.AssetNotFoundError(s.path, f"the scene's {s.kind} is not in the cache; {bake_it}")
         out[s.name] = Path(s.path)
     return out
 

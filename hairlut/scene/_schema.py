@@ -32,6 +32,7 @@ import numpy as np
 
 from .. import budget, errors
 from ..geometry.cluster_defaults import STRUCTURE_DEFAULTS as _D
+from ..files import regular_file
 from ..recipes import Field, load_toml, resolve
 from ..validate import at_least as _int_at_least
 from ..validate import auto_or, direction, in_range, one_of
@@ -266,9 +267,8 @@ def resolve_path(path: str, base: Path) -> Path:
     """A groom or environment-map path: absolute, or relative to ``base`` (the scene file's folder)."""
     p = Path(path)
     full = p if p.is_absolute() else base / p
-    if not full.is_file():
-        raise errors.AssetNotFoundError(str(full), f"file not found ({path!r} is resolved next to the scene file)")
-    return full
+    return regular_file(full, "a groom or environment map",
+                        missing=f"file not found ({path!r} is resolved next to the scene file)")
 
 
 def _cluster(i: int, given, strand_seed: int):

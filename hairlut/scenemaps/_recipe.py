@@ -28,6 +28,7 @@ import json
 from pathlib import Path
 
 from .. import errors
+from ..files import regular_file
 from ..recipes import Field, resolve
 
 SCHEMA = {
@@ -70,7 +71,7 @@ def hrir_recipe(recipe: dict) -> dict:
 
 def _file_sha256(path) -> str:
     h = hashlib.sha256()
-    with open(path, "rb") as f:
+    with open(regular_file(path, "a groom file"), "rb") as f:
         for block in iter(lambda: f.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
