@@ -25,7 +25,8 @@ _LAZY = {
     "GEOM": "_march", "trace_kernel": "_tracer",
     "projection_features": "_projection", "projection_kernel": "_projection", "sector_projections": "_projection",
     # the planar march, shared by the tracer, the direct map method and the scene table's bake
-    "SHADOW_GRID": "_march", "bilerp_nodes": "_march", "direct_lighting": "_march", "front_to_back": "_march", "grid_transmittance": "_march",
+    "SHADOW_GRID": "_march", "bilerp_nodes": "_march", "direct_lighting": "_march", "exclusive_depth": "_march",
+    "front_to_back": "_march", "grid_transmittance": "_march",
     "light_depth_grid": "_march", "march": "_march", "normals": "_march", "phong_direct": "_march",
     "reflectance": "_march", "sector_fields": "_march", "smooth_matrix": "_march", "to_pixels": "_march",
     "view_points": "_march", "sample_points": "_march", "sample": "_march", "fence": "_march",
