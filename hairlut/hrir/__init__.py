@@ -11,7 +11,7 @@ use of one of its names.
 
 from .._lazy import lazy_exports
 
-from ._kind import BAKE_OVERHEAD, BAKER, KIND, SHARD_KIND, TRACE_RATE, estimate
+from ._kind import BAKE_OVERHEAD, BAKER, KIND, SHARD_KIND, TRACE_RATE, estimate, phong_sum
 
 _LAZY = {
     "bake": "_bake", "bake_block": "_bake", "blocks_of": "_bake", "merge": "_bake", "parse_shard": "_bake",
@@ -33,7 +33,7 @@ _LAZY = {
     "transmittance_at": "_march", "resolved": "_march",
 }
 
-__all__ = ["BAKER", "BAKE_OVERHEAD", "KIND", "SHARD_KIND", "TRACE_RATE", "estimate", *sorted(_LAZY)]
+__all__ = ["BAKER", "BAKE_OVERHEAD", "KIND", "SHARD_KIND", "TRACE_RATE", "estimate", "phong_sum", *sorted(_LAZY)]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)
