@@ -33,6 +33,10 @@ field and value):
     ``merge``; a kind with ``units`` and no ``merge`` gets the generic merge.
 ``describe(report) -> list[str]``
     human-readable lines about a bake report (the CLI prints them).
+``bounds`` (a tuple of :class:`Bound`, one line each)
+    the physical bounds of the kind's tables (α in [0, 1], re ≤ α·(k_a + k_d + k_s), ...), filed with the
+    kind and its shard kind: every write of either (each part, shard, merge and asset) refuses a table beyond
+    them, or not finite, naming the recipe keys (:mod:`hairlut.assets.bounds`).
 
 Kind-specific keyword arguments of ``bake`` are :class:`Option` s, so that the CLI
 offers them (``--light``, ``--block``) without naming a kind.
@@ -45,6 +49,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from . import errors
+from .assets.bounds import Bound
 from .assets.kinds import register_kind
 
 
@@ -139,9 +144,10 @@ class Baker:
     assets: tuple[tuple[str, tuple[str, ...], str], ...] = field(default=())
     help: str = ""
     units: Units | None = None
+    bounds: tuple[Bound, ...] = ()
 
     def __post_init__(self):
-        register_kind(self.kind, self.required, self.description)
+        register_kind(self.kind, self.required, self.description, self.bounds)
         if self.units is not None and self.shard_kind is None:
             raise ValueError(f"{self.kind}: a kind with units needs a shard kind")
         if self.units is not None and self.merge is None:
@@ -149,7 +155,8 @@ class Baker:
         if self.shard_kind is not None:
             if self.merge is None:
                 raise ValueError(f"{self.kind}: a shard kind needs a merge")
-            register_kind(self.shard_kind, self.shard_required, f"a slice of a {self.kind} bake (merge joins them)")
+            register_kind(self.shard_kind, self.shard_required, f"a slice of a {self.kind} bake (merge joins them)",
+                          self.bounds)
         for name, required, description in self.assets:
             register_kind(name, required, description)
 

@@ -98,6 +98,11 @@ class NonFiniteError(HairlutError, ArithmeticError):
     """A computation produced NaN or infinity; the message names the inputs (recipe keys) that drive it."""
 
 
+class BoundsError(HairlutError, ArithmeticError):
+    """A computation produced finite values beyond their physical bounds (re > α, α outside [0, 1], ...): refused
+    like NaN (NonFiniteError); the message names the table, the bound, the worst value and the recipe keys."""
+
+
 __all__ = [
     "HairlutError",
     "ValidationError",
@@ -117,4 +122,5 @@ __all__ = [
     "AssetTooLargeError",
     "DiskFullError",
     "NonFiniteError",
+    "BoundsError",
 ]

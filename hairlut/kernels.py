@@ -12,8 +12,17 @@ Three spellings of the same two lobes, for the three ways callers hold the angle
 - :func:`specular_offset` takes ψ = θ + θ′ − π/2, where the specular lobe is sin(ψ)^p on
   ψ ∈ [0, π] (the zonal Legendre coefficients integrate over ψ, exact near the clamps);
 - :func:`diffuse_cos`, :func:`specular_cos` take the cosines c = t·ω, c′ = t·v of unit
-  vectors, with sin = √(1 − c²): sin θ sin θ′ − cos θ cos θ′ = cos(π − θ − θ′) (the online
+  vectors and, where the caller holds the vectors, their sines |t × ω|, |t × v|
+  (:func:`sin_between`): sin θ sin θ′ − cos θ cos θ′ = cos(π − θ − θ′) (the online
   shading of eqs 9–11, whose shifted tangent t̃ is the caller's business).
+
+Near |c| = 1 a sine from the cosine, √(1 − c²), is ill-conditioned: a rounding δ of c (the dot
+product's, ~1e-16 in float64, ~6e-8 in float32) moves it by √(2δ) (1.5e-8, 3.5e-4), and at the
+lobe's edge θ + θ′ = π/2, where the base cos(π − θ − θ′) is that small, a fractional p turns it
+into a large relative error (issue 29 m16: t ∥ ω, p = 0.5, 16 %).  The cross product's norm has
+no such loss (it is a difference of products of the components, not of two numbers near 1), so
+callers with vectors pass it; from a cosine alone the sine is √((1 − c)(1 + c)) (no rounding of
+c² on top of c's own).
 
 Every function works on NumPy arrays (computing in NumPy) and on JAX arrays or tracers
 (computing in ``jax.numpy``): the module picks the array library from the arguments.
@@ -62,19 +71,32 @@ def specular_offset(psi, p):
 
 
 def _sin(cos, xp):
-    return xp.sqrt(xp.clip(1.0 - cos * cos, 0.0, 1.0))
+    return xp.sqrt(xp.clip((1.0 - cos) * (1.0 + cos), 0.0, 1.0))
 
 
-def diffuse_cos(cos_l):
-    """The diffuse lobe from c = t·ω (unit vectors): sin θ = √(1 − c²)."""
-    return _sin(cos_l, _xp(cos_l))
+def sin_between(a, b):
+    """sin of the angle between unit vectors ``a`` (..., 3) and ``b`` (..., 3) (broadcast): |a × b|, accurate where
+    they are nearly parallel or opposite (module docstring)."""
+    xp = _xp(a, b)
+    x = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    y = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    z = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return xp.minimum(xp.sqrt(x * x + y * y + z * z), 1.0)
 
 
-def specular_cos(cos_l, cos_v, p):
+def diffuse_cos(cos_l, sin_l=None):
+    """The diffuse lobe from c = t·ω (unit vectors): sin θ, ``sin_l`` (|t × ω|) when given, else √((1 − c)(1 + c))."""
+    return _sin(cos_l, _xp(cos_l)) if sin_l is None else sin_l
+
+
+def specular_cos(cos_l, cos_v, p, sin_l=None, sin_v=None):
     """The specular lobe from c = t·ω and c′ = t·v (unit vectors):
-    max(0, sin θ sin θ′ − cos θ cos θ′)^p = max(0, cos(π − θ − θ′))^p."""
+    max(0, sin θ sin θ′ − cos θ cos θ′)^p = max(0, cos(π − θ − θ′))^p.  The sines ``sin_l`` = |t × ω| and
+    ``sin_v`` = |t × v| when given (accurate near |c| = 1, module docstring), else from the cosines."""
     xp = _xp(cos_l, cos_v, p)
-    return xp.maximum(0.0, _sin(cos_l, xp) * _sin(cos_v, xp) - cos_l * cos_v) ** p
+    sl = _sin(cos_l, xp) if sin_l is None else sin_l
+    sv = _sin(cos_v, xp) if sin_v is None else sin_v
+    return xp.maximum(0.0, sl * sv - cos_l * cos_v) ** p
 
 
 def exponent_reason(p) -> str | None:

@@ -62,6 +62,16 @@ def load_toml(path: str | os.PathLike) -> dict:
         raise errors.FormatError(path, f"not valid TOML ({exc})") from None
 
 
+def get_path(mapping: Mapping, dotted: str):
+    """The value at ``a.b.c`` of a nested mapping, or None where the path does not exist."""
+    node = mapping
+    for key in dotted.split("."):
+        if not isinstance(node, Mapping) or key not in node:
+            return None
+        node = node[key]
+    return node
+
+
 def set_path(mapping: dict, dotted: str, value) -> None:
     """Set ``a.b.c`` in a nested dict (for command-line overrides)."""
     keys = dotted.split(".")

@@ -3,7 +3,7 @@
 One rule per idea, in two forms:
 
 - **Field checks** (``positive``, ``nonneg``, ``unit_interval``, ``at_least(n)``,
-  ``in_range(lo, hi)``, ``one_of(...)``, ``auto_or(check)``, ``vec3``) return ``None`` for a good value or the
+  ``in_range(lo, hi)``, ``one_of(...)``, ``auto_or(check)``, ``float32(check)``, ``vec3``) return ``None`` for a good value or the
   reason it is bad; they are the ``check`` of a :class:`hairlut.recipes.Field`, whose
   ``resolve`` raises :class:`~hairlut.errors.ValidationError` naming the key path.
 - **Argument checks** (``check_real``, ``check_int``, ``direction``, ``directions``,
@@ -83,6 +83,22 @@ def unit_interval(x) -> str | None:
 def open_unit_interval(x) -> str | None:
     """Field check: in (0, 1)."""
     return real_reason(x, 0, 1, lo_open=True, hi_open=True)
+
+
+#: The largest finite float32 (3.4028235e38): a value a float32 kernel receives as it is must not exceed it, or it
+#: becomes infinity there, and infinity times zero is NaN.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def float32(check):
+    """Field check: ``check``'s rule, and at most :data:`FLOAT32_MAX` in magnitude (for a value a float32 kernel
+    receives as it is: beyond, it becomes infinity in the kernel, and inf · 0 = NaN)."""
+    def run(x):
+        reason = check(x)
+        if reason is None and _is_real(x) and abs(x) > FLOAT32_MAX:
+            return f"must be ≤ {FLOAT32_MAX:.8g} (float32's largest: the kernel computes in float32)"
+        return reason
+    return run
 
 
 def in_range(lo, hi):

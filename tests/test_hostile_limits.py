@@ -146,17 +146,65 @@ SMALL = {"sectors": {"count": 2, "grid": [8, 8]}, "angles": {"views": 4, "lights
 
 
 @pytest.mark.parametrize("change, key", [
-    (lambda r: r["trace"].update(extinction=1e30), "trace.extinction"),
-    pytest.param(lambda r: r["sectors"].update(density_scale=1e38), "sectors.density_scale", marks=pytest.mark.slow),
-    pytest.param(lambda r: r["sectors"].update(space={"radial_extent": [1e-9, 1e-9]}), "sectors.space.radial_extent",
-                 marks=pytest.mark.slow),
+    (lambda r: r["trace"].update(extinction=1e36), "trace.extinction"),  # σ_t = κ / r_strand beyond float32
+    (lambda r: r["trace"].update(extinction=1e32), "trace.extinction"),  # a ray's optical depth beyond float32
+    (lambda r: r["sectors"].update(density_scale=1e38), "sectors.density_scale"),  # the squared gradient beyond it
+    (lambda r: r.update(phong={"shininess": 1e39}), "phong.shininess"),  # infinite in float32: inf · log(1) = NaN
 ])
-def test_hrir_bake_refuses_non_finite_outputs(tmp_path, change, key):
+def test_hrir_recipes_beyond_float32_are_refused_at_the_boundary(tmp_path, change, key):
+    """Refused by the recipe's validation, naming the key, before anything is traced, so on every device alike
+    (issue 29 m11: an H200 traced extinction 1e30 to finite values where the CPU gave NaN)."""
     from hairlut.hrir import bake
 
     recipe = json.loads(json.dumps(SMALL))
     change(recipe)
-    with pytest.raises(errors.NonFiniteError, match=key.replace(".", r"\.")):
+    with pytest.raises(errors.ValidationError, match="float32") as info:
+        bake(recipe, tmp_path / "db.h5", block=2)
+    assert info.value.field == key
+    assert not (tmp_path / "db.h5").exists() and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("key, value", [("trace.extinction", 1e30), ("sectors.density_scale", 1e10)])
+def test_hrir_recipes_inside_the_float32_bounds_bake_within_physical_bounds(tmp_path, key, value):
+    """Values the float32 bounds accept trace to finite tables with α in [0, 1] and re ≤ α·(k_a + k_d + k_s)
+    (issue 29 m11: extinction 1e30 gave NaN on the CPU, density_scale 1e10 NaN with this grid)."""
+    from hairlut.hrir import bake, load_hrir_db
+
+    recipe = json.loads(json.dumps(SMALL))
+    section, name = key.split(".")
+    recipe[section][name] = value
+    bake(recipe, tmp_path / "db.h5", block=2)
+    db = load_hrir_db(tmp_path / "db.h5")
+    a, re = np.asarray(db.alpha, np.float64), np.asarray(db.reflectance, np.float64)
+    assert a.max() > 0.5 and a.min() >= 0 and a.max() <= 1 and re.min() >= 0
+    assert (re <= a[:, :, None, :] * (1 + 1e-5) + 1e-7).all()  # k_a + k_d + k_s = 1
+
+
+def test_k_shadow_beyond_float32_is_refused_and_the_largest_float32_saturates(tmp_path):
+    """material.k_shadow reaches the float32 kernel as it is: beyond float32's largest it became inf, and
+    inf · 0 = NaN wherever no layer lies outside (issue 29 m11, 1e300).  At the largest float32 the s-map
+    saturates: τ = exp(−k Σα) is 1 with nothing outside and 0 behind any hair."""
+    from hairlut.synth import synthesize
+
+    from ._synth_fixtures import synthetic_db
+
+    with pytest.raises(errors.ValidationError, match="float32") as info:
+        resolve_scene(scene(k_shadow=1e300))
+    assert info.value.field == "material.k_shadow"
+    out = synthesize(scene(k_shadow=float(np.finfo(np.float32).max)), synthetic_db())
+    for c in out.clusters:
+        shadow = np.asarray(c.shadow)
+        assert np.isfinite(shadow).all() and set(np.unique(shadow)) <= {0.0, 1.0} and shadow.max() == 1.0
+
+
+@pytest.mark.slow
+def test_hrir_bake_refuses_non_finite_density(tmp_path):
+    """A sector space whose densities overflow float32 (radial extent 1e-9) is refused naming the space's keys."""
+    from hairlut.hrir import bake
+
+    recipe = json.loads(json.dumps(SMALL))
+    recipe["sectors"]["space"] = {"radial_extent": [1e-9, 1e-9]}
+    with pytest.raises(errors.NonFiniteError, match=r"sectors\.space\.radial_extent"):
         bake(recipe, tmp_path / "db.h5", block=2)
     assert not (tmp_path / "db.h5").exists()
 

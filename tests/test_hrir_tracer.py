@@ -138,6 +138,40 @@ def test_tracer_agrees_with_the_numpy_reference_loop():
         np.testing.assert_allclose(re[i], rr, atol=5e-5)
 
 
+def test_opaque_strands_agree_with_the_numpy_reference_loop():
+    """Issue 29 N9: at optical depths of 1e9 per step (trace.extinction = 1e9) the transmittance in front of a
+    step was the inclusive prefix sum less the step's own depth, which cancelled (XLA:CPU recomputing the march
+    in each consumer rounded the two differently): α summed past 1 and re reached 1e27.  Against the float64
+    loop (the first dense sample is opaque, nothing behind it counts), re ≤ α·(k_a + k_d + k_s), and with
+    self-shadowing (its light depths the same prefix sums) shadows only darken."""
+    rho, g, _ = _random(3, grid=(8, 8), seed=3, pixels=12)
+    g[:, COL["sigma_t"]] *= 1e9
+    V, L = np.arange(4) * 2 * np.pi / 4, np.arange(3) * 2 * np.pi / 3 + 0.1
+    a, re = trace_sectors(rho, g, resolve_recipe({"trace": {"pixels": 12, "steps": 12, "self_shadow": False}}),
+                          views=V, lights=L)
+    _, lit = trace_sectors(rho, g, resolve_recipe({"trace": {"pixels": 12, "steps": 12, "self_shadow": True}}),
+                           views=V, lights=L)
+    assert a.max() > 0.5 and np.isfinite(lit).all()
+    for x in (re, lit):
+        assert (x <= PHONG[:3].sum() * a[:, :, None] * (1 + 1e-5) + 1e-7).all()
+    assert (lit <= re + 1e-6).all() and (lit < re - 1e-3).any()
+    for i in range(3):
+        ar, rr = reference_hrir(rho[i], g[i], V, L, PHONG, n_pix=12, n_steps=12)
+        np.testing.assert_allclose(a[i], ar, atol=5e-5)  # the float32 tolerance of the loop's other comparison
+        np.testing.assert_allclose(re[i], rr, atol=5e-5)
+
+
+def test_huge_shininess_keeps_the_specular_lobe_at_most_one():
+    """r·d is a cosine of unit vectors, but float32 rounding can put it a few ulp above 1, and (1 + 1e-7)^p is
+    infinite for p ≳ 1e9 (phong.shininess may be anything finite in float32): clamped, re stays ≤ α·(k_a + k_d + k_s)."""
+    rho, g, _ = _random(3, grid=(8, 8), seed=5, pixels=16)
+    V, L = np.arange(16) * 2 * np.pi / 16, np.arange(16) * 2 * np.pi / 16
+    for p in (1e12, 3e38):
+        r = resolve_recipe({"trace": {"pixels": 16, "steps": 16}, "phong": {"shininess": p}})
+        a, re = trace_sectors(rho, g, r, views=V, lights=L)
+        assert np.isfinite(re).all() and (re <= a[:, :, None] * (1 + 1e-5) + 1e-7).all()
+
+
 def test_self_shadowing_agrees_with_marching_toward_the_light():
     rho, g, _ = _random(2, seed=3, pixels=24)
     V, L = np.array([0.0, 2.0]), np.array([0.5, 3.5])

@@ -74,3 +74,30 @@ def test_bad_queries(db):
         satf_query(db, np.zeros(F), 0.0, 0.0, k=M + 1)
     with pytest.raises(errors.ValidationError, match="theta_v"):
         satf_query(db, np.zeros(F), np.inf, 0.0)
+
+
+def test_queries_beyond_the_float32_distances_are_refused_and_huge_angles_wrap(db):
+    """Issue 29 m14: finite features of 1e300 gave NaN (the float32 distances overflow, 0/0 weights) with no error;
+    angles of 1e300 (inf in float32) too.  Features are refused, naming them, beyond feature_limit (Samuelson's
+    bound on the records' own |z| taken off the float32 range); angles wrap in float64 as exactly as it holds them."""
+    from hairlut.hrir._query import feature_limit
+
+    for bad in ([1e300, 0.0, 0.0], [0.0, -1e300, 0.0], [0.0, 0.0, 1.7e308]):
+        with pytest.raises(errors.ValidationError, match=r"features=.*standard deviations.*float32") as info:
+            satf_query(db, bad, 0.0, 0.0)
+        assert info.value.field == "features"
+    limit = feature_limit(M, F)
+    assert limit == pytest.approx(np.sqrt(np.finfo(np.float32).max / (2 * F)) - np.sqrt(M - 1))
+    assert np.abs(db.stats.normalize(db.features)).max() <= np.sqrt(M - 1)  # Samuelson: the records lie within
+    edge = db.stats.denormalize(np.full(F, 0.999 * limit))  # just inside: the farthest answerable query
+    re, a, idx, w = satf_query(db, edge, 0.0, 0.0, k=3)
+    # every record is as far as float32 can tell (|z| ~ 1e19 ≫ |z_i|): inverse-distance weights of 1/3 each, as the
+    # exact ones are to 1e-18
+    assert np.isfinite(re).all() and np.isfinite(a).all() and np.allclose(w, 1 / 3, rtol=1e-6)
+    np.testing.assert_allclose(a, db.alpha[idx, 0].mean(axis=0), rtol=1e-5)
+    for turns in (1e300, -1e300, 1e30):
+        got = satf_query(db, db.features[4], turns, turns, k=1)
+        want = satf_query(db, db.features[4], np.mod(turns, 2 * np.pi), np.mod(turns, 2 * np.pi), k=1)
+        assert np.isfinite(got[0]).all()
+        for g, x in zip(got, want):
+            np.testing.assert_array_equal(g, x)

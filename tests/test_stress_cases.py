@@ -1,4 +1,4 @@
-"""Issue 17's list of stress cases, item by item: each item names the cases that cover it and the sweep
+"""Issue 17's list of stress cases (and the cases later issues added), item by item: each item names the cases that cover it and the sweep
 constants that must reach the issue's ends (runs no case: tests/test_stress.py runs the quick mode)."""
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ ITEMS = {
     "transmittances that underflow exp()": ("shadow.underflow",),
     "float16 storage of every table": ("storage.hrir_db_f16", "storage.sh_tables_f16", "storage.scene_maps_f16"),
     "the same cases on a GPU, where present": ("gpu.float32",),
+    "issue 29 m16: the Kajiya–Kay cosine form at t ∥ ω with fractional p": ("sh.kk_cosine_edge",),
 }
 
 

@@ -65,6 +65,9 @@ def test_field_checks_give_reasons():
     assert v.one_of("exp", "linear")("exp") is None and "linear" in v.one_of("exp", "linear")("lin")
     assert v.auto_or(v.at_least(1))("auto") is None and "'auto'" in v.auto_or(v.at_least(1))(0)
     assert v.vec3([0, 0, 2]) is None and v.vec3([0, 0, 0]) and v.vec3([1, 2]) and v.vec3([1, "a", 2])
+    big = float(np.finfo(np.float32).max)
+    assert v.float32(v.nonneg)(big) is None and "float32" in v.float32(v.nonneg)(np.nextafter(big, np.inf))
+    assert v.float32(v.nonneg)(-1) == v.nonneg(-1) and "float32" in v.float32(v.positive)(1e300)
 
 
 def test_resolve_names_the_key_path():

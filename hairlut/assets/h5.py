@@ -52,6 +52,7 @@ from .. import errors
 from .._version import __version__
 from ..files import regular_file
 from .atomic import atomic_path, ensure_space, write_bytes
+from .bounds import check_bounds
 from .chunks import ChunkWriter
 from .kinds import KINDS, SCHEMA, SUPPORTED_SCHEMAS
 from .layout import AXES_GROUP, NAME_ATTR, _text, check_layout, disk_name, layout, table  # noqa: F401  (re-exported)
@@ -194,6 +195,7 @@ def write_table(
     if missing:
         raise errors.ValidationError("variables", missing, f"kind {kind!r} requires them")
     path = Path(path)
+    check_bounds(kind, KINDS[kind].bounds, recipe, {var.name: (data, var.dims) for var, data in checked}, path.name)
     # Built in memory (HDF5's core driver, no backing store), then written by Python: HDF5
     # itself never meets a full disk (it can segfault there), and a short write is a
     # DiskFullError with nothing left under the final name.

@@ -29,6 +29,7 @@ class Kind:
     name: str
     required: tuple[str, ...]
     description: str
+    bounds: tuple = ()  # hairlut.assets.bounds.Bound s, checked on every write of the kind
 
 
 class KindTable(dict):
@@ -54,9 +55,10 @@ class KindTable(dict):
 KINDS: KindTable = KindTable()
 
 
-def register_kind(name: str, required: tuple[str, ...], description: str) -> Kind:
-    """Declare a kind (idempotent for an identical declaration)."""
-    kind = Kind(name, tuple(required), description)
+def register_kind(name: str, required: tuple[str, ...], description: str, bounds: tuple = ()) -> Kind:
+    """Declare a kind (idempotent for an identical declaration), with the physical bounds of its tables
+    (:class:`hairlut.assets.bounds.Bound` s: :func:`hairlut.assets.write_table` refuses a table beyond them)."""
+    kind = Kind(name, tuple(required), description, tuple(bounds))
     if dict.setdefault(KINDS, name, kind) != kind:
         raise RuntimeError(f"asset kind {name!r} declared twice with different contents")
     return kind

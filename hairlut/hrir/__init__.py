@@ -11,7 +11,7 @@ use of one of its names.
 
 from .._lazy import lazy_exports
 
-from ._kind import BAKE_OVERHEAD, BAKER, KIND, SHARD_KIND, TRACE_RATE, estimate
+from ._kind import BAKE_OVERHEAD, BAKER, KIND, SHARD_KIND, TRACE_RATE, estimate, phong_sum
 
 _LAZY = {
     "bake": "_bake", "bake_block": "_bake", "blocks_of": "_bake", "merge": "_bake", "parse_shard": "_bake",
@@ -25,14 +25,15 @@ _LAZY = {
     "GEOM": "_march", "trace_kernel": "_tracer",
     "projection_features": "_projection", "projection_kernel": "_projection", "sector_projections": "_projection",
     # the planar march, shared by the tracer, the direct map method and the scene table's bake
-    "SHADOW_GRID": "_march", "bilerp_nodes": "_march", "direct_lighting": "_march", "front_to_back": "_march", "grid_transmittance": "_march",
+    "SHADOW_GRID": "_march", "bilerp_nodes": "_march", "direct_lighting": "_march", "exclusive_depth": "_march",
+    "front_to_back": "_march", "grid_transmittance": "_march",
     "light_depth_grid": "_march", "march": "_march", "normals": "_march", "phong_direct": "_march",
     "reflectance": "_march", "sector_fields": "_march", "smooth_matrix": "_march", "to_pixels": "_march",
     "view_points": "_march", "sample_points": "_march", "sample": "_march", "fence": "_march",
     "transmittance_at": "_march", "resolved": "_march",
 }
 
-__all__ = ["BAKER", "BAKE_OVERHEAD", "KIND", "SHARD_KIND", "TRACE_RATE", "estimate", *sorted(_LAZY)]
+__all__ = ["BAKER", "BAKE_OVERHEAD", "KIND", "SHARD_KIND", "TRACE_RATE", "estimate", "phong_sum", *sorted(_LAZY)]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

@@ -100,13 +100,8 @@ def launch_block(recipe: dict, start: int, stop: int):
 
 
 def _finished(recipe: dict, start: int, stop: int, density, geometry, params, alpha, refl) -> dict:
-    for name, arr in (("density", density), ("geometry", geometry), ("alpha", alpha), ("reflectance", refl)):
-        if not np.all(np.isfinite(np.asarray(arr))):  # finite or refused: never write NaN/Inf
-            raise errors.NonFiniteError(
-                f"hrir_db: the {name} of sectors [{start}, {stop}) is not finite; the recipe's extremes drive it: "
-                f"sectors.density_scale={recipe['sectors']['density_scale']}, trace.extinction={recipe['trace']['extinction']}, "
-                f"sectors.space.radial_extent={recipe['sectors']['space'].get('radial_extent')}, "
-                f"sectors.space.radius_rel={recipe['sectors']['space'].get('radius_rel')}")
+    """Everything stored for sectors [start, stop).  Finite and within their physical bounds or refused, naming the
+    recipe keys, when the part is written (the kind's ``BOUNDS``, :mod:`hairlut.assets.bounds`)."""
     return {"alpha": alpha, "reflectance": refl, "density": density, "geometry": geometry,
             "params": {k: params[k] for k in PARAMS}}
 

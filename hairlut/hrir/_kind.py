@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..baker import Baker, Option, Units, deferred
+from ..baker import Baker, Bound, Option, Units, deferred
 from ._recipe import SCHEMA, resolve_recipe
 
 KIND = "hrir_db"
@@ -18,6 +18,28 @@ SHARD_KIND = "hrir_shard"
 TRACE_RATE = {True: 1.47e8, False: 2.07e8}
 #: Start-up of a bake (imports, jit compilation), seconds.
 BAKE_OVERHEAD = 6.0
+
+
+#: The recipe keys that drive the traced tables (named when a table is refused): the optical depth's and the shading's.
+DEPTH_KEYS = ("trace.extinction", "sectors.density_scale", "sectors.space.radial_extent", "sectors.space.radius_rel")
+SHADING_KEYS = ("phong.ambient", "phong.diffuse", "phong.specular", "phong.shininess")
+
+
+def phong_sum(recipe: dict, tables=None) -> float:
+    """k_a + k_d + k_s: the most a unit of opacity reflects (re = k_a α + Σ w (k_d max(0, n·l) + k_s spec), each
+    factor of k_d and k_s at most 1, Σ w = α), so re ≤ α·(k_a + k_d + k_s)."""
+    p = recipe["phong"]
+    return float(p["ambient"] + p["diffuse"] + p["specular"])
+
+
+#: The physical bounds of the traced tables (hairlut.assets.bounds): checked on every part and asset written.
+BOUNDS = (
+    Bound("alpha", 0.0, 1.0, keys=DEPTH_KEYS, text="0 ≤ α ≤ 1"),
+    Bound("reflectance", 0.0, 1.0, of="alpha", scale=phong_sum, keys=DEPTH_KEYS + SHADING_KEYS,
+          text="0 ≤ re ≤ α·(k_a + k_d + k_s)"),
+    Bound("density", 0.0, None, keys=("sectors.density_scale", "sectors.grid", *DEPTH_KEYS[2:]), text="ρ ≥ 0"),
+    Bound("geometry/*", None, None, keys=DEPTH_KEYS, text="finite"),
+)
 
 
 def estimate(recipe: dict) -> tuple[int, float]:
@@ -93,6 +115,7 @@ BAKER = Baker(
     unit="sectors",
     shard_kind=SHARD_KIND,
     shard_required=("alpha", "reflectance", "density"),
+    bounds=BOUNDS,
     merge=_merge,
     units=Units("sector", _count, deferred(f"{__package__}._bake", "bake_part"), deferred(f"{__package__}._bake", "join_parts"),
                 deferred(f"{__package__}._bake", "assemble_parts"), deferred(f"{__package__}._parts", "whole"), block=32,

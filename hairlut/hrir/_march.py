@@ -160,7 +160,7 @@ def light_depth_grid(fields, g, light, n_steps: int, m: int, fenced: bool = Fals
     :func:`march`'s (the depths and the lookup's indices materialised before the gathers).
     """
     tau = march(fields, g, light, m, n_steps, fenced=fenced, depth_only=True)
-    depth = jnp.cumsum(tau, axis=-1) - 0.5 * tau  # (L, m, K): to each step's midpoint
+    depth = exclusive_depth(tau) + 0.5 * tau  # (L, m, K): to each step's midpoint, never negative
 
     def corners(g, light):
         R = g[EXTENT]
@@ -216,10 +216,22 @@ def to_pixels(x, n_pix: int, rays: int, smooth=None):
     return x if smooth is None else jnp.matmul(x, smooth, precision=HIGHEST)
 
 
+def exclusive_depth(tau):
+    """Σ_{i<k} τ_i (..., K): the optical depth in front of each step, summed directly.
+
+    Never as the inclusive sum less τ_k: at large optical depths (σ_t ρ Δs ≫ 1, trace.extinction or
+    sectors.density_scale of 1e8 and more) that difference cancels catastrophically, and XLA:CPU, which
+    recomputes a fused producer (the march) in each consumer, may round the two τ differently, so the
+    difference went negative and exp(−depth) reached 1e27 (issue 29, N9).  A sum of non-negative terms
+    is never negative, so T = exp(−depth) ≤ 1 whatever the rounding."""
+    front = jnp.cumsum(tau[..., :-1], axis=-1)
+    return jnp.concatenate([jnp.zeros_like(tau[..., :1]), front], axis=-1)
+
+
 def front_to_back(tau, eps):
     """Eq 5 in closed form: per-step weights w_k = α_k T_k (zero once T_k < ``eps``) and α = Σ_k w_k,
-    from the optical depth per step ``tau`` (..., K)."""
-    trans = jnp.exp(-(jnp.cumsum(tau, axis=-1) - tau))
+    from the optical depth per step ``tau`` (..., K); T_k from :func:`exclusive_depth`."""
+    trans = jnp.exp(-exclusive_depth(tau))
     w = jnp.where(trans >= eps, -jnp.expm1(-tau) * trans, 0.0)
     return w, jnp.sum(w, axis=-1)
 
@@ -241,9 +253,11 @@ def resolved(scale, gx, gy, rs, rr, inside):
 
 def phong_direct(nx, ny, vx, vy, lx, ly, phong):
     """The direct part of the tracer's reflectance, k_d max(0, n·l) + k_s max(0, r·d)^p [n·l > 0] with
-    r = 2(n·l)n − l; all arguments broadcast (the caller lays out the view and light axes)."""
+    r = 2(n·l)n − l; all arguments broadcast (the caller lays out the view and light axes).  r·d, a cosine of unit
+    vectors, is clamped to 1: float32 rounding can put it a few ulp above, which the power p amplifies to
+    (1 + 1e-7)^p, infinite for p ≳ 1e9 (phong.shininess is bounded by float32's range, not by physics)."""
     nl = nx * lx + ny * ly
-    rv = 2 * nl * (nx * vx + ny * vy) - (lx * vx + ly * vy)
+    rv = jnp.minimum(2 * nl * (nx * vx + ny * vy) - (lx * vx + ly * vy), 1.0)
     spec = jnp.where((nl > 0) & (rv > 0), jnp.exp(phong[3] * jnp.log(jnp.where(rv > 0, rv, 1.0))), 0.0)
     return phong[1] * jnp.maximum(nl, 0.0) + phong[2] * spec
 

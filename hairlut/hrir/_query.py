@@ -11,11 +11,19 @@ which callers with precomputed neighbours use on their own).
 
 Cost per query: O(M·F) for the distances, O(k·4·P) for the gathers; the distances'
 memory is bounded by evaluating ``CHUNK`` queries at a time.
+
+**Range.**  The search runs in float32, so a query's normalised features must keep its squared distance
+to every record finite there: a record lies at most √(N − 1) standard deviations from the mean
+(Samuelson's inequality; the std's floor only shrinks that), so |z| ≤ √(F32max / 2F) − √(N − 1) per
+component keeps Σ (z − z_i)² ≤ F32max / 2 (:func:`feature_limit`); a query beyond it is refused, naming
+``features`` (finite features of 1e300 gave NaN weights, issue 29 m14).  Angles are reduced mod 2π in
+float64 before the float32 cast (1e300 rad became inf, then NaN), as exactly as float64 holds them.
 """
 
 from __future__ import annotations
 
 import functools
+import math
 
 import jax
 import jax.numpy as jnp
@@ -23,6 +31,7 @@ import numpy as np
 
 from .. import errors
 from .._blocks import map_blocks
+from ..validate import FLOAT32_MAX
 
 CHUNK = 4096
 EPS = 1e-6
@@ -92,6 +101,12 @@ def device_arrays(db):
             jnp.asarray(db.reflectance, jnp.float32))
 
 
+def feature_limit(n_records: int, n_features: int) -> float:
+    """The largest |z| (normalised feature) of a query whose float32 distances to ``n_records`` records of
+    ``n_features`` features stay finite (module docstring)."""
+    return math.sqrt(FLOAT32_MAX / (2 * n_features)) - math.sqrt(max(n_records - 1, 0))
+
+
 def satf_query(db, features, theta_v, theta_l, k: int = 4):
     """SATF(ρ_feature, θv, θl) → (re (..., P), α (..., P), neighbour index (..., k), weights (..., k)).
 
@@ -110,11 +125,22 @@ def satf_query(db, features, theta_v, theta_l, k: int = 4):
         if not np.all(np.isfinite(x)):
             raise errors.ValidationError(name, theta_v if name == "theta_v" else theta_l, "angles must be finite")
     shape = np.broadcast_shapes(f.shape[:-1], tv.shape, tl.shape)
-    z = db.stats.normalize(np.broadcast_to(f, shape + (F,)).reshape(-1, F))
+    flat = np.broadcast_to(f, shape + (F,)).reshape(-1, F)
+    with np.errstate(over="ignore"):  # an overflow is inf, refused below
+        z = db.stats.normalize(flat)
+    limit = feature_limit(len(db.features), F)
+    if z.size and not np.abs(z).max() <= limit:
+        i, j = np.unravel_index(int(np.argmax(np.nan_to_num(np.abs(z), nan=np.inf))), z.shape)
+        lo, hi = db.stats.denormalize(-limit)[j], db.stats.denormalize(limit)[j]
+        raise errors.ValidationError("features", float(flat[i, j]),
+                                     f"{db.stats.names[j]} lies {abs(z[i, j]):.3g} standard deviations from the "
+                                     f"database's mean; the float32 distances overflow beyond {limit:.3g} "
+                                     f"({db.stats.names[j]} in [{lo:.3g}, {hi:.3g}])")
     zdb, alpha, refl = getattr(db, "device_arrays", None) or device_arrays(db)
+    turn = 2 * np.pi  # reduced in float64 first: a huge angle is inf in float32, and inf mod 2π is NaN
     re, a, idx, w = query_kernel(
-        jnp.asarray(z, jnp.float32), jnp.asarray(np.broadcast_to(tv, shape).ravel(), jnp.float32),
-        jnp.asarray(np.broadcast_to(tl, shape).ravel(), jnp.float32), zdb, alpha, refl, int(k),
+        jnp.asarray(z, jnp.float32), jnp.asarray(np.mod(np.broadcast_to(tv, shape).ravel(), turn), jnp.float32),
+        jnp.asarray(np.mod(np.broadcast_to(tl, shape).ravel(), turn), jnp.float32), zdb, alpha, refl, int(k),
     )
     P = db.alpha.shape[-1]
     return (np.asarray(re).reshape(*shape, P), np.asarray(a).reshape(*shape, P),

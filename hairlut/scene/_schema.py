@@ -33,9 +33,9 @@ import numpy as np
 from .. import budget, errors
 from ..geometry.cluster_defaults import STRUCTURE_DEFAULTS as _D
 from ..files import regular_file
-from ..recipes import Field, load_toml, resolve
+from ..recipes import Field, get_path, load_toml, resolve
 from ..validate import at_least as _int_at_least
-from ..validate import auto_or, direction, in_range, one_of
+from ..validate import auto_or, direction, float32, in_range, one_of
 from ..validate import nonneg as _nonneg
 from ..validate import positive as _pos
 from ..validate import unit_interval as _unit_interval
@@ -134,7 +134,8 @@ SCHEMA = {
         "diffuse_bias": Field(0.0, _F, in_range(-1, 1), "see diffuse_scale"),
         "noise_amount": Field(0.5, _F, _unit_interval, "secondary modulated by 1 − amount·noise"),
         "noise_frequency": Field(8.0, _F, _pos, "noise lattice cells per unit of texture space"),
-        "k_shadow": Field(0.5, _F, _nonneg, "eq 12 self-shadow intensity"),
+        # float32 in the kernel: exp(−k Σα) and max(0, 1 − k Σα) saturate for any finite k; an infinite one is inf · 0 = NaN
+        "k_shadow": Field(0.5, _F, float32(_nonneg), "eq 12 self-shadow intensity"),
         "shadow_form": Field("exp", _S, one_of("exp", "linear"), "eq 12"),
         "k_threshold": Field(1.0, _F, lambda x: None if x >= 0 else "must be ≥ 0 (inf: always uniform)", "eq 6"),
     },
@@ -250,15 +251,6 @@ class Scene:
         return env if env["map"] else None
 
 
-def _get(mapping, dotted):
-    node = mapping
-    for key in dotted.split("."):
-        if not isinstance(node, Mapping) or key not in node:
-            return None
-        node = node[key]
-    return node
-
-
 def _unit(name, value) -> np.ndarray:
     return direction(value, name)  # finite, non-zero 3 numbers, normalised (hairlut.validate)
 
@@ -301,7 +293,7 @@ def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -
     if "camera" in given:
         given["camera"] = derive_view(given["camera"])
     for key, reason in REQUIRED.items():
-        if _get(given, key) is None:
+        if get_path(given, key) is None:
             raise errors.ValidationError(key, None, reason)
     cfg = resolve(SCHEMA, given)
     method, shadow_given = cfg["shadows"]["method"], given.get("shadows", {})

@@ -7,7 +7,8 @@ command line ``--scene`` is the scene's TOML file.
 
 from __future__ import annotations
 
-from ..baker import Baker, Option, Units, deferred
+from ..baker import Baker, Bound, Option, Units, deferred
+from ..hrir import phong_sum
 from ._recipe import SCHEMA, hrir_recipe, resolve_recipe
 
 KIND = "scene_maps"
@@ -26,6 +27,25 @@ PROJECT_RATE = 6.7e10
 BAKE_OVERHEAD = 8.0
 #: Non-empty sectors assumed per sector when the count is unknown (Sintel: 793 of 1,296; ratboy 2,217 of 2,592).
 LIVE_FRACTION = 0.75
+
+
+#: The recipe keys that drive the traced tables (named when a table is refused).
+KEYS = ("hrir.trace.extinction", "hrir.sectors.density_scale", "hrir.phong.ambient", "hrir.phong.diffuse",
+        "hrir.phong.specular", "hrir.phong.shininess")
+
+
+def _reflect(recipe: dict, tables=None) -> float:
+    """k_a + k_d + k_s of the recipe's trace: the ratio ρ = Σ re / Σ α lies in [0, k_a + k_d + k_s]."""
+    return phong_sum(hrir_recipe(recipe))
+
+
+#: The physical bounds of the tables (hairlut.assets.bounds): α in [0, 1]; the ratio's terms c₀ (the mean of ρ over
+#: the lights) in [0, k_a + k_d + k_s] and a_k, b_k (twice a DFT term of ρ ≥ 0, at most 2 c₀) in ±2 (k_a + k_d + k_s).
+BOUNDS = (
+    Bound("alpha", 0.0, 1.0, keys=KEYS[:2], text="0 ≤ α ≤ 1"),
+    Bound("ratio", 0.0, 1.0, scale=_reflect, at=(..., 0), keys=KEYS, text="0 ≤ c₀ ≤ k_a + k_d + k_s"),
+    Bound("ratio", -2.0, 2.0, scale=_reflect, keys=KEYS, text="|a_k|, |b_k| ≤ 2 (k_a + k_d + k_s)"),
+)
 
 
 def estimate(recipe: dict, sectors: int = 1296, live: int | None = None) -> tuple[int, float]:
@@ -97,6 +117,7 @@ BAKER = Baker(
     unit="sectors",
     shard_kind=SHARD_KIND,
     shard_required=("alpha", "ratio", "scene_index"),
+    bounds=BOUNDS,
     units=Units("sector", _part("count"), _part("bake_part"), _part("join"), _part("assemble"), _part("whole"),
                 block=BLOCK, check=_part("check"), index=_part("part_index")),
     help="""Per-groom scene table: each sector's own projections (the `scene` map method).

@@ -9,7 +9,9 @@ path (an EXR map, projected with ``--layout``/``--up`` to the recipe's bands, or
 
 from __future__ import annotations
 
-from ..baker import Baker, Option, Units, deferred
+import numpy as np
+
+from ..baker import Baker, Bound, Option, Units, deferred
 from ._recipe import SCHEMA, light_bands, resolve_recipe
 
 KIND = "sh_tables"
@@ -21,6 +23,27 @@ LIGHT_KIND = "sh_light"
 LAYOUTS = ("auto", "latlong", "cube")
 #: Start-up of a bake (imports, jit compilation), seconds; the bake itself is far shorter.
 BAKE_OVERHEAD = 4.0
+
+
+#: The recipe keys that drive the tables (named when a table is refused).
+KEYS = ("kernel.p", "bands.light_diffuse", "bands.light_specular", "bands.transmittance", "dense.storage")
+
+
+def light_norm(recipe: dict, tables) -> float:
+    """max over channels of ‖a‖₂, the light's SH coefficients (the table ``light/a``): |Cd|, |Cs| ≤ ‖a‖₂."""
+    a = np.asarray(tables["light/a"][0], np.float64)
+    return float(np.sqrt((a * a).sum(axis=0)).max(initial=0.0))
+
+
+#: The physical bounds of the tables (hairlut.assets.bounds).  R(i, j, t) = ∫ Y_i Y_j K dω with a kernel 0 ≤ K ≤ 1
+#: (sin θ; max(0, cos(π − θ − θ′))^p), so |R| ≤ ∫ |Y_i Y_j| ≤ 1 (Cauchy–Schwarz, orthonormal Y); C = Σ_i a_i R(i, ·)
+#: = ∫ L Y_j K with L = Σ a_i Y_i, so |C| ≤ ‖L‖₂ = ‖a‖₂ per channel.
+BOUNDS = (
+    Bound("dense/rd", -1.0, 1.0, keys=KEYS, text="|Rd| ≤ 1"),
+    Bound("dense/rs", -1.0, 1.0, keys=KEYS, text="|Rs| ≤ 1"),
+    Bound("light/cd", -1.0, 1.0, scale=light_norm, keys=KEYS, text="|Cd| ≤ ‖a‖₂"),
+    Bound("light/cs", -1.0, 1.0, scale=light_norm, keys=KEYS, text="|Cs| ≤ ‖a‖₂"),
+)
 
 
 def estimate(recipe: dict) -> tuple[int, float]:
@@ -115,6 +138,7 @@ BAKER = Baker(
     unit=None,  # a bake of seconds: no progress bar
     shard_kind=SHARD_KIND,
     shard_required=("dense/t_dirs",),
+    bounds=BOUNDS,
     units=Units("t", _count, *(deferred(f"{__package__}._bake", f) for f in ("bake_part", "join_parts", "assemble_parts",
                                                                          "whole_parts")), block=BLOCK, check=_check),
     assets=((LIGHT_KIND, ("a",), "SH coefficients of an environment light (xing §4)"),),

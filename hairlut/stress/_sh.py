@@ -1,12 +1,14 @@
 """Stress cases for the SH side (xing §4): the basis to lmax 40, the Kajiya–Kay lobes' Legendre
 coefficients for exponents 1 … 10⁴, the exact tables at tangents on the poles and the axes,
-θ′ at 0, π/2 and π, bad tangents, and the float32 radiance with its SH ringing counted.
+θ′ at 0, π/2 and π, bad tangents, the float32 radiance with its SH ringing counted, and the
+lobes' cosine form at their edge with t ∥ ω and fractional exponents (issue 29 m16).
 
 Every comparison is against a float64 reference through public names only:
 :func:`hairlut.sh.real_sh_reference` (angles + unnormalised Legendre, a different algorithm),
 :func:`hairlut.shtables.reference_r` (direct quadrature on the sphere, no Gaunt coefficients)
 and :func:`zonal_reference` here (Gauss–Legendre pieces around the lobe's peak with SciPy's
-Legendre polynomials, no ψ substitution and no Chebyshev series).
+Legendre polynomials, no ψ substitution and no Chebyshev series), and :func:`kk_lobe_exact` (exact
+rational arithmetic and 50-digit roots).
 """
 
 from __future__ import annotations
@@ -44,6 +46,13 @@ COEFF_TOL = 1e-9
 TABLES_TOL = 1e-9
 #: float32 radiance vs float64, max |ΔI| / max |I|: the radiance's stated float32 relative error is ~1e-6.
 RADIANCE_F32_TOL = 1e-5
+#: The cosine form at the lobe's edge vs exact arithmetic, max |Δ| (absolute): the float64 base's rounding (a few
+#: 1e-16) through x^p, at most (4e-16)^0.5 = 2e-8 at the smallest exponent.
+KK_EDGE_TOL = 5e-8
+#: Exponents of the edge case: fractional ones first (their power amplifies an absolute error of the base the most).
+KK_EDGE_P = (0.5, 0.75, 1.0, 2.5, 49.0)
+#: How far past the normal plane of t the edge case puts v (t·v = −tilt): the lobe's base is about that.
+KK_EDGE_TILT = (0.0, 1e-16, 2e-8, 1e-6, 1e-3)
 
 
 def axis_tangents() -> np.ndarray:
@@ -221,6 +230,69 @@ def _bad_tangents(tally, ctx):
     tally.note("zero, non-unit, NaN and Inf tangents and θ′ outside [0, π] raise ValidationError")
 
 
+def kk_lobe_exact(t, w, v, p) -> float:
+    """max(0, sin θ sin θ′ − cos θ cos θ′)^p of the vectors t, ω, v as given (normalised exactly), in exact rational
+    arithmetic with 50-digit roots and power: cos = a·b / |a||b|, sin² by Lagrange's identity |a × b|² =
+    |a|²|b|² − (a·b)² (no float rounding before the last step; independent of hairlut.kernels)."""
+    from decimal import Decimal, localcontext
+    from fractions import Fraction
+
+    T, W, V = ([Fraction(float(x)) for x in u] for u in (t, w, v))
+
+    def dot(a, b):
+        return sum(x * y for x, y in zip(a, b))
+
+    with localcontext() as ctx:
+        ctx.prec = 50
+
+        def dec(f):
+            return Decimal(f.numerator) / Decimal(f.denominator)
+
+        def cos_sin(a, b):
+            aa, bb, ab = dot(a, a), dot(b, b), dot(a, b)
+            n = dec(aa * bb).sqrt()
+            return dec(ab) / n, dec(aa * bb - ab * ab).sqrt() / n
+
+        (cl, sl), (cv, sv) = cos_sin(T, W), cos_sin(T, V)
+        base = sl * sv - cl * cv
+        return float(base ** Decimal(float(p))) if base > 0 else 0.0
+
+
+def edge_vectors(n_random: int, seed: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t, ω, v), each (n, 3) unit: t on the axes and at random; ω = t, −t, or t turned by 1e-12 rad; v in the
+    normal plane of t tilted by each of :data:`KK_EDGE_TILT` toward −t (the lobe's edge: base ≈ the tilt)."""
+    rng = np.random.default_rng(seed)
+    t = np.concatenate([axis_tangents(), rng.normal(size=(n_random, 3))])
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    side = np.cross(t, rng.normal(size=t.shape))
+    side /= np.linalg.norm(side, axis=1, keepdims=True)
+    rows = []
+    for turn in (0.0, np.pi, 1e-12):
+        w = np.cos(turn) * t + np.sin(turn) * side
+        for tilt in KK_EDGE_TILT:
+            v = np.cross(t, side) * np.cos(tilt) - t * np.sin(tilt)
+            rows.append((t, w / np.linalg.norm(w, axis=1, keepdims=True), v / np.linalg.norm(v, axis=1, keepdims=True)))
+    return tuple(np.concatenate([r[k] for r in rows]) for k in range(3))
+
+
+def _kk_edge(tally, ctx):
+    from ..kernels import sin_between, specular_cos
+
+    t, w, v = edge_vectors(4 if ctx.quick else 64)
+    cl, cv = np.einsum("ij,ij->i", t, w), np.einsum("ij,ij->i", t, v)
+    sl, sv = sin_between(t, w), sin_between(t, v)
+    alone = 0.0
+    for p in KK_EDGE_P:
+        ref = np.array([ctx.reference(a, b, c, p) for a, b, c in zip(t, w, v)])
+        got = tally.finite(f"specular_cos p={p:g}", specular_cos(cl, cv, p, sl, sv))
+        tally.within(f"specular_cos p={p:g}", got, 0.0, 1.0)
+        tally.compare(f"p={p:g}, sines from the cross products", got, ref, scale=1.0)
+        alone = max(alone, float(np.abs(specular_cos(cl, cv, p) - ref).max()))
+    tally.note(f"{len(t)} (t, ω, v) with ω = t, −t, t turned 1e-12 rad and t·v = −tilt ∈ {list(KK_EDGE_TILT)}, p ∈ "
+               f"{list(KK_EDGE_P)}; from the cosines alone (√((1 − c)(1 + c))) the worst error is {alone:.1e}: "
+               "the sine of a rounded cosine near ±1 (why callers with vectors pass |t × ω|)")
+
+
 CASES = (
     Case("sh.basis_f64", f"real_sh float64 to lmax {LMAX} vs the angle-based reference", SH_F64_TOL,
          "rounding grows ~l·ε in the recurrence; measured ~1e-14", _sh_reference, _basis(np.float64)),
@@ -234,4 +306,6 @@ CASES = (
          "the radiance's stated float32 relative error is ~1e-6", lambda x: x, _radiance),
     Case("sh.bad_tangents", "zero, non-unit, NaN tangents and θ′ outside [0, π] are rejected", 1e-12,
          "normalize=True must give the unit direction's SH to rounding", None, _bad_tangents),
+    Case("sh.kk_cosine_edge", "Kajiya–Kay specular from cosines at t ∥ ω, the lobe's edge, p = 0.5 … 49, vs exact "
+         "arithmetic", KK_EDGE_TOL, "the float64 base's rounding through x^p: ≤ 2e-8 at p = 0.5", kk_lobe_exact, _kk_edge),
 )

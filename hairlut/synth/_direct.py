@@ -60,8 +60,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ..hrir import (GEOM, SHADOW_GRID, front_to_back, grid_transmittance, light_depth_grid, march, normals,
-                    phong_direct, reflectance, sector_fields, smooth_matrix, to_pixels, view_points)
+from ..hrir import (GEOM, SHADOW_GRID, exclusive_depth, front_to_back, grid_transmittance, light_depth_grid, march,
+                    normals, phong_direct, reflectance, sector_fields, smooth_matrix, to_pixels, view_points)
 from ..validate import check_int
 
 
@@ -77,7 +77,7 @@ def _light_depth_at(fields, g, lights, n_steps: int, m: int, qx, qy):
     march's own (lane, step) lattice: (L, lanes, K).  One bilinear resampling instead of the tracer's two
     (march → Cartesian M × M grid → samples), and a third of the gathers for one view per sector."""
     tau, *_ = march(fields, g, lights, m, n_steps)
-    depth = jnp.cumsum(tau, axis=-1) - 0.5 * tau  # (L, m, K): to each step's midpoint
+    depth = exclusive_depth(tau) + 0.5 * tau  # (L, m, K): to each step's midpoint, never negative
     L = lights.shape[0]
     R = g[_EXTENT]
     c, s = jnp.cos(lights)[:, None, None], jnp.sin(lights)[:, None, None]

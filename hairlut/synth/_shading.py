@@ -32,7 +32,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..kernels import diffuse_cos, specular_cos
+from ..kernels import diffuse_cos, sin_between, specular_cos
 
 
 def _dot(a, b):
@@ -48,17 +48,19 @@ def _unit(x):
 
 def diffuse(t, l, scale, bias):
     """Eq 9's kernel, scaled and biased: max(0, scale·sin(t, l) + bias); t (..., 3), l (L, 3) → (..., L).
-    sin(t, l) is the Kajiya–Kay diffuse lobe (:func:`hairlut.kernels.diffuse_cos`)."""
-    return jnp.maximum(0.0, scale * diffuse_cos(_dot(t, l)) + bias)
+    sin(t, l) is the Kajiya–Kay diffuse lobe (:func:`hairlut.kernels.diffuse_cos`), the sine from the cross product
+    (accurate where t ∥ l)."""
+    return jnp.maximum(0.0, scale * diffuse_cos(_dot(t, l), sin_between(t[..., None, :], l)) + bias)
 
 
 def specular(t, n, v, l, shift, p):
     """Eqs 10/11's kernel: the Kajiya–Kay specular lobe (:func:`hairlut.kernels.specular_cos`)
-    at the shifted tangent t̃ = unit(t + shift·n): (..., L) for lights l (L, 3)."""
+    at the shifted tangent t̃ = unit(t + shift·n): (..., L) for lights l (L, 3); the sines from cross products (the
+    lobe's edge at t̃ ∥ l or t̃ ∥ v, ``hairlut.kernels``)."""
     tt = _unit(t + shift * n)
-    cl = _dot(tt, l)
-    cv = _dot(tt, v)[..., None]
-    return specular_cos(cl, cv, p)
+    cl, sl = _dot(tt, l), sin_between(tt[..., None, :], l)
+    cv, sv = _dot(tt, v)[..., None], sin_between(tt, v)[..., None]
+    return specular_cos(cl, cv, p, sl, sv)
 
 
 @partial(jax.jit, static_argnames=("use_diffuse", "primary", "secondary", "noise"))

@@ -171,10 +171,11 @@ def _mirror_phong(scale, gx, gy, rs, rr, inside, vx, vy, lights, phong, power: i
     vx, vy = vx[..., None], vy[..., None]
     nl = nx * lx + ny * ly
     rv = 2 * nl * (nx * vx + ny * vy) - (lx * vx + ly * vy)
+    cos = jnp.minimum(jnp.abs(rv), 1.0)  # |r·d| ≤ 1, clamped as ``phong_direct`` clamps it (rounding, amplified by p)
     if power:
-        spec = phong[2] * jax.lax.integer_pow(jnp.abs(rv), power)
+        spec = phong[2] * jax.lax.integer_pow(cos, power)
     else:
-        spec = phong[2] * jnp.exp(phong[3] * jnp.log(jnp.where(rv != 0, jnp.abs(rv), 1.0)))
+        spec = phong[2] * jnp.exp(phong[3] * jnp.log(jnp.where(rv != 0, cos, 1.0)))
     nl_m = jnp.where(ok[..., None], nl, -nl)
     front = phong[1] * jnp.maximum(nl, 0.0) + jnp.where((nl > 0) & (rv > 0), spec, 0.0)
     back = phong[1] * jnp.maximum(nl_m, 0.0) + jnp.where((nl_m > 0) & (rv < 0), spec, 0.0)
@@ -243,14 +244,19 @@ def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, 
     lanes = n_pix * rays
     views = views_half[::step]
     tau = march(fields, g, views_half if alpha else views, lanes, n_steps, fenced=True, depth_only=True)
-    # eq 5's weights both ways along each ray from one prefix sum (as a product with the triangular ones: XLA:CPU's
-    # cumsum is a reduce-window): T_k = exp(−Σ_{i<k} τ_i) from the march's side, exp(−Σ_{i>k} τ_i) from the mirror's
-    depth = jnp.matmul(tau, jnp.triu(jnp.ones((n_steps, n_steps), tau.dtype)), precision=HIGHEST)  # Σ_{i≤k} τ_i
+    # eq 5's weights both ways along each ray from one product with the strict triangles (XLA:CPU's cumsum is a
+    # reduce-window): T_k = exp(−Σ_{i<k} τ_i) from the march's side, exp(−Σ_{i>k} τ_i) from the mirror's, each summed
+    # directly; as differences of one prefix sum they cancelled at large optical depths (``hairlut.hrir``
+    # ``exclusive_depth``)
+    K = n_steps
+    sides = jnp.concatenate([jnp.triu(jnp.ones((K, K), tau.dtype), 1), jnp.tril(jnp.ones((K, K), tau.dtype), -1)], axis=1)
+    depths = jnp.matmul(tau, sides, precision=HIGHEST)
+    before, after = depths[..., :K], depths[..., K:]
     opacity = -jnp.expm1(-tau)
-    w_all = _weights(opacity, depth - tau, eps)
+    w_all = _weights(opacity, before, eps)
     a_all = jnp.sum(w_all, axis=-1)
-    opacity, depth, w, a = (x[::step] for x in (opacity, depth, w_all, a_all)) if alpha else (opacity, depth, w_all, a_all)
-    w_m = _weights(opacity, depth[..., -1:] - depth, eps)  # the mirror views' weights, in the march's order
+    opacity, after, w, a = (x[::step] for x in (opacity, after, w_all, a_all)) if alpha else (opacity, after, w_all, a_all)
+    w_m = _weights(opacity, after, eps)  # the mirror views' weights, in the march's order
     a_m = jnp.flip(jnp.sum(w_m, axis=-1), axis=-1)  # lanes in the mirror's order
     light_depth = (light_depth_grid(fields, g, lights, n_steps, shadow_grid or min(n_steps, SHADOW_GRID), fenced=True)
                    if shadow else None)
