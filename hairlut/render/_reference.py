@@ -37,6 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
+from ..hrir import exclusive_depth
 from ._hits import RAYS, Queue, batch_rows, compact, near_pairs, tile_groups
 from ._light import grid_depths, grid_nodes, light_index, point_depths, shadow_grids
 from ._strands import Z_CUT, Segments, crossings
@@ -123,7 +124,7 @@ def step_points(o, d, cand, p0, t, length, radius, sigma_t, *, steps: int, persp
     n = tau.shape[0]
     seg = jnp.broadcast_to(ix[..., None], tau.shape)
     s_, tau_, seg_ = jax.lax.sort((s.reshape(n, -1), tau.reshape(n, -1), seg.reshape(n, -1)), dimension=-1, num_keys=1)
-    front = jnp.cumsum(tau_, -1) - tau_  # optical depth in front of each step, in ray order
+    front = exclusive_depth(tau_)  # optical depth in front of each step, in ray order (never total − own step)
     x = o[:, None] + s_[..., None] * d[:, None]
     return tau_, s_, seg_, x, (tau_ > 0) & (front < -np.log(SEEN))
 
@@ -136,9 +137,8 @@ def reference_kernel(tau, s, seg, d, back, lit, shade, *, perspective: bool):
     (N, M, L) each step's optical depth toward each light (``_light``; zeros: no shadows)."""
     colour = (lit[seg] * jnp.exp(-shade)[..., None]).sum(-2)  # (N, M, 3)
     depth = s * (-(d * back).sum(-1))[:, None] if perspective else s
-    total = jnp.cumsum(tau, -1)
-    w = -jnp.expm1(-tau) * jnp.exp(-(total - tau))
-    alpha = -jnp.expm1(-total[..., -1])
+    w = -jnp.expm1(-tau) * jnp.exp(-exclusive_depth(tau))
+    alpha = -jnp.expm1(-tau.sum(-1))
     rgb = (w[..., None] * colour).sum(1)
     return jnp.concatenate([rgb, jnp.stack([alpha, (w * depth).sum(-1), w.sum(-1)], -1)], -1)
 
