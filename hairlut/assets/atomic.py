@@ -17,6 +17,7 @@ import contextlib
 import errno
 import os
 import secrets
+import tempfile
 from pathlib import Path
 
 from .. import errors
@@ -52,6 +53,23 @@ def ensure_space(final: str | os.PathLike, nbytes: int) -> None:
     free = free_bytes(final.parent if final.parent.exists() else Path.cwd())
     if free is not None and nbytes > free:
         raise errors.DiskFullError(final, f"needs {_size(nbytes)} but only {_size(free)} are free on its file system; nothing was written")
+
+
+def check_writable(path: str | os.PathLike) -> None:
+    """Refuse (AssetError naming ``path``) before any work when files cannot be created in the folder ``path``, or,
+    while it does not exist yet, in its nearest existing ancestor (where it would be made): a probe file is created
+    and removed there, which also catches read-only mounts and ACLs that permission bits do not show."""
+    folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        raise errors.AssetError(folder, "not a folder")
+    probe_in = next((p for p in (folder, *folder.absolute().parents) if p.exists()), folder)
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".hairlut-probe-", suffix=TMP_SUFFIX, dir=probe_in)
+    except OSError as exc:
+        where = "" if probe_in == folder else f" (in {probe_in}, where it would be made)"
+        raise errors.AssetError(folder, f"cannot write here{where}: {exc.strerror or exc}") from None
+    os.close(fd)
+    os.unlink(probe)
 
 
 def _fsync_path(path: Path) -> None:
