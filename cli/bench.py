@@ -43,20 +43,24 @@ def bench_cmd(quick: bool, only: str | None, out: str, as_json: bool, no_progres
     A part that cannot run here (scale needs two cores; maps and
     render need the repository's benchmarks/ folder) is listed as skipped.
     """
-    from hairlut.bench import PARTS, run_bench
-    from hairlut.errors import ValidationError
+    from hairlut.bench import PARTS, BenchInterrupted, run_bench, select
 
-    names = [n.strip() for n in only.split(",") if n.strip()] if only else None
-    for n in names or ():
-        if n not in PARTS:
-            raise ValidationError("--only", n, f"no such part; the parts are {', '.join(PARTS)}")
+    names = None if only is None else [p.name for p in select(PARTS, only, "--only")]  # "" and "," name no part
     start = time.perf_counter()
 
     def progress(message: str) -> None:
         if not no_progress:
             click.echo(f"[{time.perf_counter() - start:6.1f} s] {message}", err=True)
 
-    results = run_bench(out, registry=PARTS, only=names, quick=quick, progress=progress)
+    try:
+        results = run_bench(out, registry=PARTS, only=names, quick=quick, progress=progress)
+    except BenchInterrupted as stop:
+        pr = stop.results["partial"]
+        done = [n for n, i in stop.results["parts"].items() if i["status"] not in ("interrupted", "not run")]
+        click.echo(f"hairlut: interrupted while {pr['interrupted']} ran; wrote a partial {out}/report.md and "
+                   f"{out}/results.json for {', '.join(done) or 'no part'}; not run: {', '.join(pr['not_run']) or 'none'}",
+                   err=True)
+        raise SystemExit(130) from None
     if as_json:
         from .format import dumps
 

@@ -16,6 +16,11 @@ def default_scenes() -> list[Path]:
     return [scenes / "sky-clusters.toml", scenes / "sintel-groom.toml"]
 
 
+def _cached(status: str | None) -> str:
+    """What a reference figure's time means when the frame came from the cache (hairlut.render.cached_frame)."""
+    return " when first rendered; this run reused the cached frame" if status == "reused" else ""
+
+
 @click.command("demo")
 @click.option("--out", "out_dir", default="out/demo", show_default=True, type=click.Path(file_okay=False),
               help="Folder for the synthesised maps and previews.")
@@ -34,8 +39,9 @@ def demo_cmd(out_dir, scenes, cache_root, no_progress, as_json):
     2. tables/scenes/sintel-groom.toml: the strands of the Sintel groom
        (tables/grooms/sintel_lite.tfx, CC-BY 3.0 Blender Foundation) in
        six fitted clusters under two directional lights.
-    The first run bakes each scene's HRIR database and SH tables into the
-    cache (minutes); later runs reuse them (seconds).
+    The first run bakes each scene's tables into the cache and renders the
+    strand reference frames (minutes); later runs reuse both (the camera's
+    layered frame and the comparison figures are computed every run).
     """
     from hairlut import demo
 
@@ -66,13 +72,14 @@ def demo_cmd(out_dir, scenes, cache_root, no_progress, as_json):
             click.echo(f"  camera {w} x {h}: layered ({lay['map_method']} maps) frame {1e3 * lay['seconds']['raster']:.0f} ms "
                        f"+ maps {1e3 * lay['seconds']['maps']:.0f} ms; reference level {ref['level']} "
                        f"({ref['samples_per_pixel']} spp, {ref['steps_per_crossing']} steps per crossing; a fixed level, "
-                       f"not converged, environment {ref['environment']}) {ref['seconds']['frame']:.1f} s")
+                       f"not converged, environment {ref['environment']}) {ref['seconds']['frame']:.1f} s"
+                       + _cached((ref.get("cache") or {}).get("status")))
             pr = ref.get("convergence_probe")
             if pr:
                 ch = pr["change_to_next"]
                 click.echo(f"  reference level {pr['level']} -> {pr['next_level']} at {pr['resolution'][0]} x "
                            f"{pr['resolution'][1]} (same camera): RGB RMSE {ch['rgb_rmse']:.4f}, alpha RMSE "
-                           f"{ch['alpha_rmse']:.4f} ({pr['cpu_seconds']:.1f} CPU-s)")
+                           f"{ch['alpha_rmse']:.4f} ({pr['cpu_seconds']:.1f} CPU-s{_cached(pr.get('cache'))})")
             click.echo(f"  layered vs reference: FLIP {f['flip_mean']:.3f}, mean-alpha bias {f['alpha_bias']:+.4f} "
                        f"({f['alpha_bias_relative']:+.1%}), RGB RMSE {f['rgb_rmse']:.4f}, 8x8 RGB RMSE {f['rgb_rmse_8x8']:.4f}")
             click.echo(f"  side by side (layered | reference | FLIP): {cam['files']['side_by_side']}")

@@ -8,7 +8,10 @@ when the scene has one), and the EXR/PNG outputs land in ``out_dir/<scene>/``.  
 groom is also rendered through its camera with the layered model and with the strand reference
 (``hairlut.render.layered_vs_reference``, at :data:`REFERENCE_LEVEL`, with that level's change to the next
 measured at :data:`PROBE_SIZE` pixels and stored in reference.exr), side by side with the FLIP map
-in ``out_dir/<scene>/camera/side_by_side.png``.  The
+in ``out_dir/<scene>/camera/side_by_side.png``.  The reference frames (the probe's two levels and the camera's
+frame) are kept in the table cache (``hairlut.render.cached_frame``, keyed by the scene, the camera, the level and the
+code), so a warm run renders only the layered frame and compares it afresh; the report then says the reference was
+reused and keeps the times of the run that rendered it.  The
 report keeps the plan, what was baked or reused, the times and accuracy figures: the
 SATF lookup's self-check at stored records, the SH tables' Chebyshev tail and specular
 truncation error, and the fraction of texels whose environment term rang below zero.
@@ -58,36 +61,50 @@ def _sh_figures(path) -> dict:
         return {k: float(f.attrs[k]) for k in keys if k in f.attrs}
 
 
-def reference_probe(scene, level: int = REFERENCE_LEVEL, size: int = PROBE_SIZE) -> dict:
+def reference_probe(scene, level: int = REFERENCE_LEVEL, size: int = PROBE_SIZE, *, cache=None) -> dict:
     """How far the strand reference's ``level`` is from converged: the scene's camera (same framing) at ``size``
     pixels on its longer side, rendered at ``level`` and ``level`` + 1 (``hairlut.render.render_reference``), and
-    the change between them (RMSE of premultiplied RGB and of α: what a convergence bound is compared with)."""
-    from .render import render_reference, scene_strands
+    the change between them (RMSE of premultiplied RGB and of α: what a convergence bound is compared with).
+    ``cache``: a table cache folder that keeps the two levels between runs (``hairlut.render.cached_frame``);
+    ``cpu_seconds`` is then the run's that rendered them, and ``cache`` says ``reused`` or ``rendered``."""
+    from .render import cached_frame, render_reference, scene_strands
     from .scene import make_camera
 
     cfg = scene.config["camera"]
     w, h = cfg["resolution"]
     small = [size, max(1, round(size * h / w))] if w >= h else [max(1, round(size * w / h)), size]
-    strands = scene_strands(scene)
-    cam = make_camera({**cfg, "resolution": small}, np.concatenate([s.points for s in strands]))
-    t0 = time.process_time()
-    f = render_reference(scene, cam, levels=[level, level + 1], strands=strands)
+    levels = [level, level + 1]
+
+    def probe():
+        strands = scene_strands(scene)
+        cam = make_camera({**cfg, "resolution": small}, np.concatenate([s.points for s in strands]))
+        t0 = time.process_time()
+        f = render_reference(scene, cam, levels=levels, strands=strands)
+        f.info["cpu_seconds"] = time.process_time() - t0
+        return f
+
+    # the camera's table and the size determine the fitted camera (with the scene's strands, in the scene's record)
+    f = probe() if cache is None else cached_frame(
+        scene, {"what": "convergence probe", "camera": {**cfg, "resolution": small}, "levels": levels}, probe, cache)
     return {"level": level, "next_level": level + 1, "resolution": small,
-            "change_to_next": f.info["levels"][-1]["change_from_previous"], "cpu_seconds": time.process_time() - t0}
+            "change_to_next": f.info["levels"][-1]["change_from_previous"], "cpu_seconds": f.info["cpu_seconds"],
+            "cache": f.info.get("cache", {}).get("status")}
 
 
 def run_scene(scene_path, out_dir, cache_root=None, progress=None) -> dict:
     """Plan, bake (through the cache) and synthesise one scene; its report."""
+    from .cache import cache_dir
     from .scene import bake, plan
-    from .synth import synthesize, write_outputs
+    from .synth import prepare, render, write_outputs
 
     t0 = time.perf_counter()
     p = plan(scene_path, cache_root)
     t1 = time.perf_counter()
     assets = bake(p, progress)
     t2 = time.perf_counter()
-    result = synthesize(p.scene, assets.get("hrir_db", {}).get("path"), sh=assets.get("sh_tables", {}).get("path"),
-                        maps=assets.get("scene_maps", {}).get("path"))  # the map method auto picked (plan's map_method)
+    db, sh, maps = (assets.get(k, {}).get("path") for k in ("hrir_db", "sh_tables", "scene_maps"))
+    prepared = prepare(p.scene, db, sh, maps)  # the map method auto picked (plan's map_method); reused by the camera
+    result = render(prepared)
     t3 = time.perf_counter()
     files = write_outputs(result, out_dir)
     t4 = time.perf_counter()
@@ -95,11 +112,10 @@ def run_scene(scene_path, out_dir, cache_root=None, progress=None) -> dict:
     if p.scene.groom_path is not None:  # a real groom: the layered model beside its strand reference
         from .render import layered_vs_reference
 
-        probe = reference_probe(p.scene)
-        camera = layered_vs_reference(p.scene, Path(out_dir) / "camera", db=assets.get("hrir_db", {}).get("path"),
-                                      sh=assets.get("sh_tables", {}).get("path"),
-                                      maps=assets.get("scene_maps", {}).get("path"), level=REFERENCE_LEVEL,
-                                      reference_info={"convergence_probe": probe})
+        cache = cache_dir(cache_root)  # the reference frames are kept beside the tables (hairlut.render.cached_frame)
+        probe = reference_probe(p.scene, cache=cache)
+        camera = layered_vs_reference(p.scene, Path(out_dir) / "camera", prepared=prepared, level=REFERENCE_LEVEL,
+                                      reference_info={"convergence_probe": probe}, cache=cache)
     accuracy = {"hrir_query_self_check": _hrir_self_check(assets["hrir_db"]["path"])} if "hrir_db" in assets else {}
     if "sh_tables" in assets:
         accuracy.update(_sh_figures(assets["sh_tables"]["path"]))

@@ -11,6 +11,7 @@ from click.testing import CliRunner
 
 from hairlut import errors
 from hairlut.bench import PARTS, Figure, Part, derive, pareto_front, run_bench, strand_transmittance
+from ._readonly import read_only_dir  # noqa: F401  (a fixture)
 
 
 def test_pareto_front_hand_made():
@@ -101,3 +102,91 @@ def test_a_real_part_at_its_quick_size(tmp_path):
     tracer = [f for f in figs if f["label"].startswith("tracer") and f["seconds"]]
     assert tracer and all(f["error"] > 0 and math.isclose(f["time_ratio"], f["seconds"] / base[0]["seconds"]) for f in tracer)
     assert (tmp_path / "report.md").is_file() and list((tmp_path / "plots").glob("hrir-*.png"))
+
+
+def _recording_registry(ran: list, interrupt_in: str | None = None) -> dict:
+    """Three fake parts that record that they ran; ``interrupt_in`` raises KeyboardInterrupt (Ctrl-C) in that one."""
+    def runner(name):
+        def run(ctx):
+            ran.append(name)
+            if name == interrupt_in:
+                raise KeyboardInterrupt
+            return [Figure(name, "t", "base", 1.0, 1e-2, "err", baseline=True), Figure(name, "t", "fast", 0.5, 2e-2, "err")]
+        return run
+    return {n: Part(n, f"the {n} part", runner(n)) for n in ("one", "two", "three")}
+
+
+@pytest.mark.parametrize("only", ["", ",", " , ,"])
+def test_an_empty_selection_runs_no_part(tmp_path, monkeypatch, only):
+    """m6: `--only ""` and `--only ,` ran every part; they name none, so they are refused in one line naming the value
+    and listing the parts, before anything runs or is written."""
+    import hairlut.bench
+    from hairlut.bench import select
+    from hairlut_cli.main import cli
+
+    ran = []
+    monkeypatch.setattr(hairlut.bench, "PARTS", _recording_registry(ran))
+    r = CliRunner().invoke(cli, ["bench", "--only", only, "--out", str(tmp_path / "x")])
+    assert r.exit_code == 2 and ran == [] and not (tmp_path / "x").exists(), r.output
+    line = r.output.strip()
+    assert "\n" not in line and line.startswith("hairlut: error: --only=") and repr(only) in line
+    assert "one, two, three" in line
+    with pytest.raises(errors.ValidationError, match="names no part"):
+        select(PARTS, [])
+    with pytest.raises(errors.ValidationError, match="names no part"):
+        run_bench(tmp_path / "y", registry=PARTS, only=only)
+    assert [p.name for p in select(PARTS, " sh , hrir")] == ["sh", "hrir"]
+
+
+def test_ctrl_c_writes_the_finished_parts_report_marked_partial(tmp_path):
+    """m7: Ctrl-C during a part wrote no report at all; now report.md and results.json hold the parts that finished,
+    marked partial with the part interrupted and the parts not run, and BenchInterrupted (a KeyboardInterrupt) follows."""
+    from hairlut.bench import BenchInterrupted
+
+    ran = []
+    with pytest.raises(BenchInterrupted) as info:
+        run_bench(tmp_path, registry=_recording_registry(ran, interrupt_in="two"))
+    assert ran == ["one", "two"] and isinstance(info.value, KeyboardInterrupt)
+    doc = json.loads((tmp_path / "results.json").read_text())
+    assert doc == json.loads(json.dumps(info.value.results))
+    assert doc["partial"] == {"interrupted": "two", "not_run": ["three"]}
+    assert {k: v["status"] for k, v in doc["parts"].items()} == {"one": "ok", "two": "interrupted", "three": "not run"}
+    assert {f["part"] for f in doc["figures"]} == {"one"} and len(doc["figures"]) == 2
+    md = (tmp_path / "report.md").read_text()
+    assert "**Partial run**" in md and "`two`" in md and "`three`" in md and "### t" in md
+    assert "*not run*" in md and "*interrupted*" in md
+    complete = run_bench(tmp_path / "all", registry=_recording_registry([]))
+    assert complete["partial"] is None and "Partial" not in (tmp_path / "all" / "report.md").read_text()
+
+
+def test_ctrl_c_in_the_cli_exits_130_with_one_line(tmp_path, monkeypatch):
+    import hairlut.bench
+    from hairlut_cli.main import cli
+
+    ran = []
+    monkeypatch.setattr(hairlut.bench, "PARTS", _recording_registry(ran, interrupt_in="two"))
+    out = tmp_path / "b"
+    r = CliRunner().invoke(cli, ["bench", "--out", str(out), "--no-progress"])
+    assert r.exit_code == 130 and ran == ["one", "two"], r.output
+    line = r.output.strip()
+    assert "\n" not in line and "interrupted while two ran" in line and f"{out}/report.md" in line
+    assert "for one;" in line and "not run: three" in line
+    assert json.loads((out / "results.json").read_text())["partial"]["not_run"] == ["three"]
+
+
+def test_a_read_only_out_is_refused_before_any_part_runs(tmp_path, monkeypatch, read_only_dir):
+    """m5: `bench --out` onto a read-only folder ran every part, then failed on the report; the folder (or where it
+    would be made) is now checked first, and the error names the user's path."""
+    import hairlut.bench
+    from hairlut_cli.main import cli
+
+    ran = []
+    monkeypatch.setattr(hairlut.bench, "PARTS", _recording_registry(ran))
+    for out in (read_only_dir, read_only_dir / "new" / "bench"):
+        r = CliRunner().invoke(cli, ["bench", "--out", str(out), "--no-progress"])
+        assert r.exit_code == 2 and ran == [], r.output
+        line = r.output.strip()
+        assert "\n" not in line and line.startswith(f"hairlut: error: {out}: cannot write") and "Traceback" not in line
+    with pytest.raises(errors.AssetError, match="cannot write"):
+        run_bench(read_only_dir, registry=_recording_registry(ran))
+    assert ran == [] and not (read_only_dir / "new").exists()

@@ -19,6 +19,7 @@ import contextlib
 import errno
 import os
 import secrets
+import tempfile
 from pathlib import Path
 
 from .. import errors
@@ -63,7 +64,7 @@ def check_writable(path: str | os.PathLike, *, folder: bool = False) -> Path:
     user's name, never a temporary one).  ``path`` is a file (``folder`` False: not an existing folder) or a
     folder (``folder``: not an existing file).  The folder that must take the file is the nearest one that exists
     (:func:`atomic_path` creates the rest): it must be a folder, on a writable file system, writable by this user.
-    Nothing is created or changed here."""
+    Nothing is left behind: a probe file, made and removed, finds what the permission bits do not show."""
     target = Path(path)
     if not folder and target.is_dir():
         raise errors.AssetError(target, "is a folder; give a file name")
@@ -83,6 +84,13 @@ def check_writable(path: str | os.PathLike, *, folder: bool = False) -> Path:
     if not os.access(where, os.W_OK | os.X_OK):
         raise errors.AssetError(target, f"cannot write: the folder {where} is not writable (permission denied); "
                                         "nothing was written")
+    try:  # what the bits do not show (ACLs, sysfs, root on some mounts): a probe file, made and removed
+        fd, probe = tempfile.mkstemp(prefix=".hairlut-probe-", suffix=TMP_SUFFIX, dir=where)
+    except OSError as exc:
+        raise errors.AssetError(target, f"cannot write: the folder {where} refuses new files "
+                                        f"({exc.strerror or exc}); nothing was written") from None
+    os.close(fd)
+    os.unlink(probe)
     return target
 
 

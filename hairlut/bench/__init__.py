@@ -16,7 +16,7 @@ from .._lazy import lazy_exports
 from ._figure import Figure, derive, pareto_front, tables
 from ._machine import machine, machine_line
 from ._parts import Context, Part, select, timed
-from ._run import run_bench
+from ._run import BenchInterrupted, run_bench
 
 
 def _runner(module: str):
@@ -48,5 +48,5 @@ _LAZY = {"dense_radiance": "_sh", "hrir_bake_study": "_hrir", "radiance_inputs":
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)
 
-__all__ = [*sorted(_LAZY), "PARTS", "Context", "Figure", "Part", "derive", "machine", "machine_line", "pareto_front", "run_bench",
-           "select", "tables", "timed"]
+__all__ = [*sorted(_LAZY), "PARTS", "BenchInterrupted", "Context", "Figure", "Part", "derive", "machine", "machine_line",
+           "pareto_front", "run_bench", "select", "tables", "timed"]

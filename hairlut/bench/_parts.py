@@ -53,11 +53,17 @@ def scale_unavailable() -> str | None:
     return None if cores >= 2 else f"one core here ({cores}): nothing to scale over"
 
 
-def select(registry: dict[str, Part], only: list[str] | None) -> list[Part]:
-    """The parts named in ``only`` (all when None), in registry order; an unknown name is refused."""
-    if not only:
+def select(registry: dict[str, Part], only: str | list[str] | None, field: str = "only") -> list[Part]:
+    """The parts named in ``only`` (a list, or names separated by commas), in registry order; all when None.  A
+    selection that names no part ("" or ",") or an unknown part is refused, naming ``field``, the value and the parts."""
+    if only is None:
         return list(registry.values())
-    for name in only:
+    names = [n.strip() for n in (only.split(",") if isinstance(only, str) else only)]
+    names = [n for n in names if n]
+    parts = ", ".join(registry)
+    if not names:
+        raise errors.ValidationError(field, only, f"names no part; give one or more of {parts}, separated by commas")
+    for name in names:
         if name not in registry:
-            raise errors.ValidationError("only", name, f"no such part; the parts are {', '.join(registry)}")
-    return [p for n, p in registry.items() if n in only]
+            raise errors.ValidationError(field, name, f"no such part; the parts are {parts}")
+    return [p for n, p in registry.items() if n in names]

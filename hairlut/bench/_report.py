@@ -79,7 +79,13 @@ def report_md(results: dict, figures: list[Figure], plots: dict[tuple[str, str],
              "Every time is a warm best-of-N wall time on this machine; every ratio is against the baseline "
              "measured in the same run (marked `baseline`), so load on a shared machine cancels to first order. "
              "`paper` marks the papers' own settings; `Pareto` the settings no other one beats in both time "
-             "and error.", "", "## Headline", "", headline_md(figures), ""]
+             "and error.", ""]
+    if results.get("partial"):
+        pr = results["partial"]
+        lines += [f"**Partial run**: interrupted (Ctrl-C) while `{pr['interrupted']}` ran; not run: "
+                  f"{', '.join(f'`{n}`' for n in pr['not_run']) or 'none'}. The figures below are those of the parts "
+                  "that finished.", ""]
+    lines += ["## Headline", "", headline_md(figures), ""]
     grouped = tables(figures)
     for name, info in results["parts"].items():
         lines += [f"## {name}: {info['title']}", ""]

@@ -26,6 +26,7 @@ _LAZY = {
     "candidates": "_layered", "layout": "_layered", "lengthen": "_layered", "oblique_path": "_layered", "sector_paths": "_layered", "strand_path": "_layered", "crossing_depth": "_layered",
     "OBLIQUE_LAWS": "_layered", "pairs_of": "_layered", "layer_textures": "_layered", "rasterise": "_layered", "render_layered": "_layered",
     "layered_vs_reference": "_pair", "panels": "_pair",
+    "cached_frame": "_frame_cache", "reference_frame": "_frame_cache",
     "compare": "_compare", "block_average": "_compare", "side_by_side": "_compare",
 }
 

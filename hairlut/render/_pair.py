@@ -12,6 +12,7 @@ from .. import errors
 from ..assets import atomic_write_bytes, encode_png, tonemap
 from ._compare import compare
 from ._frame import write_frame
+from ._frame_cache import reference_frame
 from ._layered import render_layered
 from ._render import render_reference
 
@@ -32,11 +33,13 @@ def panels(*images8, gap: int = GAP) -> np.ndarray:
 
 
 def layered_vs_reference(scene, out_dir, *, db=None, sh=None, maps=None, level: int | None = None,
-                         bound: float | None = None, max_level: int = 3, prepared=None, reference_info=None) -> dict:
+                         bound: float | None = None, max_level: int = 3, prepared=None, reference_info=None,
+                         cache=None) -> dict:
     """Render ``scene`` with the layered model and with the strand reference (converged to ``bound``, or exactly
     ``level`` when given: no convergence claim), write ``layered.exr``, ``reference.exr``, ``flip.png`` and
     ``side_by_side.png`` (layered | reference | FLIP) under ``out_dir``; returns the figures, times and paths.
-    ``reference_info``: entries added to the reference's info (stored in reference.exr and returned)."""
+    ``reference_info``: entries added to the reference's info (stored in reference.exr and returned).  ``cache``:
+    a table cache folder that keeps the reference of a fixed ``level`` between runs (``_frame_cache``)."""
     from ..scene import as_scene
 
     sc = as_scene(scene) if prepared is None else prepared.scene
@@ -45,8 +48,12 @@ def layered_vs_reference(scene, out_dir, *, db=None, sh=None, maps=None, level: 
     t0 = time.perf_counter()
     lay = render_layered(sc, db=db, sh=sh, maps=maps, prepared=prepared)
     t1 = time.perf_counter()
-    ref = (render_reference(sc, lay.camera, levels=[level]) if level is not None else
-           render_reference(sc, lay.camera, bound=bound, max_level=max_level))
+    if level is None:
+        ref = render_reference(sc, lay.camera, bound=bound, max_level=max_level)
+    elif cache is not None:
+        ref = reference_frame(sc, lay.camera, levels=[level], root=cache)
+    else:
+        ref = render_reference(sc, lay.camera, levels=[level])
     t2 = time.perf_counter()
     ref.info.update(reference_info or {})
     figures, heat = compare(lay, ref)
@@ -63,4 +70,5 @@ def layered_vs_reference(scene, out_dir, *, db=None, sh=None, maps=None, level: 
                           "steps_per_crossing": last.get("steps_per_crossing"), "converged": ref.info["converged"],
                           "bound": ref.info["bound"], "change_from_previous": last.get("change_from_previous"),
                           "environment": ref.info.get("environment"), "seconds": ref.info["seconds"], "wall_s": t2 - t1,
+                          "cache": ref.info.get("cache"),
                           **(reference_info or {})}}
