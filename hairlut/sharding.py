@@ -181,6 +181,7 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
     total = units.count(recipe, **inputs)
     if total < 1:
         raise errors.ValidationError(units.axis, total, f"this {baker.kind} recipe has no {units.axis} axis to split")
+    block = min(block, total)  # one block of all the units, named as such (a virtual asset reads its block from it)
     share = parse_shard(shard) if shard is not None else ((proc.index, proc.count) if proc.count > 1 else None)
     todo = blocks_of(total, block, share)
     if not todo and shard is not None:  # a distributed process with no block just waits for the others

@@ -164,6 +164,16 @@ def test_a_killed_process_resumes_its_part(recipe, tmp_path):
     _assert_same_data(tmp_path / "one.h5", out)
 
 
+def test_a_virtual_asset_of_fewer_units_than_one_block(tmp_path):
+    """The default block (32) is larger than this 12-sector bake: its one part is the whole block, and the virtual
+    asset over it reads as a plain bake (it used to refuse its own part as misnamed)."""
+    out = tmp_path / "db.h5"
+    rep = bake(SMALL, out, block=32, merge="virtual")
+    assert rep["computed"] == 12 and [p.name for p in parts_dir(out).glob("part-*.h5")] == ["part-12x12-0-last.h5"]
+    _assert_same_data(bake(SMALL, tmp_path / "ref.h5", block=32)["out"], out)
+    assert len(check_virtual(out)) == 1
+
+
 def test_a_users_parts_folder_is_never_touched(tmp_path):
     out = tmp_path / "X.h5"
     mine = parts_dir(out)
