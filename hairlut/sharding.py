@@ -27,7 +27,7 @@ import numpy as np
 from . import errors
 from .assets import canonical_json, open_table, read_table, recipe_hash
 from .baker import Baker, parse_shard
-from .distributed import Process, barrier, current
+from .distributed import Process, agree, barrier, current
 from .parts import (clean_temporaries, locked, open_folder, part_name, read_share, remove_folder, share_name, stamp,
                     write_share)
 from .virtual_asset import check_virtual, write_virtual
@@ -188,10 +188,13 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
         raise errors.ValidationError("shard", shard, f"empty: {total} {units.axis} make {len(blocks_of(total, block))} "
                                      "blocks, fewer than shards")
     want = todo[-1][1] - todo[0][0] if todo else 0
-    if units.budget is not None:  # before anything is made: what this process will hold at once
-        units.budget(recipe, block, *held(total, block, want, merge, shard, proc.leader))
     digest = recipe_hash(canonical_json(recipe))
     out = Path(out)
+    if proc.count > 1:  # before any work: every process bakes the same blocks of one recipe into one output
+        agree({"--out": str(out.absolute()), "recipe hash": digest, "--block": block, "--merge": merge,
+               units.axis: total}, recipe)
+    if units.budget is not None:  # before anything is made: what this process will hold at once
+        units.budget(recipe, block, *held(total, block, want, merge, shard, proc.leader))
     t0 = time.perf_counter()
     writes_out = proc.leader or shard is not None
     report = {"out": str(out), "kind": baker.kind if shard is None else baker.shard_kind, "units": want,
