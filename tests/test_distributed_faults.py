@@ -105,10 +105,12 @@ def test_processes_that_disagree_are_refused_before_any_work(tmp_path):
 
 
 def _wait_for(part, procs) -> None:
+    """Until ``part`` (a path, or a callable that returns one that exists, or None) exists; all ``procs`` alive."""
+    found = part if callable(part) else (lambda: part if part.exists() else None)
     deadline = time.time() + 180
-    while time.time() < deadline and not part.exists() and all(p.poll() is None for p in procs):
+    while time.time() < deadline and found() is None and all(p.poll() is None for p in procs):
         time.sleep(0.05)
-    assert part.exists(), [p.poll() for p in procs]
+    assert found() is not None, [p.poll() for p in procs]
 
 
 def _kill_when(procs, victim: int, part) -> None:
@@ -133,7 +135,8 @@ def test_a_killed_peer_ends_the_survivor_with_one_line_and_a_rerun_resumes(tmp_p
     kept = {p.name for p in parts_dir(out).glob("part-*.h5")}
     port = _free_port()
     procs = [_start(out, port, k, 2, *extra, timeout=10) for k in range(2)]
-    _kill_when(procs, 0, parts_dir(out) / "part-16x2-5.h5")
+    fresh = [parts_dir(out) / f"part-16x2-{b}{'-last' if b == 7 else ''}.h5" for b in range(4, 8)]  # process 1's
+    _kill_when(procs, 0, lambda: next((p for p in fresh if p.name not in kept and p.exists()), None))
     _failed(procs[1], f"process 1 of 2: lost the coordinator: process 0 at 127.0.0.1:{port} is gone")
     assert not out.exists() and kept <= {p.name for p in parts_dir(out).glob("part-*.h5")}
     port = _free_port()
