@@ -8,13 +8,17 @@ below plus the kind's own :class:`~hairlut.baker.Option` s.  Nothing here names 
 from __future__ import annotations
 
 import json
+import os
+import sys
 import time
 
 import click
 
 from hairlut import errors
+from hairlut.coordination import TIMEOUT_S
 from hairlut.recipes import apply_overrides, load_toml
 
+from .main import Failure
 from .progress import Bars, Progress
 
 
@@ -58,6 +62,9 @@ def _common_options(baker) -> list[click.Option]:
         click.Option(["--coordinator"], metavar="HOST:PORT", help="With --distributed: process 0's address."),
         click.Option(["--num-processes", "num_processes"], type=click.IntRange(1), help="With --distributed: processes in all."),
         click.Option(["--process-id", "process_id"], type=click.IntRange(0), help="With --distributed: this process, from 0."),
+        click.Option(["--timeout"], type=click.IntRange(1), metavar="SECONDS",
+                     help="With --distributed: how long a process waits for a peer that has not joined, or that has "
+                          f"stopped answering, before it gives up with an error naming it [default: {TIMEOUT_S}]."),
         click.Option(["--merge", "merge"], type=click.Choice(["virtual", "copy"]),
                      help="The final asset of a split bake: HDF5 virtual datasets over OUT.parts/ (default with "
                           "--distributed; nothing copied) or one self-contained file (copy)."),
@@ -72,51 +79,91 @@ def kind_command(kind: str, name: str | None = None) -> click.Command:
 
     baker = registry.get(kind)
 
-    def callback(recipe, out, sets, shard, distributed, coordinator, num_processes, process_id, merge, no_progress,
-                 as_json, **values):
+    def callback(recipe, out, sets, shard, distributed, coordinator, num_processes, process_id, timeout, merge,
+                 no_progress, as_json, **values):
         given = load_toml(recipe) if recipe else {}
         split = {}
-        if distributed or coordinator or num_processes is not None or process_id is not None or merge:
+        if distributed or coordinator or num_processes is not None or process_id is not None or timeout or merge:
             if out is None:
                 raise errors.ValidationError("out", None, "give --out with --distributed or --merge (not cached)")
             if baker.units is None:
                 raise errors.ValidationError("distributed" if distributed else "merge", distributed or merge,
                                              f"{baker.kind} bakes cannot be split across processes")
-            if not distributed and (coordinator or num_processes is not None or process_id is not None):
-                raise errors.ValidationError("distributed", False, "--coordinator, --num-processes and --process-id "
-                                             "go with --distributed")
+            if not distributed and (coordinator or num_processes is not None or process_id is not None or timeout):
+                raise errors.ValidationError("distributed", False, "--coordinator, --num-processes, --process-id and "
+                                             "--timeout go with --distributed")
             split = {"merge": merge}
             if distributed:
                 from hairlut.distributed import initialize
 
-                split["distributed"] = initialize(coordinator, num_processes, process_id)
-        shortcuts = tuple(f"{o.sets}={values[o.name]!r}" for o in baker.options if o.sets and values[o.name] is not None)
-        given = apply_overrides(given, (*sets, *shortcuts))
-        options = {o.name: values[o.name] for o in baker.options if not o.sets}
-        bar = Progress(not no_progress and baker.unit is not None, label=baker.command, unit=baker.unit or "")
+                split["distributed"] = initialize(coordinator, num_processes, process_id, timeout or TIMEOUT_S,
+                                                  on_fatal=_fatal)
+        if not split.get("distributed"):
+            _bake(baker, given, out, sets, shard, split, no_progress, as_json, values)
+            return
+        from hairlut.distributed import leave
+
         try:
-            if out is not None:
-                report = registry.bake(baker.kind, given, out, progress=bar, shard=shard, options=options, **split)
-                report.setdefault("status", "baked")
-            else:
-                if shard is not None:
-                    raise errors.ValidationError("shard", shard, "give --out: shard files are not cached")
-                root = click.get_current_context().meta.get("hairlut.cache")
-                path, status, report = registry.bake_cached(baker.kind, given, root=root, progress=bar, options=options)
-                report["status"] = status
-        finally:
-            bar.close()
-        if report["status"] == "reused":
-            click.echo(f"reused {report['out']} (recipe hash matches)", err=True)
-        if as_json:
-            click.echo(json.dumps(report, indent=2, default=str))
-        elif report["status"] == "baked":
-            for line in baker.describe(report) or [f"wrote {report['out']} ({report['bytes'] / 1024:.1f} KiB)"]:
-                click.echo(line)
+            _bake(baker, given, out, sets, shard, split, no_progress, as_json, values)
+        except BaseException as exc:
+            leave(exc)  # tell the other processes, and shut JAX's client down, before the error line
+            raise
+        leave()
 
     params = _common_options(baker) + [_click_option(o) for o in baker.options]
     return click.Command(name or baker.command, callback=callback, params=params,
                          help=baker.help or baker.description, short_help=baker.description)
+
+
+def _bake(baker, given, out, sets, shard, split, no_progress, as_json, values) -> None:
+    """Bake one kind (into ``out`` or the cache) and print its report."""
+    from hairlut import registry
+
+    shortcuts = tuple(f"{o.sets}={values[o.name]!r}" for o in baker.options if o.sets and values[o.name] is not None)
+    given = apply_overrides(given, (*sets, *shortcuts))
+    options = {o.name: values[o.name] for o in baker.options if not o.sets}
+    bar = Progress(not no_progress and baker.unit is not None, label=baker.command, unit=baker.unit or "")
+    try:
+        if out is not None:
+            report = registry.bake(baker.kind, given, out, progress=bar, shard=shard, options=options, **split)
+            report.setdefault("status", "baked")
+        else:
+            if shard is not None:
+                raise errors.ValidationError("shard", shard, "give --out: shard files are not cached")
+            root = click.get_current_context().meta.get("hairlut.cache")
+            path, status, report = registry.bake_cached(baker.kind, given, root=root, progress=bar, options=options)
+            report["status"] = status
+    finally:
+        bar.close()
+    if report["status"] == "reused":
+        click.echo(f"reused {report['out']} (recipe hash matches)", err=True)
+    if as_json:
+        click.echo(json.dumps(report, indent=2, default=str))
+    elif report["status"] == "baked" and report.get("process", 0) > 0:
+        click.echo(_share_line(report, baker.unit or "units"))
+    elif report["status"] == "baked":
+        for line in baker.describe(report) or [f"wrote {report['out']} ({report['bytes'] / 1024:.1f} KiB)"]:
+            click.echo(line)
+
+
+def _share_line(report: dict, unit: str) -> str:
+    """What a distributed process other than 0 did: its share of the parts (process 0 writes the asset)."""
+    lo, hi = report["unit_range"]
+    share = f"{unit} {lo}..{hi - 1}" if hi > lo else f"no {unit} (every block went to other processes)"
+    return (f"process {report['process']} of {report['processes']}: baked {share} into {report['out']}.parts/ "
+            f"({report['computed']} computed, {report['resumed']} resumed); process 0 wrote {report['out']}")
+
+
+def _fatal(message: str | None) -> None:
+    """JAX's client is about to abort this process (see hairlut.coordination): end it as a hairlut failure with
+    one line and status 2 instead, or with status 0 where the bake had finished (``message`` None)."""
+    try:
+        sys.stdout.flush()
+        if message is not None:
+            Failure(message).show()
+        sys.stderr.flush()
+    finally:
+        os._exit(0 if message is None else 2)
 
 
 class KindGroup(click.Group):

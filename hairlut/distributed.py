@@ -27,32 +27,22 @@ device with that device as JAX's default.
 :func:`initialize` joins JAX's distributed runtime (``jax.distributed.initialize``): with
 no arguments where JAX detects the cluster itself (SLURM, Open MPI, …), or with an explicit
 coordinator ``HOST:PORT``, process count and process id.  Processes talk only through
-:func:`barrier`; each computes its own share on its own devices (:mod:`hairlut.sharding`).
+:func:`agree` (before a bake) and :func:`barrier`, and part with :func:`leave`; each computes its own
+share on its own devices (:mod:`hairlut.sharding`).  How they join, wait and fail is
+:mod:`hairlut.coordination`'s.
 """
 
 from __future__ import annotations
 
 import functools
 import re
-from dataclasses import dataclass
 
 import numpy as np
 
 from . import errors
+from .coordination import TIMEOUT_S, Process, active, join
 
 _ADDRESS = re.compile(r"^\[?[A-Za-z0-9_.:\-]+\]?:(\d{1,5})$")
-
-
-@dataclass(frozen=True)
-class Process:
-    """This process's place in a (possibly one-process) bake."""
-
-    index: int = 0
-    count: int = 1
-
-    @property
-    def leader(self) -> bool:
-        return self.index == 0
 
 
 def check_args(coordinator=None, num_processes=None, process_id=None) -> None:
@@ -73,25 +63,23 @@ def check_args(coordinator=None, num_processes=None, process_id=None) -> None:
         raise errors.ValidationError("process_id", process_id, f"need 0 ≤ process_id < {num_processes}")
 
 
-def initialize(coordinator=None, num_processes=None, process_id=None, timeout_s: int = 300) -> Process:
-    """Join JAX's distributed runtime (once per process) and return this process's place in it."""
-    check_args(coordinator, num_processes, process_id)
-    import jax
+def initialize(coordinator=None, num_processes=None, process_id=None, timeout_s: float = TIMEOUT_S,
+               on_fatal=None) -> Process:
+    """Join JAX's distributed runtime (once per process) and return this process's place in it.
 
-    if not jax.distributed.is_initialized():
-        kwargs = {} if coordinator is None else {"coordinator_address": str(coordinator),
-                                                 "num_processes": int(num_processes), "process_id": int(process_id)}
-        try:
-            jax.distributed.initialize(**kwargs, initialization_timeout=int(timeout_s))
-        except (RuntimeError, ValueError) as exc:
-            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            raise errors.ValidationError("distributed", coordinator or "auto-detect",
-                                         f"jax.distributed.initialize failed: {first}") from None
+    ``timeout_s``: how long to wait for a peer that has not come or has stopped answering.  ``on_fatal(message)``
+    (the command line's): called instead of JAX's abort with the one line to show (None: the bake had finished),
+    and must not return; see :mod:`hairlut.coordination`."""
+    check_args(coordinator, num_processes, process_id)
+    join(coordinator, num_processes, process_id, timeout_s, on_fatal)
     return current()
 
 
 def current() -> Process:
     """(process index, process count) of JAX's runtime; (0, 1) when it is not distributed."""
+    session = active()
+    if session is not None:
+        return session.proc
     import jax
 
     if not jax.distributed.is_initialized():
@@ -106,25 +94,40 @@ BARRIER_TIMEOUT_S = 7 * 24 * 3600
 def barrier(name: str, timeout_s: float = BARRIER_TIMEOUT_S) -> None:
     """Wait until every process of a distributed run reaches ``name`` (no-op for one process).
 
-    Through the coordination service that ``jax.distributed.initialize`` started (its client's
-    ``wait_at_barrier``), not a device collective: a collective's first call sets up the CPU transport (gloo),
-    whose connect times out after seconds, so a process that finished its share first would fail while a
-    slower one was still baking."""
+    Through the coordination service that ``jax.distributed.initialize`` started, not a device collective: a
+    collective's first call sets up the CPU transport (gloo), whose connect times out after seconds, so a
+    process that finished its share first would fail while a slower one was still baking.  In a session
+    (:func:`initialize`) a dead or failed peer ends the wait with an error that names it
+    (:meth:`hairlut.coordination.Session.barrier`)."""
     if current().count <= 1:
+        return
+    session = active()
+    if session is not None:
+        session.barrier(name, timeout_s)
         return
     from jax._src import distributed as jax_distributed  # the runtime's client: JAX has no public barrier
 
     client = jax_distributed.global_state.client
-    if client is None or not hasattr(client, "wait_at_barrier"):
-        from jax.experimental import multihost_utils
-
-        multihost_utils.sync_global_devices(name)
-        return
     try:
         client.wait_at_barrier(str(name), int(timeout_s * 1000))
     except Exception as exc:  # XlaRuntimeError (deadline, a peer gone): a typed, one-line error
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise errors.ValidationError("distributed", name, f"barrier failed: {first}") from None
+
+
+def agree(fields: dict, recipe: dict | None = None) -> None:
+    """Refuse a bake whose ``fields`` (recipe hash, output, blocks) or ``recipe`` differ between processes,
+    before any work, naming the difference (no-op outside a session)."""
+    session = active()
+    if session is not None and session.proc.count > 1:
+        session.agree(fields, recipe)
+
+
+def leave(exc: BaseException | None = None) -> None:
+    """End this process's part in the distributed run: after ``exc``, tell the others; shut JAX's client down."""
+    session = active()
+    if session is not None:
+        session.leave(exc)
 
 
 def local_devices() -> list:

@@ -94,6 +94,14 @@ class DiskFullError(AssetError, ResourceError):
     """Writing the file failed for lack of space (ENOSPC, EDQUOT, EFBIG); nothing was left under its name."""
 
 
+class DistributedError(HairlutError):
+    """A process of a distributed bake cannot go on: the message names this process, the peer and the cause."""
+
+    def __init__(self, index: int, count: int, cause: str):
+        self.index, self.count, self.cause = int(index), int(count), cause
+        super().__init__(f"distributed: process {self.index} of {self.count}: {cause}")
+
+
 class NonFiniteError(HairlutError, ArithmeticError):
     """A computation produced NaN or infinity; the message names the inputs (recipe keys) that drive it."""
 
@@ -121,6 +129,7 @@ __all__ = [
     "BudgetError",
     "AssetTooLargeError",
     "DiskFullError",
+    "DistributedError",
     "NonFiniteError",
     "BoundsError",
 ]

@@ -28,7 +28,7 @@ from . import errors
 from .assets import canonical_json, open_table, read_table, recipe_hash
 from .baker import Baker, parse_shard
 from .cache import is_valid
-from .distributed import Process, barrier, current
+from .distributed import Process, agree, barrier, current
 from .files import not_an_input
 from .parts import (clean_temporaries, locked, open_folder, part_name, read_share, remove_folder, share_name, stamp,
                     write_share)
@@ -170,16 +170,20 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
     total = units.count(recipe, **inputs)
     if total < 1:
         raise errors.ValidationError(units.axis, total, f"this {baker.kind} recipe has no {units.axis} axis to split")
+    block = min(block, total)  # one block of all the units, named as such (a virtual asset reads its block from it)
     share = parse_shard(shard) if shard is not None else ((proc.index, proc.count) if proc.count > 1 else None)
     todo = blocks_of(total, block, share)
     if not todo and shard is not None:  # a distributed process with no block just waits for the others
         raise errors.ValidationError("shard", shard, f"empty: {total} {units.axis} make {len(blocks_of(total, block))} "
                                      "blocks, fewer than shards")
     want = todo[-1][1] - todo[0][0] if todo else 0
-    if units.budget is not None:  # before anything is made: what this process will hold at once
-        units.budget(recipe, block, *held(total, block, want, merge, shard, proc.leader))
     digest = recipe_hash(canonical_json(recipe))
     out = Path(out)
+    if proc.count > 1:  # before any work: every process bakes the same blocks of one recipe into one output
+        agree({"--out": str(out.absolute()), "recipe hash": digest, "--block": block, "--merge": merge,
+               units.axis: total}, recipe)
+    if units.budget is not None:  # before anything is made: what this process will hold at once
+        units.budget(recipe, block, *held(total, block, want, merge, shard, proc.leader))
     t0 = time.perf_counter()
     writes_out = proc.leader or shard is not None
     report = {"out": str(out), "kind": baker.kind if shard is None else baker.shard_kind, "units": want,
