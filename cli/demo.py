@@ -81,6 +81,11 @@ def demo_cmd(out_dir, scenes, cache_root, no_progress, as_json):
                            f"{pr['resolution'][1]} (same camera): RGB RMSE {ch['rgb_rmse']:.4f}, alpha RMSE "
                            f"{ch['alpha_rmse']:.4f} ({pr['cpu_seconds']:.1f} CPU-s{_cached(pr.get('cache'))})")
             click.echo(f"  layered vs reference: FLIP {f['flip_mean']:.3f}, mean-alpha bias {f['alpha_bias']:+.4f} "
-                       f"({f['alpha_bias_relative']:+.1%}), RGB RMSE {f['rgb_rmse']:.4f}, 8x8 RGB RMSE {f['rgb_rmse_8x8']:.4f}")
+                       f"({_relative(f['alpha_bias_relative'])}), RGB RMSE {f['rgb_rmse']:.4f}, 8x8 RGB RMSE {f['rgb_rmse_8x8']:.4f}")
             click.echo(f"  side by side (layered | reference | FLIP): {cam['files']['side_by_side']}")
     click.echo(f"demo finished in {report['total_seconds']:.1f} s; outputs in {out_dir}/ (sky map {report['sky']})")
+
+
+def _relative(x) -> str:
+    """A relative bias as a percentage; n/a where the reference's α is zero everywhere (compare gives None)."""
+    return "n/a" if x is None else f"{x:+.1%}"

@@ -38,7 +38,7 @@ def pytest_configure(config):
     import jax
 
     jax.config.update("jax_compilation_cache_dir", os.environ["JAX_COMPILATION_CACHE_DIR"])
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)  # as hairlut_cli.main sets it
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)  # hairlut_cli.main keeps every kernel (0); in-process tests keep the slower ones only
 
 
 def pytest_unconfigure(config):
