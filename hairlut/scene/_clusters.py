@@ -8,13 +8,51 @@ seed); ``[groom]`` scenes read the strand file and group its strands into fitted
 
 from __future__ import annotations
 
+import dataclasses
+import json
+from pathlib import Path
+
 import numpy as np
 
 from ._schema import Scene
 
 
+#: The last few scenes' clusters, by :func:`_key`: the planner, the scene-maps bake, the synthesis and the camera
+#: frame each ask for the same scene's clusters, and fitting a groom is seconds of work (issue 29: a warm demo fitted
+#: each groom five times).  Callers get fresh copies of the arrays, so none can change another's.
+_MEMO: dict = {}
+_MEMO_SIZE = 4
+
+
+def _key(scene: Scene) -> str:
+    """What decides a scene's clusters: the groom file's identity (path, inode, size, modification time) and the
+    ``[groom]`` table, or the ``[strands]`` table, the cluster specs and their seeds."""
+    if scene.groom_path is not None:
+        st = Path(scene.groom_path).stat()
+        source = [str(Path(scene.groom_path).resolve()), st.st_ino, st.st_size, st.st_mtime_ns, scene.config["groom"]]
+    else:
+        source = [scene.config["strands"], repr(scene.specs), [int(x) for x in scene.cluster_seeds]]
+    return json.dumps(source, sort_keys=True, default=repr)
+
+
+def _copy(pairs: list) -> list:
+    return [(spec, dataclasses.replace(s, **{f.name: np.array(getattr(s, f.name)) for f in dataclasses.fields(s)
+                                              if getattr(s, f.name) is not None}))
+            for spec, s in pairs]
+
+
 def scene_clusters(scene: Scene) -> list:
-    """[(ClusterSpec, Strands)] for each cluster of the scene, in the scene's order."""
+    """[(ClusterSpec, Strands)] for each cluster of the scene, in the scene's order (remembered for the last few
+    scenes: :data:`_MEMO`)."""
+    key = _key(scene)
+    if key not in _MEMO:
+        if len(_MEMO) >= _MEMO_SIZE:
+            _MEMO.pop(next(iter(_MEMO)))
+        _MEMO[key] = _build(scene)
+    return _copy(_MEMO[key])
+
+
+def _build(scene: Scene) -> list:
     from ..geometry import ClusterGeometry, Strands, fit_clusters, generate_strands, read_strands
 
     if scene.groom_path is not None:
