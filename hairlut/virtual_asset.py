@@ -29,7 +29,7 @@ from ._version import __version__
 from .assets import Axis, Variable, atomic_path, canonical_json, open_table, recipe_hash
 from .assets.h5 import LIBVER, dims_of, disk_name
 from .assets.kinds import SCHEMA
-from .assets.layout import _text, layout
+from .assets.layout import attr_text, layout
 from .assets.sources import check_sources, printf_escape
 from .files import not_regular, regular_file
 from .parts import part_name, part_pattern, parts_dir
@@ -43,7 +43,7 @@ def _created(first_part: Path) -> str:
     if epoch:
         return _dt.datetime.fromtimestamp(int(epoch), _dt.timezone.utc).replace(microsecond=0).isoformat()
     with h5py.File(first_part, "r") as f:
-        return _text(f.attrs.get("created", ""))
+        return attr_text(f.attrs.get("created", ""))
 
 
 def _kwargs(chunks) -> dict:
@@ -188,7 +188,7 @@ def check_virtual(path) -> list[Path]:
     path = regular_file(path, "an HDF5 file")  # a FIFO would block h5py's open
     try:
         with h5py.File(path, "r") as f:
-            digest = _text(f.attrs.get("recipe_hash", ""))
+            digest = attr_text(f.attrs.get("recipe_hash", ""))
             found = check_sources(path, f, digest)
     except (OSError, KeyError, RuntimeError, ValueError):
         return []  # not readable as HDF5: the table reader names that fault
@@ -237,7 +237,7 @@ def _refused(path: Path, name: str, file_name: str, part: Path, digest: str) -> 
         return errors.CorruptAssetError(part, f"part of {path} is {what}; parts are regular files")
     try:
         with h5py.File(part, "r") as pf:
-            got = _text(pf.attrs.get("recipe_hash", ""))
+            got = attr_text(pf.attrs.get("recipe_hash", ""))
     except (OSError, KeyError, RuntimeError, ValueError):
         return errors.CorruptAssetError(part, f"part of {path} is not a readable HDF5 file")
     if got != digest:

@@ -55,7 +55,7 @@ from .atomic import atomic_path, ensure_space, write_bytes
 from .bounds import check_bounds
 from .chunks import ChunkWriter
 from .kinds import KINDS, SCHEMA, SUPPORTED_SCHEMAS
-from .layout import AXES_GROUP, NAME_ATTR, _text, check_layout, disk_name, layout, table  # noqa: F401  (re-exported)
+from .layout import AXES_GROUP, NAME_ATTR, attr_text, check_layout, disk_name, layout, table  # noqa: F401  (re-exported)
 from .recipe import canonical_json, recipe_hash
 from .trust import check_dataset, check_links, check_readable, data_fault, finite_fault, guard, table_shape
 from .virtual import read_virtual  # read_table looks it up here at call time (tests patch it)
@@ -290,12 +290,12 @@ def _validate_root(path: Path, f: h5py.File, kind: str | None, required: Iterabl
     for key in ("kind", "recipe", "recipe_hash"):
         if key not in attrs:
             raise errors.MissingDatasetError(path, f"root attribute {key!r} is missing")
-    file_kind = _text(attrs["kind"])
+    file_kind = attr_text(attrs["kind"])
     if kind is not None and file_kind != kind:
         raise errors.KindError(path, f"holds kind {file_kind!r}, expected {kind!r}")
     if file_kind not in KINDS:
         raise errors.KindError(path, f"unknown kind {file_kind!r}")
-    if recipe_hash(_text(attrs["recipe"])) != _text(attrs["recipe_hash"]):
+    if recipe_hash(attr_text(attrs["recipe"])) != attr_text(attrs["recipe_hash"]):
         raise errors.ChecksumError(path, "recipe_hash does not match the stored recipe")
     stored_recipe(path, f)
     check_links(path, f)  # before layout(), which resolves links
@@ -309,7 +309,7 @@ def _validate_root(path: Path, f: h5py.File, kind: str | None, required: Iterabl
             raise errors.MissingDatasetError(path, f"required dataset {name!r} is missing")
     for what, found in (("axis", axes), ("table", tables)):
         for name, ds in found.items():
-            check_dataset(path, name if what == "table" else f"axis {name}", ds, _text(attrs["recipe_hash"]))
+            check_dataset(path, name if what == "table" else f"axis {name}", ds, attr_text(attrs["recipe_hash"]))
 
 
 def stored_recipe(path, f: h5py.File) -> dict:
@@ -318,7 +318,7 @@ def stored_recipe(path, f: h5py.File) -> dict:
     if not isinstance(text, (str, bytes)):
         raise errors.CorruptAssetError(path, f"root attribute 'recipe' is a {type(text).__name__}, not JSON text")
     try:
-        recipe = json.loads(_text(text))
+        recipe = json.loads(attr_text(text))
     except (ValueError, UnicodeError) as exc:
         raise errors.CorruptAssetError(path, f"root attribute 'recipe' is not JSON ({exc})") from None
     if not isinstance(recipe, dict):
@@ -355,7 +355,7 @@ def _read_axis(path: Path, name: str, ds: h5py.Dataset) -> Axis:
     if values.ndim != 1 or finite_fault(values):
         raise errors.CorruptAssetError(path, f"axis {name!r} is not a finite 1-D array (shape {values.shape})")
     period = float(ds.attrs["period"]) if int(ds.attrs.get("periodic", 0)) else None
-    return Axis(name, values, _text(ds.attrs.get("units", "")), _text(ds.attrs.get("long_name", name)), period)
+    return Axis(name, values, attr_text(ds.attrs.get("units", "")), attr_text(ds.attrs.get("long_name", name)), period)
 
 
 def dims_of(ds: h5py.Dataset) -> tuple[str, ...]:
@@ -383,7 +383,7 @@ def _virtual_dims(ds: h5py.Dataset) -> tuple[str, ...]:
     names = []
     for i in range(rank):
         scale = ds.file[scales[i][0]].name.rsplit("/", 1)[-1] if len(scales[i]) else ""
-        names.append(scale or _text(labels[i]) or f"dim{i}")
+        names.append(scale or attr_text(labels[i]) or f"dim{i}")
     return tuple(names)
 
 
@@ -418,18 +418,18 @@ def read_table(path: str | os.PathLike, kind: str | None = None, required: Itera
             if bad:
                 raise errors.CorruptAssetError(path, f"table {name!r} holds non-finite values ({bad})")
             extra = {k: v for k, v in ds.attrs.items() if k not in _DIMENSION_ATTRS}
-            units, long_name = _text(ds.attrs.get("units", "")), _text(ds.attrs.get("long_name", name))
+            units, long_name = attr_text(ds.attrs.get("units", "")), attr_text(ds.attrs.get("long_name", name))
             variables[name] = Variable(name, data, dims_of(ds), units, long_name, ds.chunks, extra)
         a = f.attrs
         known = {"hairlut_schema", "kind", "hairlut_version", "created", "recipe", "recipe_hash"}
         return Table(
             path=path,
-            kind=_text(a["kind"]),
+            kind=attr_text(a["kind"]),
             schema=int(a["hairlut_schema"]),
-            version=_text(a.get("hairlut_version", "")),
-            created=_text(a.get("created", "")),
+            version=attr_text(a.get("hairlut_version", "")),
+            created=attr_text(a.get("created", "")),
             recipe=stored_recipe(path, f),
-            recipe_hash=_text(a["recipe_hash"]),
+            recipe_hash=attr_text(a["recipe_hash"]),
             attrs={k: v for k, v in a.items() if k not in known},
             axes=axes,
             variables=variables,

@@ -22,7 +22,8 @@ GROUP_SUFFIX = "_group"  # a table group named like an axis is stored as <name>_
 NAME_ATTR = "hairlut_name"  # ... with this attribute giving its name
 
 
-def _text(value) -> str:
+def attr_text(value) -> str:
+    """An HDF5 string attribute as str (h5py gives bytes for fixed-length strings)."""
     return value.decode("utf-8") if isinstance(value, bytes) else str(value)
 
 
@@ -67,7 +68,7 @@ def layout(f: h5py.File) -> tuple[dict[str, h5py.Dataset], dict[str, h5py.Datase
             else:
                 axes[key] = obj
         elif isinstance(obj, h5py.Group) and not (old and key == AXES_GROUP):
-            head = key if old else _text(obj.attrs.get(NAME_ATTR, key))
+            head = key if old else attr_text(obj.attrs.get(NAME_ATTR, key))
 
             def visit(name, item, head=head):
                 if isinstance(item, h5py.Dataset):

@@ -17,6 +17,7 @@ from .. import errors
 from ..files import regular_file
 from .exr import EXR_MAGIC, read_exr
 from .h5 import HDF5_SIGNATURE, data_fault, dims_of, layout, open_table, stored_recipe
+from .layout import attr_text
 from .virtual import virtual_blocks
 
 _BLOCK_ELEMENTS = 1 << 22
@@ -84,13 +85,9 @@ def _dataset_stats(path: Path, ds: h5py.Dataset) -> dict:
     return s.as_dict()
 
 
-def _text(value) -> str:
-    return value.decode("utf-8") if isinstance(value, bytes) else str(value)
-
-
 def _attr(value):
     if isinstance(value, (bytes, str)):
-        return _text(value)
+        return attr_text(value)
     if isinstance(value, np.ndarray):
         return value.tolist()
     if isinstance(value, np.generic):
@@ -119,8 +116,8 @@ def _summarize_h5(path: Path) -> dict:
         axes = {}
         for name, ds in on_disk.items():
             axes[name] = {
-                "units": _text(ds.attrs.get("units", "")),
-                "long_name": _text(ds.attrs.get("long_name", name)),
+                "units": attr_text(ds.attrs.get("units", "")),
+                "long_name": attr_text(ds.attrs.get("long_name", name)),
                 "periodic": bool(int(ds.attrs.get("periodic", 0))),
                 "size": int(ds.shape[0]) if ds.ndim else 1,
                 **{k: v for k, v in _dataset_stats(path, ds).items() if k in ("min", "max")},
@@ -134,8 +131,8 @@ def _summarize_h5(path: Path) -> dict:
                     "shape": list(obj.shape),
                     "dtype": str(obj.dtype),
                     "dims": list(dims_of(obj)),
-                    "units": _text(obj.attrs.get("units", "")),
-                    "long_name": _text(obj.attrs.get("long_name", name)),
+                    "units": attr_text(obj.attrs.get("units", "")),
+                    "long_name": attr_text(obj.attrs.get("long_name", name)),
                     "chunks": list(obj.chunks) if obj.chunks else None,
                     "compression": obj.compression,
                     "fletcher32": bool(obj.fletcher32),

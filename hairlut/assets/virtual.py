@@ -18,7 +18,7 @@ import h5py
 import numpy as np
 
 from .. import errors
-from .layout import _text
+from .layout import attr_text
 from .sources import check_sources, file_stamp, printf_blocks
 from .trust import data_fault, guard, table_shape
 
@@ -85,7 +85,7 @@ def read_virtual(path: Path, f: h5py.File, tables: dict) -> dict:
     if not virtual:
         return {}
     with guard(path):
-        found = check_sources(path, f, _text(f.attrs["recipe_hash"]))
+        found = check_sources(path, f, attr_text(f.attrs["recipe_hash"]))
         plans = {name: _plan(ds, found) for name, ds in virtual.items()}
     out, by_part = {}, {}
     for name, plan in plans.items():
@@ -106,7 +106,7 @@ def virtual_blocks(path: Path, f: h5py.File, ds: h5py.Dataset):
     table that is not plain row blocks of its parts (:func:`_plan`), which HDF5 then reads.  For readers that
     hold one block at a time (``summarize``, behind ``hairlut inspect``)."""
     with guard(path):
-        plan = _plan(ds, check_sources(path, f, _text(f.attrs["recipe_hash"])))
+        plan = _plan(ds, check_sources(path, f, attr_text(f.attrs["recipe_hash"])))
     if plan is None:
         return None
 
