@@ -44,14 +44,14 @@ def cpu(fn):
 def assemble_times(recipe: dict, paths: list[Path], scratch: Path, repeat: int, processes: int = 2,
                     copy: bool = True) -> dict:
     """Seconds (wall and CPU, best of ``repeat``) of the leader's last step of a ``processes``-process bake, as
-    ``hairlut.sharding.run`` takes it: virtual datasets over the parts (the index from the leader's own parts
+    ``hairlut.bake.sharding.run`` takes it: virtual datasets over the parts (the index from the leader's own parts
     and the other processes' share files) and a copy; and what indexing costs each process per part (paid
     before the barrier, while it bakes)."""
-    from hairlut import registry
+    from hairlut.bake import registry
     from hairlut.assets import canonical_json, recipe_hash
-    from hairlut.distributed import Process
-    from hairlut.parts import share_name, stamp, write_share
-    from hairlut.sharding import blocks_of, finish, header
+    from hairlut.bake.devices import Process
+    from hairlut.assets.parts import share_name, stamp, write_share
+    from hairlut.bake.sharding import blocks_of, finish, header
 
     baker = registry.get("hrir_db")
     paths = sorted(paths, key=lambda p: header(p, baker)[0])  # in sector order (the names sort by text)
@@ -90,7 +90,7 @@ def assembly(sizes: list[int], blocks: list[int], tmp: Path, repeat: int, copy_m
     ``--merge virtual`` process (no copy at the end); the copy is timed up to ``copy_max`` sectors.  ``keep``: bake
     there and keep the parts (a rerun resumes them)."""
     from hairlut.hrir import bake, resolve_recipe
-    from hairlut.parts import parts_dir
+    from hairlut.assets.parts import parts_dir
 
     rows = []
     where = keep or tmp
@@ -133,7 +133,7 @@ def print_assembly(asm: list[dict]) -> None:
 
 
 def old_mappings(total: int, block: int, rest: tuple, src: str, names: list[bytes], fill):
-    """The mappings as written before issue 16's printf layout (``hairlut.parts._mappings`` up to 7f422cc, now ``hairlut.virtual_asset._mappings``): one
+    """The mappings as written before issue 16's printf layout (``hairlut.assets.parts._mappings`` up to 7f422cc, now ``hairlut.assets.virtual_write._mappings``): one
     hyperslab and one ``H5Pset_virtual`` per part, each part named in full.  Kept here only to time the old
     assembly against the new in the same run, on the same parts (``names``: the new pattern and the last part,
     from which every part's name follows)."""
@@ -164,10 +164,10 @@ def synthetic_parts(where: Path, parts: int, block: int) -> tuple[dict, Path, di
     index (what the leader joins) is that part's, the same for every copy."""
     import h5py
 
-    from hairlut import registry
+    from hairlut.bake import registry
     from hairlut.assets import canonical_json, recipe_hash
     from hairlut.hrir import bake, resolve_recipe
-    from hairlut.parts import open_folder, part_name, parts_dir
+    from hairlut.assets.parts import open_folder, part_name, parts_dir
 
     seed = where / f"seed-{block}.h5"
     if not parts_dir(seed).exists():
@@ -194,19 +194,19 @@ def synthetic_parts(where: Path, parts: int, block: int) -> tuple[dict, Path, di
 def leader_times(recipe: dict, out: Path, block: int, index: dict, repeat: int, old: bool = True,
                  readers: bool = True) -> dict:
     """Wall and CPU seconds (best of ``repeat``) of the leader's step of a 2-process bake over ``out``'s parts
-    (``hairlut.sharding.finish``: process 0's indexes in memory, process 1's share file), with the printf
+    (``hairlut.bake.sharding.finish``: process 0's indexes in memory, process 1's share file), with the printf
     mappings (``new``) and, in the same run, with :func:`old_mappings` (``old``); then what a reader pays on the
     new asset: opening it and one per-sector table's shape (HDF5 finds the block files: ``open``), and
     ``check_virtual`` (every part checked, as readers, ``inspect`` and the cache do: ``check``)."""
     import h5py
 
-    import hairlut.virtual_asset as virtual_mod
-    from hairlut import registry
+    import hairlut.assets.virtual_write as virtual_mod
+    from hairlut.bake import registry
     from hairlut.assets import canonical_json, recipe_hash
-    from hairlut.distributed import Process
-    from hairlut.parts import part_name, parts_dir, share_name, stamp, write_share
-    from hairlut.virtual_asset import check_virtual
-    from hairlut.sharding import blocks_of, finish
+    from hairlut.bake.devices import Process
+    from hairlut.assets.parts import part_name, parts_dir, share_name, stamp, write_share
+    from hairlut.assets.virtual_write import check_virtual
+    from hairlut.bake.sharding import blocks_of, finish
 
     baker = registry.get("hrir_db")
     total = recipe["sectors"]["count"]
@@ -276,7 +276,7 @@ def print_part_counts(rows: list[dict]) -> None:
 _READER = """
 import hashlib, json, sys, time
 from hairlut.hrir import load_hrir_db
-from hairlut.virtual_asset import check_virtual
+from hairlut.assets.virtual_write import check_virtual
 out, got = sys.argv[1], {}
 for step in sys.argv[2].split(","):
     c0 = time.process_time()
@@ -324,10 +324,10 @@ def readers(counts: list[int], block: int, tmp: Path, base: str, repeat: int = 1
     unchanged), ``check_virtual`` after them, and ``check_virtual`` alone in a new process (``check_cold``).  With
     ``repeat`` > 1 the two trees take turns that many times and each step keeps its least CPU time (the shared
     machine's load moves the CPU seconds of one run by up to 1.4×)."""
-    from hairlut import registry
-    from hairlut.distributed import Process
-    from hairlut.parts import part_name, stamp
-    from hairlut.sharding import blocks_of, finish
+    from hairlut.bake import registry
+    from hairlut.bake.devices import Process
+    from hairlut.assets.parts import part_name, stamp
+    from hairlut.bake.sharding import blocks_of, finish
 
     trees = {"base": tree_at(base, tmp / "base-tree"), "new": Path(__file__).resolve().parents[1]}
     rows = []

@@ -36,7 +36,8 @@ def host_terms(tmp: Path, block: int = 32) -> dict:
     chunk writer); and the rest (HDF5 calls, checks, the part index: serial), the bake's CPU less the other three."""
     from hairlut.assets.chunks import filter_chunk
     from hairlut.geometry import sector_density
-    from hairlut.hrir import bake, resolve_recipe, sample_block, sector_geometry, trace_sectors
+    from hairlut.hrir import bake, resolve_recipe, sample_block, trace_sectors
+    from hairlut.march import sector_geometry
 
     r = resolve_recipe(HOST)
     n = r["sectors"]["count"]
@@ -81,7 +82,7 @@ def projection(asm: list[dict], host: dict) -> dict:
     """The production database on GPUS H200s, projected term by term (printed): the device from the last H200 rate, the
     host from this machine's CPU, the disk, and the leader's assembly; a bake overlaps the first three, so
     projected = max(device, host, write) + assembly."""
-    from hairlut import registry
+    from hairlut.bake import registry
 
     prod_bytes, _ = registry.get("hrir_db").estimate(PRODUCTION)
     n = PRODUCTION["sectors"]["count"]

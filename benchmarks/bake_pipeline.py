@@ -32,7 +32,8 @@ from _common import emit, table  # noqa: E402
 from hairlut.assets import Axis, Variable, register_kind, write_table  # noqa: E402
 from hairlut.assets.chunks import workers  # noqa: E402
 from hairlut.geometry.density import sector_density  # noqa: E402
-from hairlut.hrir import bake, resolve_recipe, sample_block, sector_geometry, trace_sectors  # noqa: E402
+from hairlut.hrir import bake, resolve_recipe, sample_block, trace_sectors
+from hairlut.march import sector_geometry# noqa: E402
 
 BLOCK = 32
 register_kind("bench_block", ("alpha", "reflectance"), "a block of HRIR tables (benchmarks/bake_pipeline.py)")

@@ -43,7 +43,7 @@ TRACE = {"trace": {"pixels": 32, "steps": 48}}
 
 
 def _direct_api():
-    from hairlut.synth import direct_sector_maps, scene_sector_inputs
+    from hairlut.march import direct_sector_maps, scene_sector_inputs
 
     return direct_sector_maps, scene_sector_inputs
 

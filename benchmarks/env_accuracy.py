@@ -45,14 +45,14 @@ def _clamped(e) -> float:
 
 
 def _windowed(coeffs, bands, window):
-    from hairlut.scene import window_coeffs
+    from hairlut.planner import window_coeffs
 
     return window_coeffs(coeffs[: bands * bands], window)
 
 
 def scene_env(path: Path, cache: Path):
     """(scene, prepared environment, plan's band figures, the 30-band light) of one scene file."""
-    from hairlut.scene import bake, environment_bands, plan, reference_light
+    from hairlut.planner import bake, environment_bands, plan, reference_light
     from hairlut.synth import prepare
 
     p = plan(path, cache)
@@ -68,7 +68,7 @@ def default_row(name, sc, env, eb, light30, height) -> list[dict]:
     tables against the quadrature at the scene's own (windowed) light."""
     from dataclasses import replace
 
-    from hairlut.scene import environment_light
+    from hairlut.planner import environment_light
 
     env.rgb(sc.view)  # compiles the contracted tables' kernels
     t0 = time.process_time()
@@ -92,7 +92,7 @@ def sweep(name, sc, env, light30, bands, stride, height) -> list[dict]:
     """The quadrature at each band count, window and placement, every ``stride``-th texel."""
     from dataclasses import replace
 
-    from hairlut.scene import window_factors
+    from hairlut.planner import window_factors
 
     sub = replace(env, tangent=env.tangent.reshape(-1, 3)[::stride], b=env.b.reshape(-1, env.b.shape[-1])[::stride])
     ref = sub.reference(light30.coeffs, sc.view, height)
@@ -102,7 +102,7 @@ def sweep(name, sc, env, light30, bands, stride, height) -> list[dict]:
     for t_window in WINDOWS:
         b = sub.b * np.repeat(window_factors(nb, t_window), 2 * np.arange(nb) + 1)
         # one quadrature per transmittance window: columns = (bands, light window, channel); Rd reads the
-        # light's bands too (at least 3: hairlut.scene.sh_recipe)
+        # light's bands too (at least 3: hairlut.planner.sh_recipe)
         cols = [(bb, w) for bb in bands for w in WINDOWS]
         n30 = light30.coeffs.shape[0]
         dif = np.concatenate([np.pad(_windowed(light30.coeffs, max(3, bb), w), ((0, n30 - max(3, bb) ** 2), (0, 0)))

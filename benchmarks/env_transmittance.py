@@ -32,8 +32,8 @@ ROOT = Path(__file__).resolve().parents[1]
 def environment_parts(sc, bands: int, cache: Path) -> dict:
     """The prepared environment of ``sc`` with ``bands`` transmittance bands: raw E (..., 3), b₀-only E and
     the l ≥ 1 part (so E = e0 + rest), and the SH-table bake seconds."""
-    from hairlut import registry
-    from hairlut.scene import plan
+    from hairlut.bake import registry
+    from hairlut.planner import plan
     from hairlut.synth import prepare
 
     step = plan(sc, cache / "plan").step("sh_tables")

@@ -3,7 +3,7 @@
     python benchmarks/map_accuracy.py --scene tables/scenes/sintel-groom.toml [--json OUT] [--quick]
 
 The scene is prepared once per method through the public API (``hairlut.synth.prepare`` with
-``[render] method`` set; the scene table baked through ``hairlut.registry``, the SATF database
+``[render] method`` set; the scene table baked through ``hairlut.bake.registry``, the SATF database
 through the planner's recipe).  **Truth**: every sector traced at its exact θv, θl by the direct
 kernel with the tracer's shadow-grid lookup at 4 rays per pixel, 2× the density grid and 2× the
 steps, swept into texels by the same eq 7 (``sweep_sectors``, two sectors per HSV).  Per method and
@@ -53,7 +53,7 @@ def _scene(path: Path, hrir=None, **render):
 def _rows(prepared, view, lights):
     """Per-sector rows (α (S, P), re (S, L, P)) and texel maps of a prepared direct/scene method."""
     from hairlut.scenemaps import fetch_kernel
-    from hairlut.synth import direct_sector_maps
+    from hairlut.march import direct_sector_maps
 
     tv, tl, cs = _angles(prepared, prepared.scene, view, lights)
     src = prepared.maps
@@ -70,8 +70,9 @@ def truth(scene_path: Path, quick: bool, level: int = 1, cache: Path | None = No
     first is converged): 8 rays, 4× grid, 4× steps.  ``cache``: an .npz that keeps the traced truth
     for later runs (reused only when the scene file, the recipe and the refinement are the same)."""
     import jax.numpy as jnp
-    from hairlut.scene import direct_recipe
-    from hairlut.synth import direct_sector_maps, prepare, scene_sector_inputs, sweep_sectors
+    from hairlut.planner import direct_recipe
+    from hairlut.synth import prepare, sweep_sectors
+    from hairlut.march import direct_sector_maps, scene_sector_inputs
 
     sc = _scene(scene_path, method="direct", rays=1)
     prep = prepare(sc)
@@ -156,8 +157,9 @@ def grid_study(args) -> list[dict]:
     """The direct method at several sector density grids and step counts (``--grid-study``: n × n grids with 2n
     steps, plus n × n at the scene's own steps) against the truth of the scene's own recipe; trace seconds
     with their ratio to the first row (the same run, so the ratio holds under a shared machine's load)."""
-    from hairlut.scene import direct_recipe
-    from hairlut.synth import direct_sector_maps, scene_sector_inputs, sweep_sectors
+    from hairlut.planner import direct_recipe
+    from hairlut.synth import sweep_sectors
+    from hairlut.march import direct_sector_maps, scene_sector_inputs
 
     prep, t_rows, t_maps, truth_s = truth(args.scene, args.quick, cache=args.truth_cache)
     sc = prep.scene
@@ -194,9 +196,9 @@ def satf_rows(args, tmp: Path, t_maps, t_rows) -> list[dict]:
     the other feature sets index the same records (``hairlut.hrir.reindex``: the file their own bake would
     write; bake seconds = the bake's plus the re-index's); per k the frame's maps and each sector's own
     looked-up row at its exact angles (the coverage column)."""
-    from hairlut import registry
+    from hairlut.bake import registry
     from hairlut.hrir import reindex
-    from hairlut.scene import plan
+    from hairlut.planner import plan
     from hairlut.synth import prepare
 
     out = []
@@ -229,8 +231,8 @@ def satf_rows(args, tmp: Path, t_maps, t_rows) -> list[dict]:
 
 
 def main(argv=None):
-    from hairlut import registry
-    from hairlut.scene import scene_maps_recipe
+    from hairlut.bake import registry
+    from hairlut.planner import scene_maps_recipe
     from hairlut.synth import prepare
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])

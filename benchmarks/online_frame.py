@@ -155,7 +155,7 @@ def map_methods(args, runs: int = 10) -> list[dict]:
     scene table of the model's real shape (its live sectors, the default layout or ``--shading-pixels``
     bins) whose *contents* are synthetic (a paper-scale bake takes hours on this CPU: the fetch's cost
     does not depend on the values); bytes are the kind's uncompressed estimate."""
-    from hairlut.scene import scene_maps_recipe
+    from hairlut.planner import scene_maps_recipe
     from hairlut.scenemaps import BAKER, SceneMaps
 
     from hairlut.geometry import ClusterGeometry, build_sectors

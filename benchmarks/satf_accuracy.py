@@ -127,7 +127,8 @@ def _scene_truth(prepared, db):
     with ``db``'s density grid, trace and Phong settings; the seconds; the number traced (empty
     sectors are exactly 0 and skipped)."""
     from hairlut.geometry.density import sector_density
-    from hairlut.hrir import GEOM, sector_geometry, trace_sectors
+    from hairlut.hrir import trace_sectors
+    from hairlut.march import GEOM, sector_geometry
     from hairlut.synth import sector_angles
 
     rec = db.recipe

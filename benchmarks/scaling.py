@@ -27,7 +27,7 @@ core, the speed-up if every pinned core were given in full (derived, not a wall-
 
 Then the time to assemble the final asset, virtual datasets against a copy, from the same parts, at
 a few part counts (``--sizes`` sectors in blocks of each of ``--blocks``), as the leader of a 2-process
-bake takes it (``hairlut.sharding.finish``: its own parts' indexes in memory, the other process's share
+bake takes it (``hairlut.bake.sharding.finish``: its own parts' indexes in memory, the other process's share
 file), wall and CPU seconds (the machine is shared: CPU seconds are the work), per part and per sector,
 and what indexing a part costs each process while it bakes.  The parts are baked with the ASSEMBLY
 recipe: the production's density grid (32 × 32, which the feature index reads) and float16, with one
@@ -63,8 +63,7 @@ from pathlib import Path
 
 from _assembly import assembly, print_assembly
 from _common import save, table
-from _projection import GPUS, PRODUCTION, host_terms, work, write_bandwidth
-from _projection import projection as production_projection
+from _projection import GPUS, PRODUCTION, host_terms, work, write_bandwidth, projection as production_projection
 
 CODE = "import sys; from hairlut_cli.main import cli; cli(sys.argv[1:])"
 #: name, devices per process, the cores of each process, how (plain: one bake; dist: --distributed; pair: independent

@@ -6,12 +6,12 @@ Builds the paper model of ``online_frame.py`` (17 clusters × 3 layers, s_t = 64
 strands per cluster) as a scene whose ``render.method`` is ``scene``, and bakes its ``scene_maps`` table the way a
 user on this machine would: ``--processes`` shard processes (``hairlut.scenemaps.bake(..., shard="K/N")``, what
 ``hairlut bake scene --shard K/N`` runs; each pinned to its own core unless ``--no-pin``), then
-``hairlut.registry.merge`` of their shard files into one asset.  The wall clock runs from the first process's start
+``hairlut.bake.registry.merge`` of their shard files into one asset.  The wall clock runs from the first process's start
 to the merged file (each process builds the scene's sector inputs, compiles and writes its shard: all counted).
 
 Beside it, in the same run and on the same machine: the straightforward baseline, the reference tracer
-(``hairlut.synth.trace_view_grid``: every view and light per pixel, dense) and the bake's own path
-(``hairlut.synth.bake_view_grid``) on ``--baseline-rows`` of the model's rows in one process, their CPU seconds per
+(``hairlut.march.trace_view_grid``: every view and light per pixel, dense) and the bake's own path
+(``hairlut.march.bake_view_grid``) on ``--baseline-rows`` of the model's rows in one process, their CPU seconds per
 1,000 rows and the baseline's projection to the whole table on ``--processes`` cores (its full run would take
 many times the target).  Records: ``path``, ``rows``, ``wall_s``, ``cpu_s``, ``cpu_s_per_1000``, ``bytes``.
 """
@@ -36,7 +36,8 @@ TARGET_S = 300.0
 
 
 def _scene(clusters: int):
-    from hairlut.scene import resolve_scene, scene_maps_recipe
+    from hairlut.scene import resolve_scene
+    from hairlut.planner import scene_maps_recipe
     from online_frame import model
 
     base = model(clusters, 64, 16, 64, 400)
@@ -60,7 +61,7 @@ def worker(args) -> None:
 def baseline(args, n: int) -> list[dict]:
     """The reference tracer and the bake's path on ``args.baseline_rows`` rows, warm, in this process."""
     from hairlut.scenemaps import compress, hrir_recipe, ratio_terms, scene_inputs
-    from hairlut.synth import bake_view_grid, trace_view_grid
+    from hairlut.march import bake_view_grid, trace_view_grid
 
     sc, recipe = _scene(args.clusters)
     dens, geom = scene_inputs(sc, recipe)
@@ -109,7 +110,7 @@ def main(argv=None):
     if args.worker:
         return worker(args)
 
-    from hairlut.registry import merge
+    from hairlut.bake.registry import merge
 
     cores = sorted(os.sched_getaffinity(0))
     with tempfile.TemporaryDirectory() as tmp:

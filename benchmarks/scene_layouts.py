@@ -6,7 +6,7 @@
 
 A ``scene_maps`` table's α and re rows are functions of the traced grid alone; its layout (Fourier terms
 K, shading bins Q, storage dtype, the ratio's view step) only compresses them (``hairlut.scenemaps.compress``).  So per light
-grid L this traces the groom's non-empty sectors once (``hairlut.synth.trace_view_grid`` on the scene's
+grid L this traces the groom's non-empty sectors once (``hairlut.march.trace_view_grid`` on the scene's
 V views, what the bake runs), then, for each layout with 2K + 1 ≤ L, compresses, casts, writes the table
 (``hairlut.assets.write_table``: chunked gzip + shuffle, the bytes on disk) and fetches it with the
 scene method's own frame (``MapSource.frame``) against the converged truth of ``map_accuracy.py``.  The
@@ -70,9 +70,10 @@ def _frame(src, ix, sc, runs: int = 3):
 
 def layouts(args) -> list[dict]:
     import jax.numpy as jnp
-    from hairlut.scene import scene_maps_recipe
+    from hairlut.planner import scene_maps_recipe
     from hairlut.scenemaps import SceneMaps, compress, fetch_kernel, hrir_recipe, ratio_terms, scene_inputs
-    from hairlut.synth import MapSource, bake_view_grid, trace_view_grid
+    from hairlut.synth import MapSource
+    from hairlut.march import bake_view_grid, trace_view_grid
 
     prep, t_rows, t_maps, truth_s = truth(args.scene, False, cache=args.truth_cache)
     ix = prep.index
@@ -155,9 +156,10 @@ def paper_subset(args) -> list[dict]:
     of the model's sectors are live and how many are exact duplicates (density and geometry bytes)."""
     import hashlib
 
-    from hairlut.scene import resolve_scene, scene_maps_recipe
+    from hairlut.scene import resolve_scene
+    from hairlut.planner import scene_maps_recipe
     from hairlut.scenemaps import compress, hrir_recipe, ratio_terms, scene_inputs
-    from hairlut.synth import bake_view_grid, trace_view_grid
+    from hairlut.march import bake_view_grid, trace_view_grid
     from online_frame import model
 
     base = model(17, 64, 16, 64, 400)

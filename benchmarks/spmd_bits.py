@@ -1,7 +1,7 @@
 """Why local devices run one single-device executable each: an SPMD bake is not bitwise equal (issue 16 item 2).
 
 Traces the same 8 HRIR sectors (8 views × 8 lights, 16 px, 16 steps) four ways on 2 CPU devices
-and compares each, bit for bit, with the executable `hairlut.distributed.map_units` runs (one sector
+and compares each, bit for bit, with the executable `hairlut.bake.devices.map_units` runs (one sector
 per call, ``trace_kernel(chunk=1)``): ``shard_map`` over a 1-D ``Mesh`` with one sector per device
 per call (the same per-device shapes), ``shard_map`` with four sectors per device, ``jit`` on
 ``NamedSharding`` inputs (XLA's SPMD partitioner), and the one-device executable on two sectors per
@@ -26,7 +26,8 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec as P  # noqa: E402
 
 from hairlut.geometry import angle_grid  # noqa: E402
 from hairlut.geometry.density import sector_density  # noqa: E402
-from hairlut.hrir import resolve_recipe, sample_block, sector_geometry, trace_kernel  # noqa: E402
+from hairlut.hrir import resolve_recipe, sample_block, trace_kernel
+from hairlut.march import sector_geometry# noqa: E402
 
 try:
     from jax import shard_map

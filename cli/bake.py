@@ -1,8 +1,8 @@
 """``hairlut bake`` and ``hairlut merge``: bake any registered table kind, join shards.
 
-Every ``hairlut bake KIND`` command is built from the kind's :class:`hairlut.baker.Baker`
-(found in :mod:`hairlut.registry` when the command is looked up): the common options
-below plus the kind's own :class:`~hairlut.baker.Option` s.  Nothing here names a kind.
+Every ``hairlut bake KIND`` command is built from the kind's :class:`hairlut.bake.protocol.Baker`
+(found in :mod:`hairlut.bake.registry` when the command is looked up): the common options
+below plus the kind's own :class:`~hairlut.bake.protocol.Option` s.  Nothing here names a kind.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import time
 import click
 
 from hairlut import errors
-from hairlut.coordination import TIMEOUT_S
+from hairlut.bake.coordination import TIMEOUT_S
 from hairlut.recipes import apply_overrides, load_toml
 
 from .main import Failure
@@ -75,7 +75,7 @@ def _common_options(baker) -> list[click.Option]:
 
 def kind_command(kind: str, name: str | None = None) -> click.Command:
     """The ``hairlut bake KIND`` command of a registered kind."""
-    from hairlut import registry  # the bakers: JAX and the kinds' modules, only once a kind is named
+    from hairlut.bake import registry  # the bakers: JAX and the kinds' modules, only once a kind is named
 
     baker = registry.get(kind)
 
@@ -94,14 +94,14 @@ def kind_command(kind: str, name: str | None = None) -> click.Command:
                                              "--timeout go with --distributed")
             split = {"merge": merge}
             if distributed:
-                from hairlut.distributed import initialize
+                from hairlut.bake.devices import initialize
 
                 split["distributed"] = initialize(coordinator, num_processes, process_id, timeout or TIMEOUT_S,
                                                   on_fatal=_fatal)
         if not split.get("distributed"):
             _bake(baker, given, out, sets, shard, split, no_progress, as_json, values)
             return
-        from hairlut.distributed import leave
+        from hairlut.bake.devices import leave
 
         try:
             _bake(baker, given, out, sets, shard, split, no_progress, as_json, values)
@@ -117,7 +117,7 @@ def kind_command(kind: str, name: str | None = None) -> click.Command:
 
 def _bake(baker, given, out, sets, shard, split, no_progress, as_json, values) -> None:
     """Bake one kind (into ``out`` or the cache) and print its report."""
-    from hairlut import registry
+    from hairlut.bake import registry
 
     shortcuts = tuple(f"{o.sets}={values[o.name]!r}" for o in baker.options if o.sets and values[o.name] is not None)
     given = apply_overrides(given, (*sets, *shortcuts))
@@ -130,7 +130,7 @@ def _bake(baker, given, out, sets, shard, split, no_progress, as_json, values) -
         else:
             if shard is not None:
                 raise errors.ValidationError("shard", shard, "give --out: shard files are not cached")
-            root = click.get_current_context().meta.get("hairlut.cache")
+            root = click.get_current_context().meta.get("hairlut.bake.cache")
             path, status, report = registry.bake_cached(baker.kind, given, root=root, progress=bar, options=options)
             report["status"] = status
     finally:
@@ -155,7 +155,7 @@ def _share_line(report: dict, unit: str) -> str:
 
 
 def _fatal(message: str | None) -> None:
-    """JAX's client is about to abort this process (see hairlut.coordination): end it as a hairlut failure with
+    """JAX's client is about to abort this process (see hairlut.bake.coordination): end it as a hairlut failure with
     one line and status 2 instead, or with status 0 where the bake had finished (``message`` None)."""
     try:
         sys.stdout.flush()
@@ -170,7 +170,7 @@ class KindGroup(click.Group):
     """``hairlut bake``: its sub-commands are the registered kinds, by command name or kind name."""
 
     def list_commands(self, ctx):
-        from hairlut import registry
+        from hairlut.bake import registry
 
         return sorted({*super().list_commands(ctx), *(registry.get(k).command for k in registry.kinds())})
 
@@ -178,7 +178,7 @@ class KindGroup(click.Group):
         cmd = super().get_command(ctx, cmd_name)
         if cmd is not None:
             return cmd
-        from hairlut import registry
+        from hairlut.bake import registry
 
         try:
             baker = registry.get(cmd_name)
@@ -209,7 +209,7 @@ def bake_group(ctx, scene, cache_root, no_progress, as_json):
       hairlut bake hrir --recipe tables/hrir-default.toml --out tables/hrir-default.h5
       hairlut bake sh --p 16                      # into the cache; `hairlut cache ls` lists it
     """
-    ctx.meta["hairlut.cache"] = cache_root  # `hairlut bake --cache DIR KIND` bakes into DIR
+    ctx.meta["hairlut.bake.cache"] = cache_root  # `hairlut bake --cache DIR KIND` bakes into DIR
     if ctx.invoked_subcommand is not None:
         if scene or as_json:
             raise click.UsageError("--scene and --json go without a sub-command")
@@ -217,7 +217,7 @@ def bake_group(ctx, scene, cache_root, no_progress, as_json):
     if scene is None:
         click.echo(ctx.get_help())
         return
-    from hairlut.scene import bake, plan
+    from hairlut.planner import bake, plan
 
     from .plan import echo_plan
 
@@ -253,13 +253,14 @@ def merge_cmd(shards, out, as_json):
       hairlut bake hrir --recipe tables/hrir-default.toml --out s1.h5 --shard 1/2
       hairlut merge s0.h5 s1.h5 --out tables/hrir-default.h5
     """
-    from hairlut import registry
+    from hairlut.bake import registry
 
     shards = list(shards)
     baker = registry.for_shard_kind(registry.kind_of(shards[0]))
-    report = baker.merge(shards, out)
+    report = registry.merge(shards, out)
     if as_json:
         click.echo(json.dumps(report, indent=2, default=str))
         return
-    count = f"{report[baker.unit]} {baker.unit} " if baker.unit in report else ""
+    n = report.get("units", report.get(baker.unit))
+    count = f"{n} {baker.unit or baker.units.axis} " if n is not None else ""
     click.echo(f"wrote {report['out']} ({count}from {report['shards']} shards, {report['bytes'] / 2**20:.1f} MiB)")

@@ -18,7 +18,7 @@ def cache_group():
 def ls_cmd(root, as_json):
     """List cached assets, newest first, each with its status: ok; foreign (a valid asset under another asset's
     name, which the cache never reuses under that name); corrupt (fails validation: the fault is shown)."""
-    from hairlut.cache import cache_dir, entries
+    from hairlut.bake.cache import cache_dir, entries
 
     rows = entries(root)
     if as_json:
@@ -45,7 +45,7 @@ def ls_cmd(root, as_json):
 def prune_cmd(root, kinds, days, everything, dry_run):
     """Remove cached assets; always removes what killed bakes left: temporaries and parts folders (OUT.parts/ of
     an asset that is gone) older than an hour, and lock files nobody holds."""
-    from hairlut.cache import prune
+    from hairlut.bake.cache import prune
 
     gone = prune(root, kinds=kinds or None, older_than_days=days, everything=everything, dry_run=dry_run)
     for p in gone:

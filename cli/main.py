@@ -79,7 +79,7 @@ def cli(verbose: int, quiet: bool) -> None:
 #: looked up (to run it, or for its line in ``hairlut --help``), so ``hairlut --version`` imports none of them, and
 #: the command modules import hairlut's heavy parts (JAX, the bakers) inside their callbacks.
 COMMANDS: dict[str, str] = {
-    "bake": "bake:bake_group",  # its KIND sub-commands come from hairlut.registry
+    "bake": "bake:bake_group",  # its KIND sub-commands come from hairlut.bake.registry
     "merge": "bake:merge_cmd",
     "hrir-slice": "hrir:hrir_slice_cmd",
     "cache": "cache:cache_group",

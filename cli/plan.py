@@ -53,7 +53,7 @@ def plan_cmd(scene: str, cache_root: str | None, as_json: bool) -> None:
       hairlut plan tables/scenes/two-clusters.toml
       hairlut plan tables/scenes/sky-clusters.toml --json
     """
-    from hairlut.scene import plan
+    from hairlut.planner import plan
 
     p = plan(scene, cache_root)
     if as_json:

@@ -45,9 +45,10 @@ def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bo
     """
     from pathlib import Path
 
-    from hairlut.assets.atomic import check_writable
+    from hairlut.atomic import check_writable
     from hairlut.render import render_layered, render_reference, write_frame
-    from hairlut.scene import load_scene, scene_assets
+    from hairlut.scene import load_scene
+    from hairlut.planner import scene_assets
 
     for path in [out_path] + ([Path(out_path).with_suffix(".png")] if png else []):
         check_writable(path)  # before the frame is computed
@@ -101,7 +102,7 @@ def compare_cmd(a, b, diff_png, as_json):
     import numpy as np
 
     from hairlut.assets import atomic_write_bytes, encode_png
-    from hairlut.assets.atomic import check_writable
+    from hairlut.atomic import check_writable
     from hairlut.files import not_an_input
     from hairlut.render import compare, read_frame
 

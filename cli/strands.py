@@ -69,7 +69,7 @@ def convert_cmd(src, dst):
       hairlut strands convert tables/grooms/ratboy_mohawk.tfx ratboy.hair
       hairlut strands convert tables/grooms/sintel_lite.tfx sintel.usda   # needs the usd extra
     """
-    from hairlut.assets.atomic import check_writable
+    from hairlut.atomic import check_writable
     from hairlut.geometry import read_strands, write_strands
 
     check_writable(dst)

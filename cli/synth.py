@@ -32,8 +32,9 @@ def synth_cmd(scene: str, db_path: str | None, sh_path: str | None, cache_root: 
       hairlut synth tables/scenes/sky-clusters.toml --out out/synth-sky
       hairlut synth tables/scenes/two-clusters.toml --db tables/hrir-default.h5 --out out/synth
     """
-    from hairlut.assets.atomic import check_writable
-    from hairlut.scene import load_scene, scene_assets
+    from hairlut.atomic import check_writable
+    from hairlut.scene import load_scene
+    from hairlut.planner import scene_assets
     from hairlut.synth import synthesize, write_outputs
 
     check_writable(out_dir, folder=True)  # before the maps are made

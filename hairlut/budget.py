@@ -24,6 +24,7 @@ from __future__ import annotations
 import math
 import os
 import re
+from collections.abc import Mapping
 
 from . import errors
 
@@ -126,12 +127,13 @@ SECTOR_BYTES = 1024  # per sector: its table row, frames, index and the float64 
 
 
 def check_scene(cfg: dict, n_clusters: int, n_layers: int, n_lights: int, limit: int | None = None,
-                structure: tuple[str, int, int] | None = None) -> None:
+                structure: tuple[str, int, int, Mapping] | None = None) -> None:
     """Refuse a scene whose strands, sectors, maps or preview would not fit (keys ``strands.count``,
     ``<where>.s_t``/``s_u``, ``render.resolution``, ``lights.directions``, ``render.preview_size``), or whose
     exponents ``material.p_I``/``p_II`` the float32 shading cannot raise to, or with more than
-    :data:`MAX_LIGHTS` direct lights.  ``structure``: (where the cluster keys live, s_t, s_u), e.g.
-    ``("clusters[0]", 8, 16)`` or ``("groom", 8, 16)``."""
+    :data:`MAX_LIGHTS` direct lights.  ``structure``: (where the cluster keys live, s_t, s_u, their defaults), e.g.
+    ``("clusters[0]", 8, 16, {"s_t": 8, "s_u": 16})`` or ``("groom", 8, 16, ...)``: the key furthest above its default is
+    the one named."""
     for key in ("p_I", "p_II"):  # float32 shading: cos^p of a huge p overflows on the way (p_I = 1e300)
         p = cfg["material"][key]
         if not p <= MAX_EXPONENT:
@@ -145,10 +147,8 @@ def check_scene(cfg: dict, n_clusters: int, n_layers: int, n_lights: int, limit:
     check("strands.count", n, product(n, max(n_clusters, 1), STRAND_BYTES), f"{n} strands in each of {n_clusters} clusters",
           limit)
     if structure is not None:
-        from .geometry.cluster_defaults import STRUCTURE_DEFAULTS
-
-        where, s_t, s_u = structure
-        key, value = driver((f"{where}.s_t", s_t, STRUCTURE_DEFAULTS["s_t"]), (f"{where}.s_u", s_u, STRUCTURE_DEFAULTS["s_u"]))
+        where, s_t, s_u, defaults = structure
+        key, value = driver((f"{where}.s_t", s_t, defaults["s_t"]), (f"{where}.s_u", s_u, defaults["s_u"]))
         check(key, value, product(max(n_clusters, 1), s_t + 1, max(n_layers, 1), s_u, SECTOR_BYTES),
               f"the sectors of {n_clusters} clusters × {s_t + 1} rings × {n_layers} layers × {s_u} columns", limit)
     n_u, n_t = cfg["render"]["resolution"]
@@ -174,7 +174,7 @@ def check_hrir(r: dict, limit: int | None = None, *, block: int | None = None, h
     ``held``: the sectors whose α and reflectance one process holds at once (default: one block, what
     every bake holds: ``resolve_recipe`` checks that).  A copied asset (a plain or cached bake, ``--merge
     copy``, ``hairlut merge``) holds the whole database, a ``--shard`` file its slice, a virtual asset
-    (``--distributed``) one block per process: :func:`hairlut.sharding.run` checks what its bake holds
+    (``--distributed``) one block per process: :func:`hairlut.bake.sharding.run` checks what its bake holds
     before it starts.  The leader reads every sector's density grid (the feature index), so those count
     whole.  ``note`` is added to a refusal (why that many are held)."""
     d = HRIR_DEFAULTS

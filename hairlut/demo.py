@@ -93,8 +93,8 @@ def reference_probe(scene, level: int = REFERENCE_LEVEL, size: int = PROBE_SIZE,
 
 def run_scene(scene_path, out_dir, cache_root=None, progress=None) -> dict:
     """Plan, bake (through the cache) and synthesise one scene; its report."""
-    from .cache import cache_dir
-    from .scene import bake, plan
+    from .bake.cache import cache_dir
+    from .planner import bake, plan
     from .synth import prepare, render, write_outputs
 
     t0 = time.perf_counter()

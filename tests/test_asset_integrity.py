@@ -19,14 +19,14 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from hairlut import errors, registry
-from hairlut.assets import open_table, read_exr, read_table, summarize
-from hairlut.assets import h5 as store
+from hairlut import errors
+from hairlut.bake import registry
+from hairlut.assets import open_table, read_exr, read_table, summarize, h5 as store
 from hairlut.assets.layout import layout
 from hairlut.files import not_an_input, regular_file
 from hairlut.hrir import bake, load_hrir_db
-from hairlut.parts import parts_dir
-from hairlut.virtual_asset import check_virtual
+from hairlut.assets.parts import parts_dir
+from hairlut.assets.virtual_write import check_virtual
 from hairlut_cli.main import cli
 
 from ._tables import lobes_table

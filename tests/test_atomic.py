@@ -87,7 +87,7 @@ def test_check_writable_refuses_what_cannot_be_written_and_creates_nothing(tmp_p
     """Issue 29 m5: an output that cannot be written is refused before any work, naming the user's path (a
     render computed its whole frame, then named its hidden temporary file)."""
     from hairlut import errors
-    from hairlut.assets.atomic import atomic_write_bytes, check_writable
+    from hairlut.atomic import atomic_write_bytes, check_writable
 
     for target, folder in ((read_only_dir / "r.exr", False), (read_only_dir / "a" / "b" / "r.exr", False),
                            (read_only_dir / "out", True)):

@@ -8,10 +8,9 @@ import numpy as np
 import pytest
 
 from hairlut import errors
-from hairlut.distributed import dispatch_units, map_units
-from hairlut.hrir import _bake
-from hairlut.hrir import resolve_recipe
-from hairlut.sharding import _bake_blocks
+from hairlut.bake.devices import dispatch_units, map_units
+from hairlut.hrir import _bake, resolve_recipe
+from hairlut.bake.sharding import _bake_blocks
 
 
 class Toy:

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from hairlut.assets import Axis, Variable, read_table, write_table
-from hairlut.cache import asset_path, ensure, entries, prune
+from hairlut.bake.cache import asset_path, ensure, entries, prune
 
 from . import _tables  # noqa: F401  (declares the test kind kk_lobes)
 
@@ -102,7 +102,7 @@ def test_ls_lists_garbage_and_misnamed_files_as_such(tmp_path):
 def test_a_corrupt_cache_entry_is_called_corrupt_not_missing(tmp_path):
     """Issue 29 m10: ``synth`` called a corrupt cache entry "not in the cache"."""
     from hairlut import errors
-    from hairlut.scene import find_assets, plan
+    from hairlut.planner import find_assets, plan
 
     from ._synth_fixtures import scene
 

@@ -64,7 +64,7 @@ def test_version_and_help_import_neither_jax_nor_hdf5():
     code = ("import sys; from hairlut_cli.main import cli\n"
             "try: cli(sys.argv[1:], prog_name='hairlut')\n"
             "except SystemExit as e: assert not e.code, e.code\n"
-            "print(sorted({'jax', 'h5py', 'numpy', 'hairlut.registry'} & set(sys.modules)))")
+            "print(sorted({'jax', 'h5py', 'numpy', 'hairlut.bake.registry'} & set(sys.modules)))")
     for args in (["--version"], ["--help"]):
         out = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=120)
         assert out.returncode == 0, out.stderr

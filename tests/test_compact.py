@@ -1,12 +1,11 @@
-"""Stream compaction inside jit (hairlut.synth._compact) against NumPy's cumsum and flatnonzero."""
+"""Stream compaction inside jit (hairlut.march._compact) against NumPy's cumsum and flatnonzero."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
-from hairlut.synth._compact import ROW, compact, prefix_count
+from hairlut.march._compact import ROW, compact, prefix_count
 
 
 @settings(max_examples=60, deadline=None)

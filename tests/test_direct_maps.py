@@ -12,8 +12,9 @@ from hypothesis import given, settings, strategies as st
 from hairlut.errors import HairlutError, ValidationError
 from hairlut.geometry.density import sector_density
 from hairlut.geometry.sampler import sample_sectors
-from hairlut.hrir import GEOM, resolve_recipe, sector_geometry, trace_sectors
-from hairlut.synth._direct import bucket, direct_sector_maps
+from hairlut.hrir import resolve_recipe, trace_sectors
+from hairlut.march import GEOM, sector_geometry
+from hairlut.march._direct import bucket, direct_sector_maps
 
 COL = {k: i for i, k in enumerate(GEOM)}
 P = 32
@@ -259,7 +260,7 @@ def test_scene_sector_inputs_match_the_online_frames_and_densities():
     from hairlut.geometry import ClusterGeometry, azimuths, build_sectors, sector_axes
     from hairlut.scene import resolve_scene, scene_clusters
     from hairlut.synth import sector_frames
-    from hairlut.synth._direct import scene_sector_inputs, sector_extent
+    from hairlut.march._direct import scene_sector_inputs, sector_extent
 
     from ._synth_fixtures import scene, synthetic_db
 

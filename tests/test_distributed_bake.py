@@ -16,9 +16,10 @@ import h5py
 import pytest
 
 from hairlut import errors
-from hairlut.hrir import bake, load_hrir_db, parts_dir
-from hairlut.parts import MARKER, locked, part_name
-from hairlut.virtual_asset import check_virtual
+from hairlut.assets.parts import parts_dir
+from hairlut.hrir import bake, load_hrir_db
+from hairlut.assets.parts import MARKER, locked, part_name
+from hairlut.assets.virtual_write import check_virtual
 
 RECIPE = '[sectors]\ncount = 12\ngrid = [8, 8]\n[angles]\nviews = 4\nlights = 3\n[trace]\npixels = 8\nsteps = 12\n'
 SMALL = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3}, "trace": {"pixels": 8, "steps": 12}}
@@ -134,7 +135,7 @@ def test_virtual_asset_with_a_missing_or_foreign_part(tmp_path):
     with pytest.raises(errors.AssetNotFoundError) as exc:
         load_hrir_db(out)
     assert exc.value.path == str(parts[1]) and "missing" in str(exc.value)
-    from hairlut.cache import is_valid  # the one validity rule, which the bake's own reuse check calls too
+    from hairlut.bake.cache import is_valid  # the one validity rule, which the bake's own reuse check calls too
 
     digest = ref["recipe_hash"]
     assert not is_valid(out, "hrir_db", digest)
@@ -248,7 +249,7 @@ def tiny_scene():
 
 def split_cases() -> dict:
     """kind → (recipe, options, a recipe change that gives parts of the same shapes and another recipe hash)."""
-    from hairlut.scene import scene_maps_recipe
+    from hairlut.planner import scene_maps_recipe
 
     sc = tiny_scene()
     return {"hrir_db": (SMALL, {"block": 4}, {"phong": {"shininess": 5.0}}),
@@ -258,7 +259,7 @@ def split_cases() -> dict:
 
 def test_every_kind_bakes_the_same_data_sharded_virtual_and_whole(tmp_path):
     """Every kind in the registry is on the one shard path: a kind that cannot shard fails here."""
-    from hairlut import registry
+    from hairlut.bake import registry
 
     cases = split_cases()
     assert set(cases) == set(registry.kinds())
@@ -312,7 +313,7 @@ def test_two_processes_on_loopback_bake_the_sh_tables_of_one(tmp_path):
                                       "--process-id", str(k), "--json"), env=_env(2), stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True) for k in range(2)]
     docs = _finish(procs)
-    assert [d["tangent_range"] for d in docs] == [[0, 48], [48, 96]] and all(d["computed"] == 48 for d in docs)
+    assert [d["unit_range"] for d in docs] == [[0, 48], [48, 96]] and all(d["computed"] == 48 for d in docs)
     _assert_same_data(tmp_path / "one.h5", out)
     with h5py.File(out, "r") as f:
         assert f["dense/rs"].is_virtual and f["light_group/cs"].is_virtual and not f["gaunt"].is_virtual
@@ -369,7 +370,7 @@ def test_inspect_reads_an_own_virtual_asset_and_names_a_missing_or_foreign_part(
 
 
 def test_lock_files_go_and_prune_removes_only_the_unused_ones(tmp_path):
-    from hairlut.cache import prune
+    from hairlut.bake.cache import prune
 
     bake(SMALL, tmp_path / "db.h5", block=4)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["db.h5"]

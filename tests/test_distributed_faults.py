@@ -12,7 +12,7 @@ import time
 import pytest
 from click.testing import CliRunner
 
-from hairlut.hrir import parts_dir
+from hairlut.assets.parts import parts_dir
 from hairlut_cli.main import cli
 
 from .test_distributed_bake import CODE, _assert_same_data, _env, _free_port

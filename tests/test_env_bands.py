@@ -1,4 +1,4 @@
-"""Environment bands from the radiance error (issue 12 item 4): hairlut.scene._envbands and the windows.
+"""Environment bands from the radiance error (issue 12 item 4): hairlut.planner._envbands and the windows.
 
 Independent reference: the radiance integral ∫ L(ω) k(ω) dω by brute-force lat-long quadrature of
 the Kajiya–Kay lobes against the Funk–Hecke band sum; the windows' factors; the choice of bands as
@@ -10,8 +10,8 @@ import pytest
 
 from hairlut import errors
 from hairlut.envlight import latlong_samples
-from hairlut.scene import window_coeffs, window_factors
-from hairlut.scene._envbands import _fibonacci, band_radiance, choose_bands, radiance_error
+from hairlut.planner import window_coeffs, window_factors
+from hairlut.planner._envbands import _fibonacci, band_radiance, choose_bands, radiance_error
 from hairlut.sh import real_sh
 
 

@@ -14,7 +14,9 @@ from click.testing import CliRunner
 
 from hairlut import errors
 from hairlut.assets import read_exr, read_table
-from hairlut.hrir import bake, export_slice, load_hrir_db, merge, parts_dir, resolve_recipe, sector_seed
+from hairlut.assets.parts import parts_dir
+from hairlut.bake.registry import merge
+from hairlut.hrir import bake, export_slice, load_hrir_db, resolve_recipe, sector_seed
 
 SMALL = {"sectors": {"count": 10, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3},
          "trace": {"pixels": 8, "steps": 12}}

@@ -6,8 +6,9 @@ import pytest
 from hairlut.geometry.density import sector_density
 from hairlut.geometry.sampler import sample_sectors
 from hairlut.geometry.splats import SIGMA_PER_RADIUS
-from hairlut.hrir import GEOM, disc_params, gaussian_smooth, reference_hrir, resolve_recipe, sector_geometry, trace_sectors
-from hairlut.hrir import smooth_matrix as _smooth_matrix
+from hairlut.hrir import gaussian_smooth, reference_hrir, resolve_recipe, trace_sectors
+from hairlut.march import GEOM, disc_params, sector_geometry
+from hairlut.march import smooth_matrix as _smooth_matrix
 
 COL = {k: i for i, k in enumerate(GEOM)}
 PHONG = np.array([0.1, 0.6, 0.3, 20.0])

@@ -8,9 +8,11 @@ and its steps, and bad methods, knobs and missing tables rejected by name.
 import numpy as np
 import pytest
 
-from hairlut import errors, registry
+from hairlut import errors
+from hairlut.bake import registry
 from hairlut.hrir import trace_sectors
-from hairlut.scene import map_method, plan, resolve_scene, scene_maps_recipe
+from hairlut.scene import resolve_scene
+from hairlut.planner import map_method, plan, scene_maps_recipe
 from hairlut.scenemaps import compress, fetch_rows, hrir_recipe, load_scene_maps, scene_inputs
 from hairlut.synth import prepare, render
 

@@ -15,7 +15,7 @@ import pytest
 from hairlut.geometry.features import sector_features
 from hairlut.hrir import bake, resolve_recipe
 from hairlut.hrir._bake import sample_block
-from hairlut.hrir._geometry import sector_geometry
+from hairlut.march._geometry import sector_geometry
 from hairlut.hrir._io import FEATURE_CHUNK, _row_areas
 from hairlut.hrir._parts import part_features, part_index
 from hairlut.geometry.density import sector_density

@@ -9,10 +9,11 @@ refused like NaN, naming the table and the recipe keys, and nothing is written u
 import numpy as np
 import pytest
 
-from hairlut import errors, registry
+from hairlut import errors
+from hairlut.bake import registry
 from hairlut.assets import Axis, Variable, write_table
 from hairlut.assets.bounds import ATOL, RTOL, check_bounds
-from hairlut.baker import Baker, Bound
+from hairlut.bake.protocol import Baker, Bound
 
 from ._synth_fixtures import scene as base_scene
 
@@ -135,7 +136,7 @@ def test_hrir_db_refuses_tables_beyond_their_bounds(tmp_path, monkeypatch, chang
 
 
 def test_scene_maps_refuse_a_ratio_above_the_phong_sum(tmp_path, monkeypatch):
-    from hairlut.scene import scene_maps_recipe
+    from hairlut.planner import scene_maps_recipe
     from hairlut.scenemaps import _parts
 
     terms = _parts.ratio_terms
@@ -160,7 +161,7 @@ def test_scene_maps_at_opaque_extinction_stay_within_their_bounds(tmp_path, exti
     along each ray), which lose the depth in front of a step far denser than it (α reached 1.00001 at extinction
     1e7 on this scene, refused by its bound); now each side is summed directly, and the bake passes its bounds
     (α in [0, 1], c₀ = mean re/α in [0, 1]) with α saturated."""
-    from hairlut.scene import scene_maps_recipe
+    from hairlut.planner import scene_maps_recipe
     from hairlut.scenemaps import load_scene_maps
 
     sc = _scene(extinction=extinction)

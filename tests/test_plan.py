@@ -9,8 +9,9 @@ from click.testing import CliRunner
 
 from tests._synth_fixtures import scene as base_scene
 from hairlut import errors
-from hairlut.cache import entries
-from hairlut.scene import bake, find_assets, grid_coverage, plan, resolve_scene, scene_sectors
+from hairlut.bake.cache import entries
+from hairlut.scene import grid_coverage, resolve_scene, scene_sectors
+from hairlut.planner import bake, find_assets, plan
 from hairlut.shtables._bake import band_truncation_error, specular_band_rule
 from hairlut_cli.main import cli
 
@@ -52,7 +53,7 @@ def test_zero_ks_bakes_no_rs_and_zero_kd_no_rd(tmp_path):
 
 @pytest.mark.parametrize("p_exp", [9.0, 49.0, 100.0])
 def test_exponent_sets_light_bands_and_reports_truncation(tmp_path, p_exp):
-    from hairlut.scene import environment_bands
+    from hairlut.planner import environment_bands
 
     p = plan(scene({"map": "sky"}, p_I=p_exp), tmp_path)
     sh = p.step("sh_tables")

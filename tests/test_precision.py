@@ -100,8 +100,7 @@ def _map_index(C=1, s_t=2, G=2, s_u=2, K=2, n_t=4, n_u=4, k=3, neighbours=True):
 
 def _sweep_tables(kind: str):
     """Real cluster tables (the sweep kernels take dicts of spline pieces; their keys come from the package)."""
-    from hairlut.geometry import ClusterGeometry, ClusterSpec
-    from hairlut.geometry import sweep as sw
+    from hairlut.geometry import ClusterGeometry, ClusterSpec, sweep as sw
 
     spec = ClusterSpec([[0.0, 1.0, 0.0], [0.05, 0.5, 0.1], [0.1, 0.0, 0.1], [0.1, -0.5, 0.2]], [0.3, 0.5, 0.4],
                        [0.2, 0.3], [0.0, 1.0])
@@ -238,13 +237,13 @@ KERNELS = {
                                A(16, dtype=i32)), dict(lmax_d=3, lmax_s=3)))
         for dt in (f64, f32)],
     # online module
-    "hairlut.synth._direct:direct_kernel": [(False, lambda s=s: _direct_args(s)) for s in (False, "grid", "march")]
+    "hairlut.march._direct:direct_kernel": [(False, lambda s=s: _direct_args(s)) for s in (False, "grid", "march")]
     + [(False, lambda: _direct_args("march", shade=False))],
-    "hairlut.synth._viewgrid:view_grid_kernel": [
+    "hairlut.march._viewgrid:view_grid_kernel": [
         (False, lambda s=s: ((A(4, 8, 8), A(4, 11), A(2), A(3), A(4)),
                              dict(n_pix=8, n_steps=16, rays=1, shadow=s, smooth=True, block=2)))
         for s in (False, True)],
-    "hairlut.synth._viewgrid:bake_grid_kernel": [
+    "hairlut.march._viewgrid:bake_grid_kernel": [
         (False, lambda m=m, s=s: ((A(4, 8, 8), A(4, 11), A(m * m, 16) if m else A(1, 1), A(1), A(3), A(4)),
                                   dict(n_views=4, n_pix=8, n_steps=16, rays=1, m=m, shade_rays=0, shade_steps=0,
                                        shadow=s, smooth=True, bins=2)))
@@ -276,7 +275,7 @@ KERNELS = {
 
 # Jitted callables that are not kernels of their own, and why they need no entry.
 NOT_KERNELS = {
-    "hairlut.distributed:_kernel": "jit(fn) of a caller's module-level kernel (hrir's trace_kernel, listed above)",
+    "hairlut.bake.devices:_kernel": "jit(fn) of a caller's module-level kernel (hrir's trace_kernel, listed above)",
 }
 
 

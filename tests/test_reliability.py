@@ -160,7 +160,7 @@ def test_sh_bake_and_its_shards_refuse_products_that_overflow(tmp_path, shard):
 
 def test_sh_merge_refuses_a_part_holding_nan(tmp_path):
     """``bake sh_tables --shard K/N`` then ``merge``: a shard whose Rs holds NaN is refused, naming the file."""
-    from hairlut import registry
+    from hairlut.bake import registry
 
     shards = [registry.bake("sh_tables", SH_DENSE, tmp_path / f"s{k}.h5", shard=f"{k}/2", options={"block": 40})["out"]
               for k in range(2)]

@@ -1,7 +1,7 @@
 """The ``rays`` oblique law (issue 13): the direct maps traced with every ray's optical depth × 1 / sin ψ.
 
 A camera ray at angle ψ to strands parallel to the layer's tangent crosses the in-plane density over a path 1 / sin ψ
-longer, ray by ray (satf eq 4's Beer–Lambert along the camera ray).  ``hairlut.synth.direct_sector_maps(path=)``
+longer, ray by ray (satf eq 4's Beer–Lambert along the camera ray).  ``hairlut.march.direct_sector_maps(path=)``
 applies the factor per ray and step, before the rays are averaged to pixels; ``render_layered`` then skips its
 per-texel lengthening (``strand_path``: Campbell's theorem, which assumes strands at independent random positions).
 
@@ -39,9 +39,10 @@ import numpy as np
 import pytest
 
 from hairlut import errors
-from hairlut.hrir import GEOM, resolve_recipe, sector_geometry
+from hairlut.hrir import resolve_recipe
+from hairlut.march import GEOM, sector_geometry
 from hairlut.render import strand_path
-from hairlut.synth import direct_sector_maps
+from hairlut.march import direct_sector_maps
 from tests.test_direct_maps import _one_strand_sector, _random
 from tests.test_render_layered import TINY
 

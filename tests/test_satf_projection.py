@@ -11,7 +11,8 @@ import pytest
 
 from hairlut import errors
 from hairlut.geometry import sector_features
-from hairlut.hrir import GEOM, resolve_recipe, sector_geometry, sector_projections
+from hairlut.hrir import resolve_recipe, sector_projections
+from hairlut.march import GEOM, sector_geometry
 from hairlut.hrir._projection import BINS, COMPONENTS, CUMULATIVE, DIRECTIONS, SUB, fit_projection, profile
 
 from .test_direct_maps import _one_strand_sector
@@ -125,7 +126,8 @@ def _scene_db(tmp_path):
     from hairlut.hrir._bake import trace_sectors
     from hairlut.hrir._io import PARAMS, assemble
     from hairlut.scene import resolve_scene
-    from hairlut.synth import prepare, scene_sector_inputs
+    from hairlut.synth import prepare
+    from hairlut.march import scene_sector_inputs
 
     from ._synth_fixtures import scene
 

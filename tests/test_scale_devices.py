@@ -7,14 +7,14 @@ import sys
 
 import pytest
 
-from hairlut import registry
+from hairlut.bake import registry
 
 from .test_distributed_bake import _assert_same_data
 
 BAKE = """
 import sys
 import jax
-from hairlut import registry
+from hairlut.bake import registry
 from tests.test_distributed_bake import split_cases
 
 kind, out = sys.argv[1], sys.argv[2]
@@ -38,8 +38,8 @@ def test_one_and_two_local_devices_bake_the_same_data(kind, tmp_path):
 
 DIST = """
 import sys
-from hairlut import registry
-from hairlut.distributed import initialize
+from hairlut.bake import registry
+from hairlut.bake.devices import initialize
 from tests.test_distributed_bake import split_cases
 
 kind, out, port, k = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
@@ -52,8 +52,8 @@ print("RANGE", *rep["unit_range"])
 
 @pytest.mark.slow
 def test_two_processes_on_loopback_bake_the_scene_table_of_one(tmp_path):
-    from hairlut.parts import parts_dir
-    from hairlut.virtual_asset import check_virtual
+    from hairlut.assets.parts import parts_dir
+    from hairlut.assets.virtual_write import check_virtual
 
     from .test_distributed_bake import _free_port, split_cases
 

@@ -9,9 +9,10 @@ import sys
 import pytest
 from click.testing import CliRunner
 
-from hairlut import errors, registry
-from hairlut.parts import parts_dir
-from hairlut.cache import is_valid
+from hairlut import errors
+from hairlut.bake import registry
+from hairlut.assets.parts import parts_dir
+from hairlut.bake.cache import is_valid
 from hairlut_cli.main import cli
 
 from .test_distributed_bake import _assert_same_data, split_cases
@@ -93,7 +94,7 @@ def test_an_interrupted_bake_resumes_to_the_same_data(kind, cases, tmp_path):
 
 KILL = """
 import os, signal, sys
-from hairlut import registry
+from hairlut.bake import registry
 from tests.test_distributed_bake import split_cases
 
 kind, out = sys.argv[1], sys.argv[2]

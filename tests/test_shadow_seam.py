@@ -9,7 +9,8 @@ import hairlut.shadows
 import hairlut.synth._shading
 from hairlut import errors
 from hairlut.geometry import Strands
-from hairlut.scene import SHADOW_METHODS, plan, resolve_scene
+from hairlut.scene import SHADOW_METHODS, resolve_scene
+from hairlut.planner import plan
 from hairlut.shadows import LIGHT_METHODS, light_transmittance
 from hairlut.synth import prepare, render, shade_lights
 

@@ -15,17 +15,15 @@ import click
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings, strategies as st
 
 from hairlut import errors
-from hairlut.assets.atomic import stale_temporaries
+from hairlut.atomic import stale_temporaries
 from hairlut.geometry import Strands, read_strands, write_strands
 from hairlut_cli.main import Group
 from hairlut_cli.strands import strands_group
 
-from .conftest import GROOMS as GROOM_DIR
-from .conftest import groom_path as groom
+from .conftest import GROOMS as GROOM_DIR, groom_path as groom
 
 needs_pxr = pytest.mark.skipif(importlib.util.find_spec("pxr") is None, reason="usd-core (pxr) is not installed; USD support is an optional extra")
 

@@ -50,7 +50,7 @@ def test_the_sweeps_reach_the_issues_ends():
 
 
 def test_every_table_kind_has_a_float16_case():
-    from hairlut import registry
+    from hairlut.bake import registry
 
     kinds = registry.kinds()
     assert kinds, "no table kinds registered"

@@ -6,7 +6,8 @@ from click.testing import CliRunner
 
 from hairlut import errors
 from hairlut.assets import read_exr, write_exr
-from hairlut.scene import bake, find_assets, plan, resolve_scene
+from hairlut.scene import resolve_scene
+from hairlut.planner import bake, find_assets, plan
 from hairlut.synth import prepare, render, synthesize
 from hairlut_cli.main import cli
 from tests.test_plan import TINY_HRIR, _write_toml, scene
@@ -103,7 +104,7 @@ def test_self_shadowed_term_is_the_quadrature_of_its_own_light(tmp_path):
     """The self-shadowed sky through the contracted tables equals the brute-force quadrature
     (hairlut.envlight.hair_radiance) of the same light bands and transmittance, b₀ (√4π × the mean
     visibility) is never negative (eq 7 sampled at every voxel), and nothing is clamped."""
-    from hairlut.scene import environment_light
+    from hairlut.planner import environment_light
 
     s = scene({"map": "sky", "self_shadow": True, "voxels": 16})
     assets = _baked(s, tmp_path)

@@ -1,4 +1,4 @@
-"""The scene table's tracer (hairlut.synth.trace_view_grid): the HRIR tracer's arrays with mirror views sharing samples.
+"""The scene table's tracer (hairlut.march.trace_view_grid): the HRIR tracer's arrays with mirror views sharing samples.
 
 Independent reference: ``hairlut.hrir.trace_sectors`` (one sector at a time, every view its own
 march and light lookups) on the same sectors, views and lights, with and without self-shadowing and
@@ -10,9 +10,10 @@ import pytest
 
 from hairlut import errors
 from hairlut.hrir import resolve_recipe, trace_sectors
-from hairlut.scene import resolve_scene, scene_maps_recipe
+from hairlut.scene import resolve_scene
+from hairlut.planner import scene_maps_recipe
 from hairlut.scenemaps import hrir_recipe, scene_inputs
-from hairlut.synth import bake_view_grid, trace_view_grid
+from hairlut.march import bake_view_grid, trace_view_grid
 
 from ._synth_fixtures import scene as base_scene
 
@@ -117,9 +118,8 @@ def test_shading_of_the_live_samples_is_the_dense_contraction(sectors):
     import jax
     import jax.numpy as jnp
 
-    from hairlut.hrir import (direct_lighting, front_to_back, grid_transmittance, light_depth_grid, march,
-                              sector_fields)
-    from hairlut.synth._viewgrid import _shade_weighted
+    from hairlut.march import direct_lighting, front_to_back, grid_transmittance, light_depth_grid, march, sector_fields
+    from hairlut.march._viewgrid import _shade_weighted
 
     dens, geom, full = sectors
     rho, g = jnp.asarray(dens[0], jnp.float32), jnp.asarray(geom[0], jnp.float32)

@@ -13,8 +13,8 @@ from ._tables import RECIPE, declare_rows, lobes_table
 from hairlut import errors
 from hairlut.assets import Axis, Variable, read_table
 from hairlut.hrir import bake, load_hrir_db
-from hairlut.parts import open_folder, part_name, parts_dir, stamp
-from hairlut.virtual_asset import check_virtual, write_virtual
+from hairlut.assets.parts import open_folder, part_name, parts_dir, stamp
+from hairlut.assets.virtual_write import check_virtual, write_virtual
 
 NT, NV = 3, 2
 

@@ -9,11 +9,10 @@ import pytest
 from click.testing import CliRunner
 
 from hairlut import errors
-from hairlut.assets import h5 as store
-from hairlut.assets import read_table, summarize
+from hairlut.assets import h5 as store, read_table, summarize
 from hairlut.assets.layout import layout
 from hairlut.hrir import bake, load_hrir_db
-from hairlut.parts import parts_dir
+from hairlut.assets.parts import parts_dir
 from hairlut_cli.main import cli
 
 SMALL = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 3, "lights": 2},

@@ -16,9 +16,10 @@ from click.testing import CliRunner
 
 from hairlut.assets import read_table, write_exr
 from hairlut.assets.h5 import disk_name
-from hairlut import registry
+from hairlut.bake import registry
 from hairlut.assets.kinds import SCHEMA
-from hairlut.scene import resolve_scene, scene_maps_recipe
+from hairlut.scene import resolve_scene
+from hairlut.planner import scene_maps_recipe
 
 from ._synth_fixtures import scene as base_scene
 

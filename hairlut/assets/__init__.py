@@ -1,6 +1,6 @@
 """The asset store: HDF5 tables and OpenEXR images, written atomically, read with validation."""
 
-from .atomic import atomic_path, atomic_write_bytes, check_writable, stale_temporaries
+from ..atomic import atomic_path, atomic_write_bytes, check_writable, stale_temporaries
 from .exr import ExrImage, ExrPart, read_exr, write_exr
 from .h5 import Axis, Table, Variable, open_table, read_table, write_table
 from .preview import encode_png, parse_slice, preview, tonemap

@@ -1,6 +1,6 @@
 """Physical bounds of a kind's tables, checked on every write: a table out of its bounds is never stored.
 
-A table kind declares its bounds where it declares itself (``hairlut.baker.Baker(bounds=...)``, one
+A table kind declares its bounds where it declares itself (``hairlut.bake.protocol.Baker(bounds=...)``, one
 :class:`Bound` a line: α in [0, 1], re ≤ α·(k_a + k_d + k_s), |Rd| ≤ 1, ...); ``register_kind`` files them
 with the kind (the kind and its shard kind alike), and :func:`hairlut.assets.write_table` calls
 :func:`check_bounds` before anything is written.  So every part of a bake, every ``--shard`` file, every

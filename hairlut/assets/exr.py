@@ -34,7 +34,7 @@ import OpenEXR
 
 from .. import errors
 from .._version import __version__
-from .atomic import FULL_ERRNOS, atomic_path
+from ..atomic import FULL_ERRNOS, atomic_path
 from .h5 import check_file
 from .recipe import canonical_json, recipe_hash
 

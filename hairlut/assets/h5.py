@@ -51,7 +51,7 @@ import numpy as np
 from .. import errors
 from .._version import __version__
 from ..files import regular_file
-from .atomic import atomic_path, ensure_space, write_bytes
+from ..atomic import atomic_path, ensure_space, write_bytes
 from .bounds import check_bounds
 from .chunks import ChunkWriter
 from .kinds import KINDS, SCHEMA, SUPPORTED_SCHEMAS

@@ -2,7 +2,7 @@
 
 ``assets`` knows no kind of its own.  A kind is declared with :func:`register_kind`
 by the module that writes it (a table kind's baker declaration, see
-:mod:`hairlut.baker`).  A reader that meets a kind nobody in this process has
+:mod:`hairlut.bake.protocol`).  A reader that meets a kind nobody in this process has
 declared yet asks the kind catalogue (:data:`CATALOGUE`, the registry module that
 lists every kind hairlut ships, one line each) once; the catalogue imports only
 the light declaration module of that kind, never a baker, so ``assets`` stays
@@ -21,7 +21,7 @@ SCHEMA = 2
 SUPPORTED_SCHEMAS = frozenset({1, 2})
 
 #: The module, named (not imported) here, whose ``declare(name)`` declares a kind hairlut ships.
-CATALOGUE = "hairlut.registry"
+CATALOGUE = "hairlut.bake.registry"
 
 
 @dataclass(frozen=True)

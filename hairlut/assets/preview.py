@@ -18,7 +18,7 @@ import h5py
 import numpy as np
 
 from .. import errors
-from .atomic import atomic_write_bytes
+from ..atomic import atomic_write_bytes
 from .exr import read_exr
 from .h5 import data_fault, layout, open_table
 

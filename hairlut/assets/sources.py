@@ -195,7 +195,7 @@ def allowed_virtual_sources(path, recipe_hash: str) -> list[Path]:
     """The part files a virtual dataset in asset ``path`` may read.
 
     The one exception to "files never reach outside themselves", for sharded bakes
-    that join their parts with an HDF5 virtual dataset (:mod:`hairlut.parts`): a
+    that join their parts with an HDF5 virtual dataset (:mod:`hairlut.assets.parts`): a
     source is allowed when it is a regular file (not a symlink) directly inside the
     folder ``<asset name>.parts/`` beside the asset (itself not a symlink), is an HDF5
     file, and its root ``recipe_hash`` attribute equals the asset's (``recipe_hash``).
@@ -255,7 +255,7 @@ def printf_escape(name: str) -> str:
 
 
 def printf_blocks(ds: h5py.Dataset, src) -> int:
-    """How many blocks a printf-style mapping of ``ds`` (``%b`` in its names: :mod:`hairlut.parts`) must read: the
+    """How many blocks a printf-style mapping of ``ds`` (``%b`` in its names: :mod:`hairlut.assets.parts`) must read: the
     blocks of its unlimited regular selection that lie wholly before the next mapping on that axis, or before the
     end of the dataset's extent, which the writer pins with one fixed mapping for the last block so that a missing
     part cannot shrink it.  (HDF5 sets the extent of such a dataset from the blocks whose files it finds.)"""
@@ -332,7 +332,7 @@ def check_sources(path, f: h5py.File, recipe_hash: str) -> Sources:
     (:func:`allowed_virtual_sources`), whatever the number of tables: each part file is stamped once
     (:func:`file_stamp`) and opened only if no earlier check in this process saw it with that stamp, then once for
     every dataset that the asset's tables read from it.  Nothing is raised here for a fault of one table's sources:
-    :func:`check_dataset` and :func:`hairlut.virtual_asset.check_virtual` name it."""
+    :func:`check_dataset` and :func:`hairlut.assets.virtual_write.check_virtual` name it."""
     path = Path(path)
     key = (f.id.id, str(path), recipe_hash)
     if key in _OPEN:

@@ -1,6 +1,6 @@
 """Virtual tables read from their parts: each part file opened once, not through HDF5's virtual mappings.
 
-A sharded bake's asset (:mod:`hairlut.virtual_asset`) keeps its tables as HDF5 virtual datasets whose row blocks live in
+A sharded bake's asset (:mod:`hairlut.assets.virtual_write`) keeps its tables as HDF5 virtual datasets whose row blocks live in
 the part files of ``<asset>.parts/``.  HDF5 reading such a table looks for every block file again, for each table
 and each read (its printf expansion); :func:`read_virtual` instead plans each table's row blocks (:func:`_plan`)
 from the parts that :func:`~.sources.check_sources` accepted and reads every table's block of a part while that
@@ -37,7 +37,7 @@ def _plan(ds: h5py.Dataset, found) -> list | None:
     rows in order and covering [0, n) once, every source a part that :func:`~.sources.check_sources` accepted
     (``found``) with a plain dataset of exactly the block's shape; None for any other layout (HDF5 then reads it).
 
-    hairlut's virtual tables (:func:`hairlut.virtual_asset._mappings`) are one printf mapping whose block ``b`` copies the
+    hairlut's virtual tables (:func:`hairlut.assets.virtual_write._mappings`) are one printf mapping whose block ``b`` copies the
     whole source dataset of part ``b`` to rows ``[b·block, (b+1)·block)`` and one fixed mapping of the last part."""
     if ds.name in found.slots:  # a part read into another's slot: refused on every path, not left to HDF5
         raise found.slots[ds.name]

@@ -25,7 +25,8 @@ TABLE = "bake: HRIRs against a 4× supersampled trace"
 
 def _inputs(recipe, n, grid, start):
     from hairlut.geometry.density import sector_density
-    from hairlut.hrir import sample_block, sector_geometry
+    from hairlut.hrir import sample_block
+    from hairlut.march import sector_geometry
 
     splats, params = sample_block(recipe, start, start + n)
     rho = sector_density(splats, tuple(grid), chunk=1)

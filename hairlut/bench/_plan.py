@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..recipes import load_toml
-from ..scene import bake, plan
+from ..planner import bake, plan
 from ._figure import Figure
 from ._parts import Context
 

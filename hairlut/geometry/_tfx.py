@@ -25,7 +25,7 @@ import struct
 
 import numpy as np
 
-from ..assets.atomic import atomic_path
+from ..atomic import atomic_path
 from ..errors import CorruptAssetError, FormatError, TruncatedAssetError, ValidationError
 from ._binio import as_f32, build, plural, read_bytes
 from .strands import Strands

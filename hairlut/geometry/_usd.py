@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..assets.atomic import atomic_path
+from ..atomic import atomic_path
 from ..errors import AssetError, CorruptAssetError, FormatError, MissingDependencyError, ValidationError
 from ..files import regular_file
 from ._binio import as_f32, build

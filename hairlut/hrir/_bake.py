@@ -4,10 +4,10 @@ Determinism: sector i is drawn as by ``sample_sectors(1, space, seed=sector_seed
 (``sample_each``: bitwise that, one block at a time), so it depends on the recipe's seed and i
 alone, never on blocks or shards; its density and its HRIRs are computed one sector at a time
 inside the jitted kernels (``chunk=1``: each sector by the one-sector program),
-spread over every local device by :func:`hairlut.distributed.map_units`, so the numbers
+spread over every local device by :func:`hairlut.bake.devices.map_units`, so the numbers
 do not depend on how sectors are grouped, nor on how many devices or processes share the
 bake.  The block loop, resume, shards, ``--distributed`` processes and the final virtual
-or copied asset are the one shard path of every kind, :mod:`hairlut.sharding`; this
+or copied asset are the one shard path of every kind, :mod:`hairlut.bake.sharding`; this
 module supplies the ``hrir_db`` pieces (:func:`bake_part`, :func:`join_parts`,
 :func:`assemble_parts`; the virtual index is ``_parts``).  A copied final file is assembled from the
 part files alone, so an interrupted and an uninterrupted bake write the same bytes
@@ -19,15 +19,16 @@ from __future__ import annotations
 import numpy as np
 
 from .. import errors
-from ..baker import parse_shard  # noqa: F401  (re-exported)
-from ..distributed import dispatch_units, free_memory
-from ..parts import parts_dir  # noqa: F401  (re-exported)
-from ..sharding import blocks_of  # noqa: F401  (re-exported)
+from ..bake.protocol import parse_shard
+from ..bake.devices import dispatch_units, free_memory
+from ..assets.parts import parts_dir
+from ..bake.sharding import blocks_of
 from ..geometry.density import sector_density
 from ..geometry.sampler import sample_each
 from ..geometry.splats import SplatBatch
-from ._geometry import sector_geometry
+from ..march import sector_geometry
 from ._io import PARAMS, assemble, concat, read_shard, storage_errors, write_shard  # noqa: F401
+from ._kind import KIND
 from ._recipe import resolve_recipe, sector_space
 from ._tracer import trace_kernel
 
@@ -110,7 +111,7 @@ def bake_part(recipe: dict, start: int, stop: int, total: int, path, **_):
     """Start baking sectors [start, stop) into the ``hrir_shard`` part ``path`` (the sharding path's unit of work).
 
     Returns the step that completes it (wait for the devices, check, write the part): the shard path calls
-    it once the next block is on the devices (:class:`hairlut.baker.Units`)."""
+    it once the next block is on the devices (:class:`hairlut.bake.protocol.Units`)."""
     finish = launch_block(recipe, start, stop)
     return lambda: write_shard(path, recipe, finish(), start, total)
 
@@ -155,34 +156,14 @@ def assemble_parts(recipe: dict, parts, out, **_):
 
 def bake(given: dict | None, out, *, shard=None, block: int | None = None, progress=None, keep_parts: bool = False,
          distributed=False, merge: str | None = None) -> dict:
-    """Bake (or resume) the HRIR-DB of a recipe into ``out`` (written atomically).
+    """Bake (or resume) the HRIR-DB of a recipe into ``out`` (written atomically): ``hairlut.bake.registry.bake``
+    of this kind, split over its sectors (:mod:`hairlut.bake.sharding`).
 
-    ``shard`` ('K/N' or (K, N)) bakes only that slice into an ``hrir_shard`` file for
-    :func:`merge`; ``distributed`` makes this process one of JAX's distributed processes
-    (``merge`` 'virtual', the default there, or 'copy'; see :mod:`hairlut.sharding`).
-    ``progress(done, total)`` is called with sector counts as blocks complete (resumed
-    blocks first).  Returns a report dict.
-    """
-    from ..sharding import run
+    ``shard`` ('K/N' or (K, N)) bakes only that slice into an ``hrir_shard`` file for ``registry.merge``;
+    ``distributed`` makes this process one of JAX's distributed processes (``merge`` 'virtual', the default
+    there, or 'copy').  ``progress(done, total)`` is called with sector counts as blocks complete (resumed
+    blocks first).  Returns a report dict."""
+    from ..bake import registry
 
-    from ._kind import BAKER
-
-    r = resolve_recipe(given)
-    block = auto_block(r, shared=bool(shard is not None or distributed)) if block is None else block
-    if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1:
-        raise errors.ValidationError("block", block, "must be an integer ≥ 1")
-    rep = run(BAKER, r, out, progress=progress, shard=shard, block=int(block), keep_parts=keep_parts,
-              distributed=distributed, merge=merge)
-    rep.update(sectors=rep["units"], sector_range=rep["unit_range"], total_sectors=rep["total_units"])
-    return rep
-
-
-def merge(shards, out) -> dict:
-    """Join ``hrir_shard`` files covering every sector of one recipe into an ``hrir_db``."""
-    from ..sharding import merge as merge_shards
-
-    from ._kind import BAKER
-
-    rep = merge_shards(BAKER, shards, out)
-    rep["sectors"] = rep["units"]
-    return rep
+    return registry.bake(KIND, given, out, progress=progress, shard=shard, distributed=distributed, merge=merge,
+                         options={"block": block, "keep_parts": keep_parts})

@@ -39,11 +39,11 @@ from .. import errors
 from ..assets import Axis, Variable, read_table, write_exr, write_table
 from ..assets.h5 import HDF5_SIGNATURE, check_file, data_fault
 from ..assets.trust import finite_fault
-from ..virtual_asset import check_virtual
+from ..assets.virtual_write import check_virtual
 from ..geometry import angle_grid as angles
 from ..geometry.features import PROJECTION, FeatureStats, PCABasis, feature_names, sector_features
 from ._kind import KIND, SHARD_KIND
-from ._march import GEOM
+from ..march import GEOM
 
 PARAMS = ("strands", "radius_rel", "spread", "clumps", "aspect", "v_inner", "radial_extent", "s_u", "phase", "profile")
 

@@ -1,4 +1,4 @@
-"""The ``hrir_db`` table kind: its declaration for :mod:`hairlut.registry` (light: no JAX).
+"""The ``hrir_db`` table kind: its declaration for :mod:`hairlut.bake.registry` (light: no JAX).
 
 The baker, reader and merge live in ``_bake`` and ``_io`` and are imported on first call.
 """
@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..baker import Baker, Bound, Option, Units, deferred
+from ..bake.protocol import Baker, Bound, Units, deferred
 from ._recipe import SCHEMA, resolve_recipe
 
 KIND = "hrir_db"
@@ -52,45 +52,14 @@ def estimate(recipe: dict) -> tuple[int, float]:
     return int(item * n * a["views"] * t["pixels"] * (a["lights"] + 1)), float(seconds)
 
 
-def _bake(recipe, out, *, progress=None, shard=None, block=None, keep_parts=False, distributed=False, merge=None):
-    from ._bake import bake
-
-    return bake(recipe, out, shard=shard, block=block, progress=progress,
-                keep_parts=keep_parts, distributed=distributed, merge=merge)
-
-
-def _count(recipe, **_):
-    return resolve_recipe(recipe)["sectors"]["count"]
-
-
-def _check(recipe, path):
-    from ._io import read_shard
-
-    read_shard(path)  # every table and attribute a part must hold (a part of an older format is baked again)
-
-
-def _budget(recipe, block, held, note=""):
-    from ..budget import check_hrir
-
-    check_hrir(recipe, block=block, held=held, note=note)
-
-
-def _load(path):
-    from ._io import load_hrir_db
-
-    return load_hrir_db(path)
-
-
-def _merge(shards, out):
-    from ._bake import merge
-
-    return merge(shards, out)
+def _part(name: str):
+    return deferred(f"{__package__}._parts", name)
 
 
 def describe(report: dict) -> list[str]:
-    lo, hi = report["sector_range"]
+    lo, hi = report["unit_range"]
     rate = report["computed"] / report["seconds"] if report["seconds"] > 0 else 0.0
-    return [f"wrote {report['out']} ({report['kind']}, sectors {lo}..{hi - 1} of {report['total_sectors']}, "
+    return [f"wrote {report['out']} ({report['kind']}, sectors {lo}..{hi - 1} of {report['total_units']}, "
             f"{report['bytes'] / 2**20:.1f} MiB) in {report['seconds']:.1f} s",
             f"  baked {report['computed']} sectors ({rate:.1f}/s), resumed {report['resumed']}"]
 
@@ -102,41 +71,26 @@ BAKER = Baker(
     required=("features", "alpha", "reflectance"),
     schema=SCHEMA,
     resolve_recipe=resolve_recipe,
-    bake=_bake,
-    load=_load,
+    bake=None,
+    load=deferred(f"{__package__}._io", "load_hrir_db"),
     estimate=estimate,
     describe=describe,
-    options=(
-        Option("block", int, None, "Sectors per resumable part (OUT.parts/); does not change the result.  Default: "
-               "32, or up to a 16th of a large bake as the device's memory allows (32 with --shard/--distributed).",
-               minimum=1),
-        Option("keep_parts", bool, False, "Keep OUT.parts/ after the final file is written."),
-    ),
     unit="sectors",
     shard_kind=SHARD_KIND,
     shard_required=("alpha", "reflectance", "density"),
     bounds=BOUNDS,
-    merge=_merge,
-    units=Units("sector", _count, deferred(f"{__package__}._bake", "bake_part"), deferred(f"{__package__}._bake", "join_parts"),
-                deferred(f"{__package__}._bake", "assemble_parts"), deferred(f"{__package__}._parts", "whole"), block=32,
-                check=_check, budget=_budget, index=deferred(f"{__package__}._parts", "part_index")),
-    help="""HRIR database: planar ray tracing of random generalized sectors (satf §5).
-
-    Resumable: finished blocks are kept in OUT.parts/; rerun the same command after an
-    interruption and it continues, writing the same bytes as an uninterrupted bake.
-    With --shard K/N it bakes the K-th of N slices into an hrir_shard file; `hairlut merge`
-    joins them into the same bytes as a one-shot bake.  Sectors are spread over every
-    local device; with --distributed each of JAX's processes bakes its share and process
-    0 writes OUT as HDF5 virtual datasets over OUT.parts/ (--merge copy: one file).
-
-    \b
-    Examples:
-      hairlut bake hrir --recipe tables/hrir-default.toml --out tables/hrir-default.h5
-      hairlut bake hrir --recipe tables/hrir-default.toml --out s0.h5 --shard 0/2
-      hairlut bake hrir --recipe tables/hrir-default.toml --out s1.h5 --shard 1/2
-      hairlut merge s0.h5 s1.h5 --out tables/hrir-default.h5
-      hairlut bake hrir --set sectors.count=64        # into the table cache (tables/)
-      hairlut bake hrir --recipe r.toml --out db.h5 --distributed \\
-          --coordinator 10.0.0.1:12355 --num-processes 2 --process-id 0   # and --process-id 1 elsewhere
-    """,
+    units=Units("sector", lambda recipe, **_: recipe["sectors"]["count"], deferred(f"{__package__}._bake", "bake_part"),
+                deferred(f"{__package__}._bake", "join_parts"), deferred(f"{__package__}._bake", "assemble_parts"),
+                _part("whole"), block=deferred(f"{__package__}._bake", "auto_block"), check=_part("check"),
+                budget=_part("budget"), index=_part("part_index"),
+                block_help="Default: 32, or up to a 16th of a large bake as the device's memory allows (32 with "
+                           "--shard/--distributed)."),
+    help="""HRIR database: planar ray tracing of random generalized sectors (satf §5).""",
+    examples=("hairlut bake hrir --recipe tables/hrir-default.toml --out tables/hrir-default.h5",
+              "hairlut bake hrir --recipe tables/hrir-default.toml --out s0.h5 --shard 0/2",
+              "hairlut bake hrir --recipe tables/hrir-default.toml --out s1.h5 --shard 1/2",
+              "hairlut merge s0.h5 s1.h5 --out tables/hrir-default.h5",
+              "hairlut bake hrir --set sectors.count=64        # into the table cache (tables/)",
+              "hairlut bake hrir --recipe r.toml --out db.h5 --distributed \\",
+              "    --coordinator 10.0.0.1:12355 --num-processes 2 --process-id 0   # and --process-id 1 elsewhere"),
 )

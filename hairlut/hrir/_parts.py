@@ -5,7 +5,7 @@ stores the feature index (satf §5.2): every sector's features and their normali
 process computes its own parts' features as it indexes them (:func:`part_index`), in the same
 globally aligned chunks as the whole database's (``_io.FEATURE_CHUNK``), so they are bit for bit
 the copied asset's; the leader assembling the asset opens no part and reads no density grid
-(:mod:`hairlut.sharding`): :func:`whole` joins the features in sector order and fits their
+(:mod:`hairlut.bake.sharding`): :func:`whole` joins the features in sector order and fits their
 normalisation, work that grows with the sectors only by a few numbers each.  The projection
 index (a PCA over every sector's projection profiles) still needs each part's density grid and
 geometry, which its index then carries.
@@ -21,7 +21,7 @@ from ..assets.layout import layout
 from ..geometry.features import PROJECTION, feature_names, sector_features
 from ._io import FEATURE_CHUNK, _index, _read, _row_areas
 from ._kind import SHARD_KIND
-from ._march import GEOM
+from ..march import GEOM
 
 STORAGE = ("alpha", "reflectance")  # the tables whose storage error (float16 rounding) a part records
 
@@ -77,3 +77,18 @@ def whole(recipe: dict, parts, index=None, **_):
     data = {"density": np.concatenate([d["density"] for d in small]),
             "geometry": np.concatenate([d["geometry"] for d in small]), "errors": errs}
     return _index(recipe, data, len(data["density"]))
+
+
+def check(recipe: dict, path) -> None:
+    """Refuse a part that lacks a table or attribute a part must hold (a part of an older format is baked again)."""
+    from ._io import read_shard
+
+    read_shard(path)
+
+
+def budget(recipe: dict, block: int, held: int, note: str = "") -> None:
+    """Refuse a bake whose process would trace ``block`` sectors at a time and hold ``held`` sectors' tables beyond
+    the memory budget (:func:`hairlut.budget.check_hrir`)."""
+    from ..budget import check_hrir
+
+    check_hrir(recipe, block=block, held=held, note=note)

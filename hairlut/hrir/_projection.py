@@ -5,7 +5,7 @@ of a real groom holds a few thin strands at arbitrary positions, which those thr
 not pin down.  What a lookup must match is the record's α row (eq 4), and α at view θ is the
 line integral of the sector's density, α = 1 − exp(−σ_t ∫ρ ds) (eq 5 in closed form).  So the
 ``projection`` feature set measures that directly, with the tracer's own march
-(``hairlut.hrir.march``, ``sector_fields``: the same rays as the records' α):
+(``hairlut.march.march``, ``sector_fields``: the same rays as the records' α):
 
 * **Profile.**  D = :data:`DIRECTIONS` views θ_d = π d / D, d = 0 … D − 1 (θ and θ + π give the
   same line integrals, mirrored); along each, ``bins · sub`` rays across the image line
@@ -29,7 +29,7 @@ line integral of the sector's density, α = 1 − exp(−σ_t ∫ρ ds) (eq 5 in
   components' span) over their RMS spread, so a weak component is not magnified to a strong one's weight.
 
 A scene sector gets the same features from its own density grid and geometry rows
-(``hairlut.synth.scene_sector_inputs``) through :func:`projection_features`.
+(``hairlut.march.scene_sector_inputs``) through :func:`projection_features`.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ import numpy as np
 
 from .. import errors
 from ..geometry.features import FeatureStats, PCABasis, PROJECTION
-from ._march import GEOM, march, sector_fields
+from ..march import GEOM, march, sector_fields
 
 #: Views of the projection profile over [0, π).
 DIRECTIONS = 8

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._march import GEOM
+from ..march import GEOM
 
 _G = {k: i for i, k in enumerate(GEOM)}
 

@@ -62,7 +62,7 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 
-from ._march import (GEOM, SHADOW_GRID, SIGMA_PX, direct_lighting, front_to_back, grid_transmittance, light_depth_grid, march,
+from ..march import (GEOM, SHADOW_GRID, SIGMA_PX, direct_lighting, front_to_back, grid_transmittance, light_depth_grid, march,
                      reflectance, sector_fields, smooth_matrix, to_pixels)
 
 __all__ = ["GEOM", "trace_kernel"]

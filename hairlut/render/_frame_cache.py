@@ -3,7 +3,7 @@
 A reference frame at a fixed level is a pure function of the scene (its resolved tables and its strands' geometry:
 the groom file's bytes and fit, or the clusters), the camera, the levels and the code that renders it.  A warm ``hairlut demo``
 used to render the same frames every run (about 25 s on the 2-core CPU); :func:`cached_frame` stores each one as
-``reference-<first 16 hex of its key>.exr`` in the table cache folder (``hairlut.cache.cache_dir``: ``--cache``,
+``reference-<first 16 hex of its key>.exr`` in the table cache folder (``hairlut.bake.cache.cache_dir``: ``--cache``,
 ``$HAIRLUT_CACHE`` or ``tables/``), written atomically through :func:`write_frame`, and returns it again while the
 key matches.
 
@@ -74,7 +74,7 @@ def frame_key(scene, record: dict) -> str:
 
 
 def frame_path(key: str, root=None) -> Path:
-    from ..cache import cache_dir
+    from ..bake.cache import cache_dir
 
     return cache_dir(root) / f"{PREFIX}{key[:16]}.exr"
 

@@ -152,7 +152,7 @@ def sector_paths(cam, prepared) -> tuple[np.ndarray, np.ndarray]:
     ``hairlut.synth.sector_tangents``) and (S, L) for each of the scene's lights (1 / sin ψ_l against the same
     tangent, capped at :data:`MAX_PATH`).  ``hairlut.synth.render(path=, light_path=)`` multiplies every traced ray's
     optical depth by them before the rays are averaged to pixels (satf eq 4 along the camera ray: exact for strands
-    parallel to the tangent, whatever their arrangement in the cross-section; ``hairlut.synth._direct``)."""
+    parallel to the tangent, whatever their arrangement in the cross-section; ``hairlut.march._direct``)."""
     from ..synth import sector_tangents
 
     tangent, position = sector_tangents(prepared.clusters)

@@ -37,7 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ..hrir import exclusive_depth
+from ..march import exclusive_depth
 from ._hits import RAYS, Queue, batch_rows, compact, near_pairs, tile_groups
 from ._light import grid_depths, grid_nodes, light_index, point_depths, shadow_grids
 from ._strands import Z_CUT, Segments, crossings

@@ -1,14 +1,11 @@
-"""Scenes and the planner: what a scene holds, what it needs baked, and why.
+"""Scenes: what a scene holds, decided before anything is baked.
 
 ``load_scene`` / ``resolve_scene`` validate a scene file or mapping into a :class:`Scene`
 (clusters or a groom, camera, lights, material, effects, environment light, shadows,
-tables); ``scene_clusters`` builds its clusters and strands (satf §3).  ``plan(scene)``
-decides, from geometry alone and before anything is baked, the smallest set of tables
-the scene needs, what the cache already holds and what online work it skips, each
-decision a :class:`Step` with its reason; ``bake(plan)`` carries a plan out through the
-cache and ``find_assets(scene)`` finds a scene's baked tables.  The planner never imports
-the online module (``hairlut.synth``), which builds on this package.  NumPy and JAX load
-on first use of a name.
+tables); ``scene_clusters`` builds its clusters and strands (satf §3), and
+``scene_sectors`` measures their sectors.  The camera is ``Camera`` / ``make_camera``.
+This package reads ``hairlut.geometry`` only; the planner (``hairlut.planner``) and
+everything else build on it.  NumPy and JAX load on first use of a name.
 """
 
 from .._lazy import lazy_exports
@@ -21,11 +18,6 @@ _LAZY = {
     "frame_bytes": "_camera", "make_camera": "_camera",
     "MARGIN": "_sectors", "SceneSectors": "_sectors", "grid_coverage": "_sectors", "restricted_space": "_sectors",
     "scene_sectors": "_sectors",
-    "Plan": "_planner", "Step": "_planner", "bake": "_planner", "environment_light": "_lighting",
-    "environment_bands": "_lighting", "reference_light": "_lighting", "REFERENCE_BANDS": "_envbands",
-    "window_factors": "_envbands", "window_coeffs": "_envbands",
-    "find_assets": "_planner", "scene_assets": "_planner", "plan": "_planner", "sh_bands": "_lighting", "sh_recipe": "_lighting",
-    "direct_recipe": "_planner", "map_method": "_planner", "scene_maps_recipe": "_planner",
 }
 
 __all__ = sorted(_LAZY)

@@ -343,8 +343,8 @@ def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -
                                              f"agree across clusters ({specs[0].structure()})")
     budget.check_scene(cfg, len(specs) if specs else cfg["groom"]["clusters"],
                        specs[0].n_layers if specs else len(cfg["groom"]["layer_radii"]), len(lights),
-                       structure=("clusters[0]", specs[0].s_t, specs[0].s_u) if specs else
-                       ("groom", cfg["groom"]["s_t"], cfg["groom"]["s_u"]))
+                       structure=("clusters[0]", specs[0].s_t, specs[0].s_u, _D) if specs else
+                       ("groom", cfg["groom"]["s_t"], cfg["groom"]["s_u"], _D))
     return Scene(cfg, specs, seeds, gpath, view, lights, np.asarray(cols, np.float64), source,
                  {**given, **({"clusters": clusters} if clusters is not None else {"groom": groom})})
 

@@ -2,13 +2,13 @@
 
 **Bake.**  The scene's sectors (its clusters in order, each cluster's sectors in the sector table's
 order: the order ``hairlut.synth.prepare`` concatenates them in) become tracer inputs by
-``hairlut.synth.scene_sector_inputs`` (the metric extent the texels read).  Every non-empty sector
+``hairlut.march.scene_sector_inputs`` (the metric extent the texels read).  Every non-empty sector
 is traced on V views θv,i = 2πi/V and L lights θl,j = 2πj/L (satf eqs 4–5; float32) by
-``hairlut.synth.bake_view_grid``, which computes only what is stored: α on views 0 … V/2 − 1 (through
+``hairlut.march.bake_view_grid``, which computes only what is stored: α on views 0 … V/2 − 1 (through
 the recipe's ``alpha_grid`` Cartesian resampling, one matrix product for every view, or with
 alpha_grid 0 the tracer's own march) and the per-bin α and re on the kept views (the tracer's march
 with ``shade_rays`` and ``shade_steps``).  With alpha_grid, shade_rays and shade_steps 0 these are
-``hairlut.synth.trace_view_grid``'s (``hairlut.hrir.trace_sectors``') arrays to float32 rounding,
+``hairlut.march.trace_view_grid``'s (``hairlut.hrir.trace_sectors``') arrays to float32 rounding,
 binned (:func:`compress` takes that reference path's full arrays); then, in float64:
 
 * **α** (N, V/2, P): views 0 … V/2 − 1; the others by the mirror symmetry
@@ -35,7 +35,7 @@ import numpy as np
 
 from .. import errors
 from ..assets import read_table
-from ..virtual_asset import check_virtual
+from ..assets.virtual_write import check_virtual
 from ._kind import KIND
 from ._recipe import hrir_recipe
 
@@ -70,7 +70,7 @@ def scene_inputs(scene, recipe: dict) -> tuple[np.ndarray, np.ndarray]:
     (prepare's order), for the recipe's density grid and trace settings."""
     from ..geometry import ClusterGeometry, build_sectors
     from ..scene import as_scene, scene_clusters
-    from ..synth import scene_sector_inputs
+    from ..march import scene_sector_inputs
 
     full = hrir_recipe(recipe)
     dens, geom = [], []

@@ -1,4 +1,4 @@
-"""The ``scene_maps`` table kind: its declaration for :mod:`hairlut.registry` (light: no JAX).
+"""The ``scene_maps`` table kind: its declaration for :mod:`hairlut.bake.registry` (light: no JAX).
 
 The scene is a keyed input: ``resolve_recipe(given, scene=...)`` folds its groom's geometry key
 into the recipe (the cache key), and ``bake(recipe, out, scene=...)`` traces its sectors.  On the
@@ -7,7 +7,7 @@ command line ``--scene`` is the scene's TOML file.
 
 from __future__ import annotations
 
-from ..baker import Baker, Bound, Option, Units, deferred
+from ..bake.protocol import Baker, Bound, Option, Units, deferred
 from ..hrir import phong_sum
 from ._recipe import SCHEMA, hrir_recipe, resolve_recipe
 
@@ -15,7 +15,7 @@ KIND = "scene_maps"
 SHARD_KIND = "scene_shard"
 #: Table rows (non-empty sectors) per resumable part (``OUT.parts/``).
 BLOCK = 64
-#: Throughputs of the bake (``hairlut.synth.bake_view_grid``), measured on 64 of the paper model's sectors
+#: Throughputs of the bake (``hairlut.march.bake_view_grid``), measured on 64 of the paper model's sectors
 #: (benchmarks/scene_layouts.py --paper-subset, idle 2-core CPU, 0dd2ae1): re/α shading samples (kept view · light
 #: · lane · step, self-shadowed; the dense count, of which the bake shades the live ones, 30 % on that model, so
 #: thinner grooms bake faster than this says) per CPU second, α march samples (view · lane · step, V/2 views) per
@@ -69,30 +69,16 @@ def _load_scene(value, recipe, options):
     return as_scene(value)
 
 
-def _bake(recipe, out, *, progress=None, shard=None, scene=None, block=None, keep_parts=False, distributed=False,
-          merge=None):
-    from ._parts import bake
-
-    return bake(recipe, out, progress=progress, shard=shard, scene=scene, block=BLOCK if block is None else block,
-                keep_parts=keep_parts, distributed=distributed, merge=merge)
-
-
 def _part(name):
     return deferred(f"{__package__}._parts", name)
 
 
-def _load(path):
-    from ._bake import load_scene_maps
-
-    return load_scene_maps(path)
-
-
 def describe(report: dict) -> list[str]:
     t = report["recipe"]["table"]
-    lo, hi = report["row_range"]
-    rows = f"rows {lo}..{hi - 1} of {report['live']}, " if report["kind"] == SHARD_KIND else ""
+    lo, hi = report["unit_range"]
+    rows = f"rows {lo}..{hi - 1} of {report['total_units']}, " if report["kind"] == SHARD_KIND else ""
     return [f"wrote {report['out']} ({report['kind']}, {rows}{report['bytes'] / 2**20:.1f} MiB) in {report['seconds']:.1f} s",
-            f"  {report['live']} of {report['sectors']} sectors are table rows: traced {report['computed']}, resumed "
+            f"  {report['total_units']} of {report['sectors']} sectors are table rows: traced {report['computed']}, resumed "
             f"{report['resumed']}, on {t['views']} views × {t['lights']} lights; {2 * t['terms'] + 1} ratio terms × "
             f"{t['shading_pixels']} bins ({t['dtype']}) on 1 view in {t['ratio_step']}; alpha "
             + (f"through a {t['alpha_grid']}² node grid" if t["alpha_grid"] else "by the tracer's march")]
@@ -100,40 +86,32 @@ def describe(report: dict) -> list[str]:
 
 BAKER = Baker(
     kind=KIND,
-    command="scene",
+    command="scene_maps",
     description="per-groom sector projections: alpha on a view grid, re/alpha Fourier terms",
     required=("alpha", "ratio", "row"),
     schema=SCHEMA,
     resolve_recipe=resolve_recipe,
-    bake=_bake,
-    load=_load,
+    bake=None,
+    load=deferred(f"{__package__}._bake", "load_scene_maps"),
     estimate=estimate,
     describe=describe,
-    options=(Option("scene", "path", None, "The scene (TOML) whose groom the table is baked for.", load=_load_scene),
-             Option("block", int, BLOCK, "Table rows (non-empty sectors) per resumable part (OUT.parts/); does not "
-                    "change the result.", minimum=1),
-             Option("keep_parts", bool, False, "Keep OUT.parts/ after the final file is written.")),
+    options=(Option("scene", "path", None, "The scene (TOML) whose groom the table is baked for.", load=_load_scene),),
     keyed=("scene",),
     unit="sectors",
     shard_kind=SHARD_KIND,
     shard_required=("alpha", "ratio", "scene_index"),
     bounds=BOUNDS,
     units=Units("sector", _part("count"), _part("bake_part"), _part("join"), _part("assemble"), _part("whole"),
-                block=BLOCK, check=_part("check"), index=_part("part_index")),
+                block=BLOCK, check=_part("check"), index=_part("part_index"), start=_part("start"),
+                report=_part("report")),
     help="""Per-groom scene table: each sector's own projections (the `scene` map method).
 
     Traces every non-empty sector of the scene's groom on a grid of views and lights once;
     online, each sector's alpha and re rows are read at its exact angles.  Usually baked by
-    the planner (hairlut bake --scene SCENE.toml) when the scene's render.method resolves to scene.
-    Splits over its table rows like the HRIR database over sectors: resumable blocks in
-    OUT.parts/, --shard K/N and `hairlut merge`, --distributed processes (process 0 writes
-    OUT as HDF5 virtual datasets over OUT.parts/; --merge copy: one file).
-
-    \b
-    Examples:
-      hairlut bake scene --scene tables/scenes/sintel-groom.toml
-      hairlut bake scene --scene tables/scenes/sintel-groom.toml --set table.views=128
-      hairlut bake scene --scene tables/scenes/sintel-groom.toml --out s0.h5 --shard 0/2   # and 1/2; then
-      hairlut merge s0.h5 s1.h5 --out sintel-maps.h5
-    """,
+    the planner (hairlut bake --scene SCENE.toml) when the scene's render.method resolves to
+    scene; its units are the table rows (the non-empty sectors).""",
+    examples=("hairlut bake scene_maps --scene tables/scenes/sintel-groom.toml",
+              "hairlut bake scene_maps --scene tables/scenes/sintel-groom.toml --set table.views=128",
+              "hairlut bake scene_maps --scene tables/scenes/sintel-groom.toml --out s0.h5 --shard 0/2   # and 1/2; then",
+              "hairlut merge s0.h5 s1.h5 --out sintel-maps.h5"),
 )

@@ -1,4 +1,4 @@
-"""The scene table on the one shard path (:mod:`hairlut.sharding`): its table rows are the units.
+"""The scene table on the one shard path (:mod:`hairlut.bake.sharding`): its table rows are the units.
 
 A unit is one non-empty sector of the scene (one table row, in ``prepare``'s order).  A part
 (``scene_shard``) holds rows [start, stop): their ``alpha`` and ``ratio`` (the storage dtype),
@@ -12,8 +12,8 @@ same data as a one-shot bake.
 
 The scene's sector inputs (:func:`hairlut.scenemaps.scene_inputs`) are built once per process and
 recipe (:func:`scene_rows`) and shared by its blocks.  Within a block, rows are traced
-(``hairlut.synth.bake_view_grid``: α on V/2 views, the re/α bins on the kept views only) :data:`MICRO` at a time on every local device
-(:func:`hairlut.distributed.map_chunks`); across processes, ``--distributed`` shares the blocks.
+(``hairlut.march.bake_view_grid``: α on V/2 views, the re/α bins on the kept views only) :data:`MICRO` at a time on every local device
+(:func:`hairlut.bake.devices.map_chunks`); across processes, ``--distributed`` shares the blocks.
 """
 
 from __future__ import annotations
@@ -24,11 +24,11 @@ from pathlib import Path
 import numpy as np
 
 from .. import errors
-from ..distributed import map_chunks
+from ..bake.devices import map_chunks
 from ..assets import Axis, Variable, open_table, read_table, recipe_hash, write_table
 from ..assets.layout import layout
 from ._bake import ratio_terms, scene_inputs
-from ._kind import BAKER, KIND, SHARD_KIND
+from ._kind import KIND, SHARD_KIND
 from ._recipe import geometry_key, hrir_recipe, resolve_recipe
 
 #: Rows per call of the tracer, dealt round-robin to the local devices (a row's numbers do not depend on it).
@@ -89,7 +89,7 @@ def _write_part(path, recipe: dict, alpha, ratio, index, start: int, total: int,
 
 def bake_part(recipe: dict, start: int, stop: int, total: int, path, scene=None, **_) -> Path:
     """Trace table rows [start, stop) of the scene and write them as the ``scene_shard`` part ``path``."""
-    from ..synth import bake_view_grid
+    from ..march import bake_view_grid
 
     density, geometry, live, sectors = scene_rows(recipe, scene)
     t, full = recipe["table"], hrir_recipe(recipe)
@@ -167,29 +167,40 @@ def assemble(recipe: dict, parts, out, **_) -> Path:
     return write_table(out, KIND, recipe, axes, per_row + variables, attrs=attrs)
 
 
-def bake(recipe, out, *, progress=None, shard=None, scene=None, block=None, keep_parts=False, distributed=False,
-         merge=None) -> dict:
-    """Trace and write the scene table of ``scene`` (its geometry key must be the recipe's) on the shard path:
-    resumable blocks of ``block`` rows in ``<out>.parts/``, ``shard`` 'K/N', ``distributed`` processes, the final
-    asset copied (``merge='copy'``) or virtual over the parts (see :mod:`hairlut.sharding`)."""
-    from ..sharding import run
+def _same_groom(recipe: dict, scene) -> None:
+    """Refuse a recipe whose geometry key is another groom's than ``scene``'s."""
+    given, key = (recipe or {}).get("geometry", {}).get("sha256"), geometry_key(scene)
+    if given and given != key:
+        raise errors.ValidationError("geometry.sha256", given, f"the recipe is for another groom "
+                                     f"(this scene's geometry key is {key[:12]}…)")
 
+
+def start(recipe: dict, shard=None, scene=None, **_) -> None:
+    """Refuse a bake without its scene, for another groom, or of a groom with no non-empty sector."""
     if scene is None:
         scene_rows(recipe, None)  # the error that asks for the scene
-    r = resolve_recipe(recipe, scene=scene) if not recipe.get("geometry", {}).get("sha256") else resolve_recipe(recipe)
-    key = geometry_key(scene)
-    if r["geometry"]["sha256"] != key:
-        raise errors.ValidationError("geometry.sha256", r["geometry"]["sha256"], f"the recipe is for another groom "
-                                     f"(this scene's geometry key is {key[:12]}…)")
-    t0 = time.perf_counter()
-    if count(r, scene) == 0:
+    _same_groom(recipe, scene)
+    if count(recipe, scene) == 0:
         raise errors.ValidationError("scene", str(getattr(scene, "path", "") or "scene"), "its groom has no non-empty "
                                      "sector: there is nothing to tabulate")
-    rep = run(BAKER, r, out, progress=progress, shard=shard, block=block, keep_parts=keep_parts, distributed=distributed,
-              merge=merge, scene=scene)
+
+
+def report(recipe: dict, rep: dict, **_) -> dict:
+    """The table's own facts for the bake report: its recipe, every sector of the groom (``sectors``; the rows are
+    the non-empty ones, ``total_units``) and the mirror symmetry's error."""
     with open_table(rep["out"]) as f:
         attrs = {k: f.attrs[k] for k in ("sectors", "mirror_error") if k in f.attrs}
-    rep.update(recipe=r, seconds=time.perf_counter() - t0, sectors=int(attrs.get("sectors", 0)),
-               live=rep["total_units"], rows=rep["units"], row_range=rep["unit_range"],
-               mirror_error=float(attrs.get("mirror_error", 0.0)))
-    return rep
+    return {"recipe": recipe, "sectors": int(attrs.get("sectors", 0)), "mirror_error": float(attrs.get("mirror_error", 0.0))}
+
+
+def bake(recipe, out, *, progress=None, shard=None, scene=None, block=None, keep_parts=False, distributed=False,
+         merge=None) -> dict:
+    """Trace and write the scene table of ``scene`` (``hairlut.bake.registry.bake`` of this kind): resumable blocks
+    of ``block`` rows in ``<out>.parts/``, ``shard`` 'K/N', ``distributed`` processes, the final asset copied
+    (``merge='copy'``) or virtual over the parts (see :mod:`hairlut.bake.sharding`)."""
+    from ..bake import registry
+
+    if scene is not None:
+        _same_groom(recipe, scene)  # before the registry folds the scene's key into the recipe
+    return registry.bake(KIND, recipe, out, progress=progress, shard=shard, distributed=distributed, merge=merge,
+                         options={"block": block, "keep_parts": keep_parts}, scene=scene)

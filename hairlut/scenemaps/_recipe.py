@@ -10,9 +10,9 @@ A recipe is ``{"hrir": {...}, "table": {...}, "geometry": {...}}``:
   terms are kept on every ratio_step-th view: V / ratio_step of them; on Sintel 32 of 64 views cost re
   0.139 → 0.144 for half the ratio's bytes, ``benchmarks/scene_layouts.py``), ``shading_pixels``
   Q (pixel bins of the ratio, a divisor of trace.pixels), ``dtype`` (float16 or float32), and how the
-  bake computes them (``hairlut.synth.bake_view_grid``): ``alpha_grid`` m (α projected through an m × m
+  bake computes them (``hairlut.march.bake_view_grid``): ``alpha_grid`` m (α projected through an m × m
   Cartesian resampling of each sector's density, one matrix product for every view; 0: the tracer's
-  own march per view, ``hairlut.synth.trace_view_grid``, the reference), ``shade_rays`` and
+  own march per view, ``hairlut.march.trace_view_grid``, the reference), ``shade_rays`` and
   ``shade_steps`` (the re/α march's rays per pixel and steps; 0: the trace's; with alpha_grid 0 the
   trace's always);
 * ``geometry``: ``sha256``, the groom's identity (:func:`geometry_key`), folded in from the keyed

@@ -1,6 +1,6 @@
 """Exact SH convolution tables for Kajiya–Kay hair under environment light (xing §4).
 
-``BAKER`` is the kind's declaration for :mod:`hairlut.registry`; ``bake(recipe, out,
+``BAKER`` is the kind's declaration for :mod:`hairlut.bake.registry`; ``bake(recipe, out,
 light=...)`` writes an ``sh_tables`` asset, ``compute`` (alias ``bake_sh``) returns the
 tables in memory, ``load_sh_tables`` / ``SHTables.load`` read one.  Importing the package
 loads the declaration only (no JAX); the rest loads on first use of one of its names.

@@ -7,11 +7,11 @@ Gaunt tensor.  Dense Rd/Rs on cube-map tangents and a θ′ grid are optional,
 for shaders that want textures.
 
 The dense tables (Rd, Rs and, with a light, Cd, Cs at each cube-map tangent t) are the
-bake's units: :mod:`hairlut.sharding` splits them over ``t`` into resumable parts,
+bake's units: :mod:`hairlut.bake.sharding` splits them over ``t`` into resumable parts,
 ``--shard K/N`` slices and ``--distributed`` processes.  Each tangent is computed inside
 one fixed micro-chunk of :data:`MICRO` tangents (chunk c holds tangents [c·MICRO,
 (c+1)·MICRO), whatever the block, shard or process), by one executable spread over the
-local devices (:func:`hairlut.distributed.map_units`), so its numbers do not depend on how
+local devices (:func:`hairlut.bake.devices.map_units`), so its numbers do not depend on how
 the bake was shared.  The compact tables are recomputed by each process (a fraction of a
 second) and memoised per recipe.
 """
@@ -28,7 +28,7 @@ import numpy as np
 
 from .. import errors
 from ..assets import canonical_json, read_table, recipe_hash
-from ..distributed import map_units
+from ..bake.devices import map_units
 from ..sh import gaunt
 from ._io import concat_parts, read_part, whole_tables, write_part, write_sh_tables, write_textures
 from ._kind import BLOCK, KIND
@@ -247,30 +247,35 @@ def whole_parts(recipe: dict, parts, **_):
     return whole_tables(tables, info, {"total": total, "theta_v": dense["theta_v"]}, light)
 
 
-def bake(recipe: dict | None, out, *, progress=None, shard=None, light=None, textures=None, block: int = BLOCK,
+def bake(recipe: dict | None, out, *, progress=None, shard=None, light=None, textures=None, block: int | None = None,
          keep_parts: bool = False, distributed=False, merge: str | None = None) -> dict:
-    """Bake a recipe into the ``sh_tables`` asset ``out`` (written atomically); the baker protocol's bake.
+    """Bake a recipe into the ``sh_tables`` asset ``out`` (written atomically): ``hairlut.bake.registry.bake`` of
+    this kind.
 
     ``light`` (an :class:`hairlut.envlight.EnvLight`) also bakes the contracted Cd/Cs; a recipe that
     names a light (its ``light`` section) needs that light.  ``textures``: also write Cd/Cs shader
     textures (EXR), which need a light and ``dense.t_resolution`` > 0.  A recipe with dense tables
-    bakes through :mod:`hairlut.sharding` over its tangents (``block`` tangents per resumable part,
+    bakes through :mod:`hairlut.bake.sharding` over its tangents (``block`` tangents per resumable part,
     ``shard`` 'K/N', ``distributed``, ``merge`` 'virtual' or 'copy'); ``progress(done, total)`` then
     counts tangents, else the two stages (tables, file)."""
-    t0 = time.perf_counter()
-    r = resolve_recipe(recipe, light)
+    from ..bake import registry
+
+    return registry.bake(KIND, recipe, out, progress=progress, shard=shard, distributed=distributed, merge=merge,
+                         options={"block": block, "keep_parts": keep_parts, "light": light, "textures": textures})
+
+
+def _check_light(r: dict, light, textures) -> None:
     if "light" in r and light is None:
         raise errors.ValidationError("light", None, "the recipe names an environment light (source sha256 "
                                      f"{str(r['light']['source_sha256'])[:16]}…): pass that light")
     if textures and (light is None or r["dense"]["t_resolution"] == 0):
         raise errors.ValidationError("textures", str(textures), "needs --light and dense.t_resolution > 0")
-    if r["dense"]["t_resolution"] > 0:
-        return _bake_split(r, out, t0, progress=progress, shard=shard, light=light, textures=textures, block=block,
-                           keep_parts=keep_parts, distributed=distributed, merge=merge)
-    for name, value in (("shard", shard), ("distributed", distributed), ("merge", merge)):
-        if value:
-            raise errors.ValidationError(name, value, "SH tables split over their dense tangent grid: set "
-                                         "dense.t_resolution > 0 (without dense tables a bake takes a second)")
+
+
+def bake_whole(r: dict, out, *, progress=None, light=None, textures=None, **_) -> dict:
+    """The bake of a recipe without dense tables (seconds: no split); ``progress`` counts its two stages."""
+    t0 = time.perf_counter()
+    _check_light(r, light, textures)
     if progress:
         progress(0, 2)
     result = compute(r, light)
@@ -282,28 +287,42 @@ def bake(recipe: dict | None, out, *, progress=None, shard=None, light=None, tex
     return _report(r, result["info"], path, t0)
 
 
-def _bake_split(r, out, t0, *, progress, shard, light, textures, block, keep_parts, distributed, merge) -> dict:
-    from ..sharding import run
-
-    from ._kind import BAKER
-
-    if isinstance(block, bool) or not isinstance(block, (int, np.integer)) or block < 1:
-        raise errors.ValidationError("block", block, "must be an integer ≥ 1")
+def start(r: dict, shard=None, light=None, textures=None, **_) -> None:
+    """Refuse a split bake's inputs before any work: a missing light, textures without one or of a shard."""
+    _check_light(r, light, textures)
     if textures and shard is not None:
         raise errors.ValidationError("textures", str(textures), "a --shard file holds a slice: write textures "
                                      "from the merged asset")
-    rep = run(BAKER, r, out, progress=progress, shard=shard, block=int(block), keep_parts=keep_parts,
-              distributed=distributed, merge=merge, light=light)
+
+
+def report(r: dict, rep: dict, light=None, textures=None, **_) -> dict:
+    """A split bake's own facts: the compact tables' bake info, and the Cd/Cs textures process 0 writes."""
     tex = None
-    if textures and (rep["process"] == 0):
+    if textures and rep["process"] == 0:
         t = read_table(rep["out"], kind=KIND)
         tex = write_textures(textures, t["light/cd"] if "light/cd" in t.variables else None,
                              t["light/cs"] if "light/cs" in t.variables else None, r["dense"]["t_resolution"],
                              light.channels, r)
     _, info = compact(r)
-    rep.update(_report(r, info, rep["out"], t0, kind=rep["kind"]), textures=None if tex is None else str(tex),
-               tangents=rep["units"], tangent_range=rep["unit_range"], total_tangents=rep["total_units"])
-    return rep
+    facts = _report(r, info, rep["out"], time.perf_counter(), kind=rep["kind"])
+    del facts["seconds"]
+    return {**facts, "textures": None if tex is None else str(tex)}
+
+
+def check_part(recipe: dict, path) -> None:
+    """Refuse a part that lacks what ``join``/``assemble``/``whole`` read (a part of an older format)."""
+    read_part(path, resolve_recipe(recipe))
+
+
+def load_checked(path):
+    """The ``sh_tables`` asset at ``path``; a virtual asset's parts are checked first (every part present and of
+    this recipe)."""
+    from ..assets.virtual_write import check_virtual
+
+    from ._tables import load_sh_tables
+
+    check_virtual(path)
+    return load_sh_tables(path)
 
 
 def _report(r: dict, info: dict, path, t0: float, kind: str = KIND) -> dict:

@@ -13,7 +13,7 @@ HDF5 layout (axes in /axes, see hairlut.assets.h5):
 ``light/a``            (light, channel)        light SH coefficients (when a light is given)
 ``light/cd``, ``light/cs``                     Cd, Cs on the dense grid (when both are present)
 
-The per-tangent tables (``t`` first) are what a bake splits (:mod:`hairlut.sharding`): an
+The per-tangent tables (``t`` first) are what a bake splits (:mod:`hairlut.bake.sharding`): an
 ``sh_shard`` file (a part in ``<out>.parts/``, or the output of ``--shard``) holds tangents
 [t_start, t_stop) of them, plus ``light/a``; a virtual ``sh_tables`` stores them as HDF5
 virtual datasets over the parts and everything else itself (:func:`whole_tables`).

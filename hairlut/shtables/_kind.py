@@ -1,4 +1,4 @@
-"""The ``sh_tables`` table kind: its declaration for :mod:`hairlut.registry` (light: no JAX).
+"""The ``sh_tables`` table kind: its declaration for :mod:`hairlut.bake.registry` (light: no JAX).
 
 The environment light is a keyed input: ``resolve_recipe(given, light=EnvLight)`` folds its
 identity into the recipe (so the cache key changes with the light) and
@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..baker import Baker, Bound, Option, Units, deferred
+from ..bake.protocol import Baker, Bound, Option, Units, deferred
 from ._recipe import SCHEMA, light_bands, resolve_recipe
 
 KIND = "sh_tables"
@@ -67,31 +67,13 @@ def load_light_option(value, recipe: dict, options: dict):
     return load_light(value, light_bands(recipe) - 1, options.get("layout") or "auto", options.get("up") or "z")
 
 
-def _bake(recipe, out, *, progress=None, shard=None, light=None, textures=None, layout=None, up=None, block=None,
-          keep_parts=False, distributed=False, merge=None):
-    from ._bake import bake
-
-    return bake(recipe, out, progress=progress, shard=shard, light=light, textures=textures,
-                block=BLOCK if block is None else block, keep_parts=keep_parts, distributed=distributed, merge=merge)
+def _bake(name: str):
+    return deferred(f"{__package__}._bake", name)
 
 
 def _count(recipe, **_):
-    n = resolve_recipe(recipe)["dense"]["t_resolution"]
-    return 6 * n * n
-
-
-def _check(recipe, path):
-    from ._io import read_part
-
-    read_part(path, resolve_recipe(recipe))
-
-
-def _load(path):
-    from ..virtual_asset import check_virtual
-    from ._tables import load_sh_tables
-
-    check_virtual(path)  # a virtual asset: every part present and of this recipe, before a read
-    return load_sh_tables(path)
+    n = recipe["dense"]["t_resolution"]
+    return 6 * n * n  # the cube map's tangents
 
 
 def describe(report: dict) -> list[str]:
@@ -118,14 +100,11 @@ BAKER = Baker(
     required=("gaunt",),
     schema=SCHEMA,
     resolve_recipe=resolve_recipe,
-    bake=_bake,
-    load=_load,
+    bake=_bake("bake_whole"),
+    load=_bake("load_checked"),
     estimate=estimate,
     describe=describe,
     options=(
-        Option("block", int, BLOCK, "Tangents per resumable part (OUT.parts/) of a bake with dense tables; does "
-               "not change the result.", minimum=1),
-        Option("keep_parts", bool, False, "Keep OUT.parts/ after the final file is written."),
         Option("p", float, None, "Shortcut for --set kernel.p=P.", sets="kernel.p"),
         Option("light", "path", None, "Environment map (.exr), sh_light table or `sky` (built-in): also bake Cd/Cs.",
                load=load_light_option),
@@ -139,25 +118,22 @@ BAKER = Baker(
     shard_kind=SHARD_KIND,
     shard_required=("dense/t_dirs",),
     bounds=BOUNDS,
-    units=Units("t", _count, *(deferred(f"{__package__}._bake", f) for f in ("bake_part", "join_parts", "assemble_parts",
-                                                                         "whole_parts")), block=BLOCK, check=_check),
+    units=Units("t", _count, *(_bake(f) for f in ("bake_part", "join_parts", "assemble_parts", "whole_parts")),
+                block=BLOCK, check=_bake("check_part"), splits=lambda recipe: recipe["dense"]["t_resolution"] > 0,
+                unsplit="SH tables split over their dense tangent grid: set dense.t_resolution > 0 (without dense "
+                        "tables a bake takes a second)", start=_bake("start"), report=_bake("report"),
+                block_help=f"Default: {BLOCK} (dense tables only)."),
     assets=((LIGHT_KIND, ("a",), "SH coefficients of an environment light (xing §4)"),),
     help="""Exact SH convolution tables Rd, Rs for Kajiya–Kay hair (xing §4).
 
     Stores the compact exact form (kernel Legendre coefficients over θ′ and the
     Gaunt tensor), optional dense Rd/Rs on cube-map tangents, and with --light
-    the contracted Cd/Cs.  A bake with dense tables (dense.t_resolution > 0) splits
-    over its tangents t like the HRIR database over sectors: resumable blocks in
-    OUT.parts/, --shard K/N and `hairlut merge`, --distributed processes (process 0
-    writes OUT as HDF5 virtual datasets over OUT.parts/; --merge copy: one file).
-
-    \b
-    Examples:
-      hairlut bake sh --recipe tables/sh-default.toml --out tables/sh.h5
-      hairlut bake sh --recipe tables/sh-paper.toml --out paper.h5 --light sky --textures paper_tex.exr
-      hairlut bake sh --out p200.h5 --p 200 --set bands.light_specular=auto
-      hairlut bake sh --p 16                     # into the table cache (tables/), reused when baked
-      hairlut bake sh --set dense.t_resolution=64 --out s0.h5 --shard 0/2   # and 1/2; then
-      hairlut merge s0.h5 s1.h5 --out sh64.h5
-    """,
+    the contracted Cd/Cs.  Only a bake with dense tables (dense.t_resolution > 0)
+    splits, over its tangents t.""",
+    examples=("hairlut bake sh --recipe tables/sh-default.toml --out tables/sh.h5",
+              "hairlut bake sh --recipe tables/sh-paper.toml --out paper.h5 --light sky --textures paper_tex.exr",
+              "hairlut bake sh --out p200.h5 --p 200 --set bands.light_specular=auto",
+              "hairlut bake sh --p 16                     # into the table cache (tables/), reused when baked",
+              "hairlut bake sh --set dense.t_resolution=64 --out s0.h5 --shard 0/2   # and 1/2; then",
+              "hairlut merge s0.h5 s1.h5 --out sh64.h5"),
 )

@@ -82,7 +82,8 @@ def step_law(geom_row, columns, view: float, density: float, n_pix: int, n_steps
 
 
 def _densities(tally, ctx):
-    from ..hrir import GEOM, disc_params, sector_geometry, trace_sectors
+    from ..hrir import trace_sectors
+    from ..march import GEOM, disc_params, sector_geometry
 
     P, K = (32, 64) if ctx.quick else (64, 512)
     r = _recipe(P, K)
@@ -128,7 +129,7 @@ def _against_loop(tally, ctx, label, rho, geom, views, lights, *, smooth: bool, 
 
 def _grazing(tally, ctx):
     from ..geometry import sample_sectors, sector_density
-    from ..hrir import sector_geometry
+    from ..march import sector_geometry
 
     n, P, K = (2, 16, 32) if ctx.quick else (6, 32, 96)
     s = sample_sectors(n, seed=7)
@@ -143,7 +144,7 @@ def _grazing(tally, ctx):
 
 def _corner(tally, ctx):
     from ..geometry import sample_sectors
-    from ..hrir import sector_geometry
+    from ..march import sector_geometry
 
     P, K = (16, 32) if ctx.quick else (32, 96)
     s = sample_sectors(2, seed=3)

@@ -80,8 +80,9 @@ def _sh(tally, ctx):
 
 
 def _scene(tally, ctx):
-    from .. import registry
-    from ..scene import resolve_scene, scene_maps_recipe
+    from ..bake import registry
+    from ..scene import resolve_scene
+    from ..planner import scene_maps_recipe
 
     sc = resolve_scene(SCENE)
     recipe = scene_maps_recipe(sc)

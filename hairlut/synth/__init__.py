@@ -24,12 +24,8 @@ _LAZY = {
     "prepare_cluster": "_synth", "render": "_synth", "render_clusters": "_synth", "synthesize": "_synth",
     "write_outputs": "_synth",
     "Shadows": "_shadowing", "prepare_shadows": "_shadowing",
-    "SHADOW_GRID": "_direct", "direct_kernel": "_direct", "direct_sector_maps": "_direct", "scene_sector_inputs": "_direct",
-    "sector_extent": "_direct",
     "geometry_index": "_frame", "params_kernel": "_frame", "sweep_sectors": "_frame",
     "MapSource": "_methods", "prepare_map_source": "_methods", "sector_tangents": "_methods",
-    "trace_view_grid": "_viewgrid", "view_grid_kernel": "_viewgrid", "bake_view_grid": "_viewgrid",
-    "bake_grid_kernel": "_viewgrid", "projection_matrix": "_viewgrid",
 }
 
 __all__ = sorted(_LAZY)

@@ -9,7 +9,7 @@ Without self-shadowing the environment is unoccluded: b = (√4π, 0, …).  Wit
 the strands' voxel SH transmittance (xing §5, ``hairlut.shadows``) at the texel's
 position.  9 coefficients cannot hold a sharp occlusion, so E can ring below 0; it is
 clamped at 0 and the clamped fraction is reported.  ``environment.window`` (hanning or lanczos)
-scales b's band l by σ_l (``hairlut.scene.window_factors``), as the planner does the light's.  E is added to each layer's shaded
+scales b's band l by σ_l (``hairlut.planner.window_factors``), as the planner does the light's.  E is added to each layer's shaded
 colour before blending (eq 13 + E, then eq 14).
 """
 
@@ -109,7 +109,7 @@ def prepare_environment(scene, sh, strands: list, tangent: np.ndarray, position:
     if env["self_shadow"]:
         b = self_transmittance(strands, np.asarray(position, np.float64), env, n)
         if env["window"] != "none":  # σ-factors against the 3-band transmittance's ringing
-            from ..scene import window_factors
+            from ..planner import window_factors
 
             sigma = np.repeat(window_factors(bands, env["window"]), 2 * np.arange(bands) + 1)
     else:

@@ -49,7 +49,7 @@ from ..geometry.density import sector_density
 from ..geometry.features import PROJECTION, sector_features
 from ..geometry.inplane import TWO_PI, azimuths, sector_axes
 from ..hrir import projection_features, query_kernel
-from ._direct import scene_sector_inputs, sector_extent
+from ..march import scene_sector_inputs, sector_extent
 
 def wrap(x):
     """Angle differences wrapped to [−π, π)."""

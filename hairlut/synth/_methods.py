@@ -22,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ._direct import direct_sector_maps, scene_sector_inputs
+from ..march import direct_sector_maps, scene_sector_inputs
 from ._frame import MapIndex, _fenced, _split, _texels, params_kernel, sweep_sectors
 
 
@@ -147,7 +147,7 @@ def prepare_map_source(scene, method: str, reason: str, tables, frames, maps=Non
     """The inputs of ``method`` (``direct`` or ``scene``) for a scene's clusters: ``tables`` their
     :class:`~hairlut.geometry.SectorTable` s and ``frames`` their ``SectorFrames`` (in prepare's order);
     ``maps`` the scene's ``scene_maps`` table (a path or a loaded one) for ``scene``."""
-    from ..scene import direct_recipe, scene_maps_recipe
+    from ..planner import direct_recipe, scene_maps_recipe
 
     n = sum(len(fr.extent) for fr in frames)
     if method == "direct":

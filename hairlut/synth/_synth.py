@@ -132,15 +132,15 @@ def _unit3(x):
 
 def _geometry_db(scene: Scene):
     """What ``sector_frames`` reads of a database, for the map methods that read none (one cheap feature)."""
-    from ..scene import direct_recipe
+    from ..planner import direct_recipe
 
     return SimpleNamespace(stats=SimpleNamespace(names=("rho_st",)), recipe=direct_recipe(scene))
 
 
 def resolve_method(scene: Scene, db=None, maps=None) -> tuple[str, str]:
-    """The map method ``prepare`` runs and why: the planner's (``hairlut.scene.map_method``), except
+    """The map method ``prepare`` runs and why: the planner's (``hairlut.planner.map_method``), except
     that ``auto`` given only an SATF database (no scene table) runs ``satf`` on it."""
-    from ..scene import map_method
+    from ..planner import map_method
 
     method, why = map_method(scene)
     if scene.config["render"]["method"] == "auto" and db is not None and maps is None and method != "satf":
@@ -305,7 +305,7 @@ def synthesize(scene, db=None, sh=None, maps=None) -> SynthResult:
     :func:`render` of :func:`prepare`.  ``scene``: a :class:`Scene`, a scene mapping or a TOML
     path; ``db``: an ``HRIRDB`` or the path of an ``hrir_db`` file; ``sh``: the ``sh_tables``
     file of the scene's environment light; ``maps``: the ``scene_maps`` table of the ``scene`` map method
-    (``hairlut.scene.find_assets`` finds them in the cache)."""
+    (``hairlut.planner.find_assets`` finds them in the cache)."""
     return render(prepare(scene, db, sh, maps))
 
 

@@ -38,7 +38,7 @@ import numpy as np
 
 from .. import errors
 from ..validate import check_int
-from ..hrir import (SHADOW_GRID, direct_lighting, fence, front_to_back, grid_transmittance, light_depth_grid, march,
+from ._march import (SHADOW_GRID, direct_lighting, fence, front_to_back, grid_transmittance, light_depth_grid, march,
                     reflectance, resolved, sample, sample_points, sector_fields, smooth_matrix, to_pixels, transmittance_at)
 from ._compact import compact
 from ._direct import _SIGMA_PX, bucket

@@ -29,7 +29,7 @@
   ``effects.shadow`` off), or a light-oriented density map / opacity shadow maps per light
   (``shadow_maps``; built per scene in ``prepare``, rebuilt when the lights change), or none.
 
-:func:`bake` carries a plan out through :mod:`hairlut.registry` (and its cache) without
+:func:`bake` carries a plan out through :mod:`hairlut.bake.registry` (and its cache) without
 naming a kind; :func:`find_assets` gives the cached assets of a scene to ``synthesize``
 without baking.  A bake's size and time are its kind's ``estimate`` (throughputs measured by
 ``benchmarks/hrir_bake.py`` and ``benchmarks/plan.py`` on the 2-core development CPU;
@@ -45,11 +45,11 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 
-from .. import budget, cache, errors, registry
+from .. import budget, errors
+from ..bake import cache, registry
 from ..assets import recipe_hash
 from ._lighting import environment_bands, environment_light, sh_recipe
-from ._schema import as_scene
-from ._sectors import SceneSectors, grid_coverage, restricted_space, scene_sectors
+from ..scene import SceneSectors, as_scene, grid_coverage, restricted_space, scene_sectors
 
 #: Voxel SH transmittance: casts (voxel · direction · step) per second (benchmarks/plan.py).
 CAST_RATE = 6.0e7

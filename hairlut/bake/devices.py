@@ -28,8 +28,8 @@ device with that device as JAX's default.
 no arguments where JAX detects the cluster itself (SLURM, Open MPI, …), or with an explicit
 coordinator ``HOST:PORT``, process count and process id.  Processes talk only through
 :func:`agree` (before a bake) and :func:`barrier`, and part with :func:`leave`; each computes its own
-share on its own devices (:mod:`hairlut.sharding`).  How they join, wait and fail is
-:mod:`hairlut.coordination`'s.
+share on its own devices (:mod:`hairlut.bake.sharding`).  How they join, wait and fail is
+:mod:`hairlut.bake.coordination`'s.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ import re
 
 import numpy as np
 
-from . import errors
+from .. import errors
 from .coordination import TIMEOUT_S, Process, active, join
 
 _ADDRESS = re.compile(r"^\[?[A-Za-z0-9_.:\-]+\]?:(\d{1,5})$")
@@ -69,7 +69,7 @@ def initialize(coordinator=None, num_processes=None, process_id=None, timeout_s:
 
     ``timeout_s``: how long to wait for a peer that has not come or has stopped answering.  ``on_fatal(message)``
     (the command line's): called instead of JAX's abort with the one line to show (None: the bake had finished),
-    and must not return; see :mod:`hairlut.coordination`."""
+    and must not return; see :mod:`hairlut.bake.coordination`."""
     check_args(coordinator, num_processes, process_id)
     join(coordinator, num_processes, process_id, timeout_s, on_fatal)
     return current()
@@ -98,7 +98,7 @@ def barrier(name: str, timeout_s: float = BARRIER_TIMEOUT_S) -> None:
     collective's first call sets up the CPU transport (gloo), whose connect times out after seconds, so a
     process that finished its share first would fail while a slower one was still baking.  In a session
     (:func:`initialize`) a dead or failed peer ends the wait with an error that names it
-    (:meth:`hairlut.coordination.Session.barrier`)."""
+    (:meth:`hairlut.bake.coordination.Session.barrier`)."""
     if current().count <= 1:
         return
     session = active()

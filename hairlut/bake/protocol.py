@@ -2,7 +2,7 @@
 
 Each table kind is one subpackage whose ``_kind.py`` builds one :class:`Baker`,
 ``BAKER``, re-exported by the subpackage and named by one line of
-:mod:`hairlut.registry`.  The declaration module stays light (no JAX): the
+:mod:`hairlut.bake.registry`.  The declaration module stays light (no JAX): the
 callables it holds import the baking code on first call.
 
 The protocol (every callable raises :mod:`hairlut.errors` exceptions naming the
@@ -22,15 +22,16 @@ field and value):
     the validated asset as the kind's in-memory object.
 ``estimate(recipe) -> (bytes, seconds)``
     the planner's size and time estimate of a bake.
-``merge(shards, out) -> dict`` (only kinds that shard)
+``merge(shards, out) -> dict`` (kinds that shard without units)
     joins ``shard_kind`` files into one asset, byte-identical to a one-shot bake.
 ``units`` (a :class:`Units`, kinds that shard)
     how the bake splits along one axis (sectors, tangents): the kind bakes and writes the
     units [start, stop) as one part file, and says how parts become the final asset.  The
-    one shard path, :mod:`hairlut.sharding`, does the rest for every such kind: resumable
+    one shard path, :mod:`hairlut.bake.sharding`, does the rest for every such kind: resumable
     blocks in ``<out>.parts/``, ``--shard K/N``, ``--distributed`` processes (each bakes its
     share), the final asset as HDF5 virtual datasets over the parts or a copy, and
-    ``merge``; a kind with ``units`` and no ``merge`` gets the generic merge.
+    ``merge``.  The registry runs it; such a kind's ``bake`` (None when every recipe splits)
+    serves only the recipes ``Units.splits`` declines.
 ``describe(report) -> list[str]``
     human-readable lines about a bake report (the CLI prints them).
 ``bounds`` (a tuple of :class:`Bound`, one line each)
@@ -48,9 +49,9 @@ import importlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
-from . import errors
-from .assets.bounds import Bound
-from .assets.kinds import register_kind
+from .. import errors
+from ..assets.bounds import Bound
+from ..assets.kinds import register_kind
 
 
 @dataclass(frozen=True)
@@ -86,7 +87,7 @@ def deferred(module: str, name: str) -> Callable:
 
 @dataclass(frozen=True)
 class Units:
-    """How a kind's bake splits along one axis of units (see :mod:`hairlut.sharding`).
+    """How a kind's bake splits along one axis of units (see :mod:`hairlut.bake.sharding`).
 
     ``count(recipe, **inputs)`` units in all (a keyed input, such as a scene, may fix the count);
     ``bake_part(recipe, start, stop, total, path, **inputs)`` bakes units [start, stop) into a ``shard_kind``
@@ -107,6 +108,16 @@ class Units:
     NumPy arrays, and then ``whole(recipe, parts, index=[...], **inputs)`` takes those instead of opening
     the parts (each process indexes its own parts as it bakes them, so the leader's assembly opens none).
     A unit's numbers must not depend on how units are grouped.
+
+    What the protocol does for every kind that declares units, so that the kind need not: the registry bakes
+    such a recipe through :func:`hairlut.bake.sharding.run` itself, the options ``block`` and ``keep_parts`` and
+    the split bake's help are added to the kind's, and the report's keys are the generic ``units``,
+    ``unit_range`` and ``total_units``.  ``block`` is the units per part, or a callable ``block(recipe,
+    shared)`` choosing it (``shared``: the bake is a ``--shard`` or a distributed one, whose processes must cut
+    the same blocks); ``block_help`` says how the default is chosen.  ``splits(recipe)`` (optional) says
+    whether a recipe bakes by units at all (else the kind's own ``bake`` runs, and ``unsplit`` says why a
+    split option is refused); ``start(recipe, shard=, **inputs)`` (optional) refuses inputs before any work;
+    ``report(recipe, report, **inputs)`` (optional) returns the kind's own facts to add to the report.
     """
 
     axis: str
@@ -115,10 +126,42 @@ class Units:
     join: Callable
     assemble: Callable
     whole: Callable
-    block: int = 32
+    block: int | Callable[[dict, bool], int] = 32
     check: Callable | None = None
     budget: Callable | None = None
     index: Callable | None = None
+    block_help: str = ""
+    splits: Callable[[dict], bool] | None = None
+    unsplit: str = ""
+    start: Callable | None = None
+    report: Callable | None = None
+
+    def default_block(self, recipe: dict, shared: bool) -> int:
+        """Units per part when none is given."""
+        return self.block(recipe, shared=shared) if callable(self.block) else self.block
+
+    def applies(self, recipe: dict) -> bool:
+        """Whether ``recipe`` bakes by units."""
+        return self.splits is None or bool(self.splits(recipe))
+
+
+#: The split bake's own options, added to every kind that declares units.
+def _split_options(units: Units, unit: str | None) -> tuple[Option, ...]:
+    default = units.block_help or f"Default: {units.block}."
+    return (Option("block", int, None, f"{(unit or units.axis).capitalize()} per resumable part (OUT.parts/); does not "
+                   f"change the result.  {default}", minimum=1),
+            Option("keep_parts", bool, False, "Keep OUT.parts/ after the final file is written."))
+
+
+#: The split bake's help, added to every kind that declares units.
+SPLIT_HELP = """
+    Split over its {unit}: finished blocks are kept in OUT.parts/, so a rerun of the same
+    command after an interruption resumes and writes the same bytes as an uninterrupted bake.
+    With --shard K/N it bakes the K-th of N slices into a {shard} file; `hairlut merge` joins
+    them into the same bytes as a one-shot bake.  Units are spread over every local device;
+    with --distributed each of JAX's processes bakes its share and process 0 writes OUT as
+    HDF5 virtual datasets over OUT.parts/ (--merge copy: one file).
+"""
 
 
 @dataclass(frozen=True)
@@ -131,7 +174,7 @@ class Baker:
     required: tuple[str, ...]
     schema: Mapping
     resolve_recipe: Callable[..., dict]
-    bake: Callable[..., dict]
+    bake: Callable[..., dict] | None
     load: Callable
     estimate: Callable[[dict], tuple[int, float]]
     describe: Callable[[dict], list] = lambda report: []
@@ -145,15 +188,22 @@ class Baker:
     help: str = ""
     units: Units | None = None
     bounds: tuple[Bound, ...] = ()
+    examples: tuple[str, ...] = ()
 
     def __post_init__(self):
         register_kind(self.kind, self.required, self.description, self.bounds)
         if self.units is not None and self.shard_kind is None:
             raise ValueError(f"{self.kind}: a kind with units needs a shard kind")
-        if self.units is not None and self.merge is None:
-            object.__setattr__(self, "merge", lambda shards, out, baker=self: _generic_merge(baker, shards, out))
+        if self.bake is None and (self.units is None or self.units.splits is not None):
+            raise ValueError(f"{self.kind}: a kind bakes by its own bake, by units, or both")
+        if self.units is not None:
+            object.__setattr__(self, "options", self.options + _split_options(self.units, self.unit))
+            object.__setattr__(self, "help", self.help.rstrip() + "\n" + SPLIT_HELP.format(
+                unit=self.unit or self.units.axis, shard=self.shard_kind) + _examples(self.examples))
+        elif self.examples:
+            object.__setattr__(self, "help", self.help.rstrip() + "\n" + _examples(self.examples))
         if self.shard_kind is not None:
-            if self.merge is None:
+            if self.merge is None and self.units is None:
                 raise ValueError(f"{self.kind}: a shard kind needs a merge")
             register_kind(self.shard_kind, self.shard_required, f"a slice of a {self.kind} bake (merge joins them)",
                           self.bounds)
@@ -165,10 +215,11 @@ class Baker:
         return self.shard_kind is not None
 
 
-def _generic_merge(baker: Baker, shards, out) -> dict:
-    from .sharding import merge
-
-    return merge(baker, shards, out)
+def _examples(lines: tuple[str, ...]) -> str:
+    """The help's example block (click keeps a paragraph after \\b as written)."""
+    if not lines:
+        return ""
+    return "\n    \b\n    Examples:\n" + "".join(f"      {line}\n" for line in lines)
 
 
 def no_shard(kind: str, shard) -> None:

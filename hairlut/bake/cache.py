@@ -8,7 +8,7 @@ lock (``fcntl.flock``) beside the asset: one bakes, the others wait and reuse
 its file.  Writes are atomic, so no reader ever sees a half-written asset.
 
 The cache knows no kind: it validates files against whatever kind their declaration
-(see :mod:`hairlut.registry`) says they hold.  :func:`hairlut.registry.ensure` is the
+(see :mod:`hairlut.bake.registry`) says they hold.  :func:`hairlut.bake.registry.ensure` is the
 cached bake of a registered kind.
 """
 
@@ -22,9 +22,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import errors
-from .assets import open_table, recipe_hash, stale_temporaries
-from .assets.kinds import KINDS, known_kinds
+from .. import errors
+from ..assets import open_table, recipe_hash, stale_temporaries
+from ..assets.kinds import KINDS, known_kinds
 
 ENV = "HAIRLUT_CACHE"
 STALE_SECONDS = 3600
@@ -61,7 +61,7 @@ class Entry:
 def _validated(path: Path, kind: str | None = None) -> dict:
     """The root attributes (text) of asset ``path`` once it validates as a table (``kind`` when given), a virtual
     one with every part it reads through to; else the :class:`~hairlut.errors.AssetError` naming the fault."""
-    from .virtual_asset import check_virtual
+    from ..assets.virtual_write import check_virtual
 
     with open_table(path, kind) as f:
         attrs = {k: (v.decode() if isinstance(v, bytes) else str(v)) for k, v in f.attrs.items()
@@ -89,8 +89,8 @@ def is_valid(path: Path, kind: str, digest: str) -> bool:
 
 @contextlib.contextmanager
 def _locked(path: Path):
-    """Hold ``<asset>.lock`` (:func:`hairlut.parts.lock_file`: flock, no symlink followed, removed on release)."""
-    from .parts import lock_file
+    """Hold ``<asset>.lock`` (:func:`hairlut.assets.parts.lock_file`: flock, no symlink followed, removed on release)."""
+    from ..assets.parts import lock_file
 
     with lock_file(path.with_name(path.name + ".lock"), "cache"):
         yield
@@ -169,7 +169,7 @@ def _leftovers(folder: Path, removed: list[Path], dry_run: bool, everything: boo
     """Lock files killed bakes left (``X.h5.lock``, ``X.h5.parts.lock[.K]``) that nobody holds, and the parts folders
     (``X.h5.parts/``, hairlut's own) of assets that are gone, when no bake of them holds a lock and (unless
     ``everything``) they are older than :data:`STALE_SECONDS` (a killed bake's parts resume it)."""
-    from .parts import MARKER, remove_folder, remove_if_unused
+    from ..assets.parts import MARKER, remove_folder, remove_if_unused
 
     if not folder.is_dir():
         return []

@@ -1,12 +1,12 @@
-"""The one shard path of every table kind that declares :class:`hairlut.baker.Units`.
+"""The one shard path of every table kind that declares :class:`hairlut.bake.protocol.Units`.
 
 A bake of ``count`` units is cut into fixed blocks of ``block`` units (the same blocks
 however the work is shared).  Each block is baked once into ``<out>.parts/`` (see
-:mod:`hairlut.parts`) and reused by a rerun when it validates against the recipe hash,
+:mod:`hairlut.assets.parts`) and reused by a rerun when it validates against the recipe hash,
 so an interrupted bake resumes and writes the same data as an uninterrupted one.
 
 Who bakes which blocks:
-- a plain bake: all of them, on every local device (:func:`hairlut.distributed.map_units`);
+- a plain bake: all of them, on every local device (:func:`hairlut.bake.devices.map_units`);
 - ``shard='K/N'``: the K-th of N contiguous runs of blocks, joined into one shard file for ``merge``;
 - ``distributed``: process K of N bakes the K-th run; after a barrier, process 0 writes the
   final asset, as HDF5 virtual datasets over the parts (``merge='virtual'``, the default:
@@ -24,15 +24,15 @@ from pathlib import Path
 
 import numpy as np
 
-from . import errors
-from .assets import canonical_json, open_table, read_table, recipe_hash
-from .baker import Baker, parse_shard
+from .. import errors
+from ..assets import canonical_json, open_table, read_table, recipe_hash
+from .protocol import Baker, parse_shard
 from .cache import is_valid
-from .distributed import Process, agree, barrier, current
-from .files import not_an_input
-from .parts import (clean_temporaries, locked, open_folder, part_name, read_share, remove_folder, share_name, stamp,
+from .devices import Process, agree, barrier, current
+from ..files import not_an_input
+from ..assets.parts import (clean_temporaries, locked, open_folder, part_name, read_share, remove_folder, share_name, stamp,
                     write_share)
-from .virtual_asset import write_virtual
+from ..assets.virtual_write import write_virtual
 
 MERGES = ("virtual", "copy")
 
@@ -98,7 +98,7 @@ def held(total: int, block: int, want: int, merge: str, shard, leader: bool) -> 
 def _bake_blocks(units, recipe: dict, todo, parts, total: int, digest: str, baker: Baker, report: dict, progress,
                  want: int, inputs: dict) -> None:
     """Bake (or resume) each block of ``todo`` into its part, the device's work on one block overlapping the
-    host's on the one before when ``bake_part`` returns its last step (see :class:`hairlut.baker.Units`).
+    host's on the one before when ``bake_part`` returns its last step (see :class:`hairlut.bake.protocol.Units`).
 
     A block's ``block_seconds`` (and ``block_cpu_seconds``) run from the later of its start and the previous
     block's completion to its own completion: with the overlap they add up to the loop's time."""
@@ -142,12 +142,38 @@ def _bake_blocks(units, recipe: dict, todo, parts, total: int, digest: str, bake
         complete(*pending)
 
 
+def bake(baker: Baker, recipe: dict, out, *, progress=None, shard=None, distributed=False, merge: str | None = None,
+         block: int | None = None, keep_parts: bool = False, **inputs) -> dict:
+    """Bake a resolved ``recipe`` of ``baker``'s kind into ``out``: by units (:func:`run`) when the kind declares
+    them and the recipe splits, else by the kind's own ``bake``, which refuses the split options."""
+    units = baker.units
+    if units is not None and units.applies(recipe):
+        if units.start is not None:
+            units.start(recipe, shard=shard, **inputs)
+        t0 = time.perf_counter()
+        report = run(baker, recipe, out, progress=progress, shard=shard, block=block, keep_parts=keep_parts,
+                     distributed=distributed, merge=merge, **inputs)
+        if units.report is not None:
+            report.update(units.report(recipe, report, **inputs))
+        report["seconds"] = time.perf_counter() - t0
+        return report
+    if units is None:  # a kind that does not split shards by its own bake (or refuses to: protocol.no_shard)
+        for name, value in (("distributed", distributed), ("merge", merge)):
+            if value:
+                raise errors.ValidationError(name, value, f"{baker.kind} bakes cannot be split across processes")
+        return baker.bake(recipe, out, progress=progress, shard=shard, **inputs)
+    for name, value in (("shard", shard), ("distributed", distributed), ("merge", merge), ("block", block)):
+        if value:
+            raise errors.ValidationError(name, value, units.unsplit)
+    return baker.bake(recipe, out, progress=progress, **inputs)
+
+
 def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: int | None = None,
         keep_parts: bool = False, distributed: bool | Process = False, merge: str | None = None, **inputs) -> dict:
     """Bake (or resume) ``recipe`` of ``baker``'s kind into ``out`` along its units; returns a report.
 
     ``progress(done, total)`` counts this process's units (resumed blocks first).  ``distributed``:
-    this process is one of JAX's distributed processes (:func:`hairlut.distributed.initialize` first).
+    this process is one of JAX's distributed processes (:func:`hairlut.bake.devices.initialize` first).
     The leader's report says how long writing the final asset took (``assemble_s``: virtual or copy); each
     computed block's wall and CPU seconds are ``block_seconds`` and ``block_cpu_seconds`` (CPU time over wall
     time: the cores the block received, which a shared machine may not give in full).
@@ -155,7 +181,7 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
     units = baker.units
     if units is None:
         raise errors.ValidationError("shard", shard, f"{baker.kind} bakes cannot be sharded")
-    block = units.block if block is None else block
+    block = units.default_block(recipe, shard is not None or bool(distributed)) if block is None else block
     if isinstance(block, bool) or not isinstance(block, int) or block < 1:
         raise errors.ValidationError("block", block, "must be an integer ≥ 1")
     proc = (distributed if isinstance(distributed, Process) else current()) if distributed else Process()
@@ -300,7 +326,7 @@ def merge(baker: Baker, shards, out) -> dict:
     if pos != total:
         raise errors.ValidationError("shards", [str(i[5]) for i in items], f"cover {baker.units.axis} 0..{pos - 1} of {total}")
     if baker.units.budget is not None:
-        baker.units.budget(recipe, baker.units.block, total, COPY_NOTE)
+        baker.units.budget(recipe, baker.units.default_block(recipe, True), total, COPY_NOTE)
     path = baker.units.assemble(recipe, [i[5] for i in items], out)
     return {"out": str(path), "shards": len(items), "units": pos, "bytes": Path(path).stat().st_size,
             "recipe_hash": digest}

@@ -1,6 +1,6 @@
 """The kind registry: every table kind hairlut bakes, one line each.
 
-``BAKERS`` maps a kind to the module whose ``BAKER`` (a :class:`hairlut.baker.Baker`)
+``BAKERS`` maps a kind to the module whose ``BAKER`` (a :class:`hairlut.bake.protocol.Baker`)
 declares it; the module is imported on first use, so ``import hairlut`` stays light
 and only the kinds in use are loaded.  Adding a table kind is one subpackage with a
 ``BAKER`` and one line here; the CLI (``hairlut bake KIND``, ``merge``, ``inspect``),
@@ -17,8 +17,8 @@ import time
 from importlib import import_module
 from pathlib import Path
 
-from . import errors
-from .baker import Baker, prepare
+from .. import errors
+from .protocol import Baker, prepare
 
 #: kind → module holding its ``BAKER``.  One line per kind.
 BAKERS: dict[str, str] = {
@@ -80,7 +80,7 @@ def for_shard_kind(shard_kind: str) -> Baker:
 
 def kind_of(path) -> str:
     """The ``kind`` attribute of a validated table file."""
-    from .assets import open_table
+    from ..assets import open_table
 
     with open_table(path) as f:
         k = f.attrs["kind"]
@@ -91,12 +91,15 @@ def merge(shards, out) -> dict:
     """Join shard files into one asset with the merge of the kind that wrote them."""
     if not shards:
         raise errors.ValidationError("shards", list(shards), "give at least one shard")
-    return for_shard_kind(kind_of(shards[0])).merge(list(shards), out)
+    from . import sharding
+
+    baker = for_shard_kind(kind_of(shards[0]))
+    return baker.merge(list(shards), out) if baker.merge is not None else sharding.merge(baker, list(shards), out)
 
 
 def describe(kind: str) -> str | None:
     """The description of an asset kind (a table, shard or other kind hairlut writes), or None."""
-    from .assets.kinds import KINDS
+    from ..assets.kinds import KINDS
 
     return KINDS[kind].description if kind in KINDS else None
 
@@ -104,15 +107,15 @@ def describe(kind: str) -> str | None:
 def ensure(kind: str, recipe: dict | None = None, root=None, progress=None, **inputs) -> tuple[Path, str]:
     """The cached asset of ``kind`` for ``recipe`` (plus keyed ``inputs``, e.g. ``light=``), baked if needed.
 
-    Returns (path, status) with status ``"reused"`` or ``"baked"``; see :mod:`hairlut.cache`."""
+    Returns (path, status) with status ``"reused"`` or ``"baked"``; see :mod:`hairlut.bake.cache`."""
     return bake_cached(kind, recipe, root=root, progress=progress, **inputs)[:2]
 
 
 def bake_cached(kind: str, recipe: dict | None = None, *, root=None, progress=None, options=None,
                 **inputs) -> tuple[Path, str, dict]:
     """:func:`ensure` with the bake report (or, when reused, a report of the cached file)."""
-    from . import cache
-    from .assets import recipe_hash
+    from ..assets import recipe_hash
+    from . import cache, sharding
 
     baker = get(kind)
     r, kwargs = prepare(baker, recipe, {**(options or {}), **inputs})
@@ -123,7 +126,7 @@ def bake_cached(kind: str, recipe: dict | None = None, *, root=None, progress=No
     t0 = time.perf_counter()
 
     def produce(path):
-        report.update(baker.bake(r, path, progress=progress, **kwargs))
+        report.update(sharding.bake(baker, r, path, progress=progress, **kwargs))
 
     path, status = cache.ensure(baker.kind, r, produce, root)
     if status == "reused":
@@ -134,15 +137,11 @@ def bake_cached(kind: str, recipe: dict | None = None, *, root=None, progress=No
 
 def bake(kind: str, recipe: dict | None, out, *, progress=None, shard=None, options=None, distributed=False,
          merge=None, **inputs) -> dict:
-    """Bake ``kind`` into ``out`` (no cache): :func:`prepare` then the baker's ``bake``.
+    """Bake ``kind`` into ``out`` (no cache): :func:`prepare`, then the split path of a kind that declares units
+    (``shard`` 'K/N'; ``distributed``: this process is one of JAX's distributed processes; ``merge`` 'virtual'
+    or 'copy'; :mod:`hairlut.bake.sharding`) or the kind's own bake."""
+    from . import sharding
 
-    ``distributed`` (this process is one of JAX's distributed processes) and ``merge`` ('virtual' or
-    'copy') go to kinds that split into units (:mod:`hairlut.sharding`)."""
     baker = get(kind)
-    if (distributed or merge is not None) and baker.units is None:
-        raise errors.ValidationError("distributed" if distributed else "merge", distributed or merge,
-                                     f"{baker.kind} bakes cannot be split across processes")
     r, kwargs = prepare(baker, recipe, {**(options or {}), **inputs})
-    if distributed or merge is not None:
-        kwargs.update(distributed=distributed, merge=merge)
-    return baker.bake(r, out, progress=progress, shard=shard, **kwargs)
+    return sharding.bake(baker, r, out, progress=progress, shard=shard, distributed=distributed, merge=merge, **kwargs)

@@ -10,7 +10,7 @@ Bakes of one output take turns on an advisory lock (``fcntl.flock`` on
 :func:`lock_file`; ``hairlut cache prune`` removes the ones killed processes left,
 :func:`remove_if_unused`).
 
-The virtual asset built over the folder is :mod:`hairlut.virtual_asset`'s.
+The virtual asset built over the folder is :mod:`hairlut.assets.virtual_write`'s.
 """
 
 from __future__ import annotations
@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import errors
-from .assets import atomic_path
-from .files import regular_file
+from .. import errors
+from . import atomic_path
+from ..files import regular_file
 
 MARKER = ".hairlut-parts"
 MARKER_TEXT = "hairlut parts folder: finished blocks of a bake; hairlut deletes only its own files here\n"

@@ -60,7 +60,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ..hrir import (GEOM, SHADOW_GRID, exclusive_depth, front_to_back, grid_transmittance, light_depth_grid, march,
+from ._march import (GEOM, SHADOW_GRID, exclusive_depth, front_to_back, grid_transmittance, light_depth_grid, march,
                     normals, phong_direct, reflectance, sector_fields, smooth_matrix, to_pixels, view_points)
 from ..validate import check_int
 
@@ -332,7 +332,8 @@ def scene_sector_inputs(table, recipe: dict, *, extent=None, n_pix: int | None =
     ``texels`` read; σ_px is rescaled with the extent, keeping its metric width.
     """
     from ..geometry.density import sector_density
-    from ..hrir import GEOM, sector_geometry
+    from ._geometry import sector_geometry
+    from ._march import GEOM
 
     try:
         grid = tuple(recipe["sectors"]["grid"])

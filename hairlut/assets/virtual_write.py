@@ -10,7 +10,7 @@ source before a reader trusts the file, by the readers' own rule
 (:func:`hairlut.assets.sources.allowed_virtual_sources`: a part inside ``<asset>.parts/``,
 no symlink, that exists and carries the asset's recipe hash), and names the fault.
 
-The parts folder itself (its files, names, locks and share indexes) is :mod:`hairlut.parts`'s; reading such an
+The parts folder itself (its files, names, locks and share indexes) is :mod:`hairlut.assets.parts`'s; reading such an
 asset's tables from its parts directly is :mod:`hairlut.assets.virtual`'s.
 """
 
@@ -24,14 +24,14 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from . import errors
-from ._version import __version__
-from .assets import Axis, Variable, atomic_path, canonical_json, open_table, recipe_hash
-from .assets.h5 import LIBVER, dims_of, disk_name
-from .assets.kinds import SCHEMA
-from .assets.layout import attr_text, layout
-from .assets.sources import check_sources, printf_escape
-from .files import not_regular, regular_file
+from .. import errors
+from .._version import __version__
+from . import Axis, Variable, atomic_path, canonical_json, open_table, recipe_hash
+from .h5 import LIBVER, dims_of, disk_name
+from .kinds import SCHEMA
+from .layout import attr_text, layout
+from .sources import check_sources, printf_escape
+from ..files import not_regular, regular_file
 from .parts import part_name, part_pattern, parts_dir
 
 ATTR = "hairlut_parts"  # root attribute of a virtual asset: its parts (JSON: folder, block, total, part count)

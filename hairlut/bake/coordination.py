@@ -44,7 +44,7 @@ import threading
 import time
 from dataclasses import dataclass
 
-from . import errors
+from .. import errors
 
 #: Seconds a process waits for a peer that has not come, or that has stopped answering (``--timeout``).
 TIMEOUT_S = 120

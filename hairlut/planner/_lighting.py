@@ -29,7 +29,7 @@ _BANDS: dict = {}
 
 def environment_bands(scene) -> dict:
     """How many light bands the scene's environment term gets and what they cost in radiance
-    (``hairlut.scene._envbands``): ``bands``, ``error`` (relative RMS against 30 bands, after
+    (``hairlut.planner._envbands``): ``bands``, ``error`` (relative RMS against 30 bands, after
     ``environment.window``), ``clamped`` (share of (tangent, θ′) samples below 0), ``rule`` (the
     paper's ⌈√p⌉ + 1) and ``rule_error``.  ``environment.bands = auto``: the fewest within
     ``environment.tolerance``; an integer is kept and measured.  None without an environment light."""

@@ -22,7 +22,7 @@ import secrets
 import tempfile
 from pathlib import Path
 
-from .. import errors
+from . import errors
 
 TMP_SUFFIX = ".tmp"
 FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
@@ -31,7 +31,7 @@ DENIED_ERRNOS = frozenset({errno.EACCES, errno.EPERM, errno.EROFS})
 
 
 def _size(n: float) -> str:
-    from ..budget import describe
+    from .budget import describe
 
     return describe(n)
 
