@@ -80,7 +80,7 @@ def test_shards_merge_to_the_one_shot_bake(tmp_path):
     shards = [bake(SMALL, tmp_path / f"s{k}.h5", block=3, shard=f"{k}/3")["out"] for k in range(3)]
     assert [read_table(s).attrs["sector_start"] for s in shards] == [0, 3, 6]
     merged = merge(shards[::-1], tmp_path / "merged.h5")
-    assert merged["sectors"] == 10
+    assert merged["units"] == 10
     assert _sha(one["out"]) == _sha(merged["out"])
     with pytest.raises(errors.AssetError):
         merge(shards[:1] + shards[2:], tmp_path / "gap.h5")

@@ -47,7 +47,7 @@ def test_scene_table_fetch_equals_the_tracer_at_grid_angles(baked):
     full = hrir_recipe(recipe)
     dens, geom = scene_inputs(sc, recipe)
     live = np.flatnonzero(maps.row >= 0)
-    assert live.size > 10 and report["live"] == live.size
+    assert live.size > 10 and report["total_units"] == live.size
     V, L = 8, 5
     a_ref, r_ref = trace_sectors(dens[live], geom[live], full, views=2 * np.pi * np.arange(V) / V,
                                  lights=2 * np.pi * np.arange(L) / L)
