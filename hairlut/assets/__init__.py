@@ -1,4 +1,11 @@
-"""The asset store: HDF5 tables and OpenEXR images, written atomically, read with validation."""
+"""The asset store: HDF5 tables and OpenEXR images, written atomically, read with validation.
+
+Tables: :func:`read_table` reads and validates a whole table into a :class:`Table` (its :class:`Axis` and
+:class:`Variable` s), :func:`open_table` opens one lazily, and :func:`write_table` writes one atomically.
+Images: :func:`read_exr` returns an :class:`ExrImage` (its :class:`ExrPart` s) and :func:`write_exr` writes
+one.  :func:`summarize` and :func:`preview` describe and draw any asset (``hairlut inspect``), and
+:func:`recipe_hash` is the content address every asset records.  The atomic writers, the kind table and the
+virtual-asset parts are wiring for the bakers, imported from their modules (and from ``hairlut.atomic``)."""
 
 from ..atomic import atomic_path, atomic_write_bytes, check_writable, stale_temporaries
 from .exr import ExrImage, ExrPart, read_exr, write_exr
@@ -10,8 +17,6 @@ from .recipe import canonical_json, recipe_hash
 from .sources import allowed_virtual_sources
 
 __all__ = [
-    "Axis", "ExrImage", "allowed_virtual_sources", "ExrPart", "KINDS", "SCHEMA", "Table", "Variable",
-    "atomic_path", "atomic_write_bytes", "canonical_json", "check_writable", "open_table", "read_exr", "read_table",
-    "recipe_hash", "register_kind", "stale_temporaries", "write_exr", "write_table",
-    "array_stats", "encode_png", "parse_slice", "preview", "sniff", "summarize", "tonemap",
+    "Axis", "ExrImage", "ExrPart", "Table", "Variable", "open_table", "preview", "read_exr", "read_table",
+    "recipe_hash", "summarize", "write_exr", "write_table",
 ]

@@ -61,6 +61,11 @@ class ExrPart:
 
 @dataclass
 class ExrImage:
+    """An EXR file as :func:`read_exr` returns it, validated: its ``parts`` (one :class:`ExrPart` each, in file
+    order), the ``recipe``, ``recipe_hash`` and ``kind`` hairlut wrote (``None`` for another writer's file),
+    ``checksum`` (``"verified"``, or why there is nothing to verify) and the further ``hairlut:<name>``
+    ``attributes``.  ``part(name)``, ``part_with(channels)`` and ``channel(name, part)`` find what a reader needs."""
+
     path: Path
     parts: list[ExrPart]
     recipe: dict | None

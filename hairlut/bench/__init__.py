@@ -4,9 +4,10 @@ Each part sweeps its quality knobs and returns :class:`Figure` s (a setting, its
 its error against the part's reference), grouped into tables that each carry one same-run
 baseline; :func:`run_bench` derives the ratios against that baseline and the Pareto front of
 time against error, then writes ``results.json`` (every figure and the :func:`machine`),
-``report.md`` and ``plots/*.png``.  :data:`PARTS` is the registry the command runs; a caller
-may pass its own (``registry=``) with parts built from :class:`Part`.
-"""
+``report.md`` and ``plots/*.png`` (on Ctrl-C, :class:`BenchInterrupted`, after a partial report).
+:data:`PARTS` is the registry the command runs and :func:`select` picks parts of it by name; a caller
+may pass its own (``registry=``) with parts built from :class:`Part`, whose runner gets a :class:`Context`.
+The studies the parts run are importable by name for ``benchmarks/``, not listed."""
 
 from __future__ import annotations
 
@@ -48,5 +49,4 @@ _LAZY = {"dense_radiance": "_sh", "hrir_bake_study": "_hrir", "radiance_inputs":
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)
 
-__all__ = [*sorted(_LAZY), "PARTS", "BenchInterrupted", "Context", "Figure", "Part", "derive", "machine", "machine_line",
-           "pareto_front", "run_bench", "select", "tables", "timed"]
+__all__ = ["BenchInterrupted", "Context", "Figure", "PARTS", "Part", "machine", "run_bench", "select"]

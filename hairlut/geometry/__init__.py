@@ -2,9 +2,15 @@
 (satf §3: frames, positions, layer meshes, HSVs and sectors), strand generation and
 assignment, sector density fields, features and the random sector sampler.
 
+:class:`Strands` are read and written by :func:`read_strands` / :func:`write_strands`.  A cluster is a
+:class:`ClusterSpec`; :class:`ClusterGeometry` sweeps specs (eqs 1–3) for :func:`generate_strands`,
+:func:`layer_meshes` (a :class:`LayerMeshes`) and :func:`build_sectors` (a :class:`SectorTable`), and
+:func:`fit_clusters` fits clusters to a groom's strands.  :func:`sector_density` grids a sector table's
+splats and :func:`sector_features` describes the grids; :func:`sample_sectors` draws random sectors
+(:class:`SampledSectors`) from a :class:`SectorSpace`.
+
 Strand I/O is imported eagerly; the cluster and density modules (which load JAX and
-SciPy) on first use of one of their names, so ``hairlut strands info`` stays light.
-"""
+SciPy) on first use of one of their names, so ``hairlut strands info`` stays light."""
 
 from .._lazy import lazy_exports
 
@@ -28,7 +34,11 @@ _LAZY = {
     "SampledSectors": "sampler", "SectorSpace": "sector_space", "groom_sectors": "sampler", "sample_sectors": "sampler",
 }
 
-__all__ = ["SUFFIXES", "Strands", "format_of", "read_strands", "write_strands", *sorted(_LAZY)]
+__all__ = [
+    "ClusterGeometry", "ClusterSpec", "LayerMeshes", "SampledSectors", "SectorSpace", "SectorTable", "Strands",
+    "build_sectors", "fit_clusters", "generate_strands", "layer_meshes", "read_strands", "sample_sectors",
+    "sector_density", "sector_features", "write_strands",
+]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

@@ -2,12 +2,14 @@
 
 One march serves three callers, which all import it from here: the HRIR database's tracer
 (``hairlut.hrir``), the scene table's view-grid bake (``hairlut.scenemaps``) and the ``direct`` map
-method of the online module (``hairlut.synth``).  ``_march`` holds the march itself (front-to-back
-compositing, eq 1's transmittance, the light-depth grid, Phong shading in the plane), ``_geometry`` a
-sector's disc geometry, ``_viewgrid`` the bake of one sector on a grid of views and lights, ``_direct``
-each sector's own density projected at an exact view, and ``_compact`` the host-side compaction of
-non-empty rows.  JAX loads on first use of a name.
-"""
+method of the online module (``hairlut.synth``).  Its entry points: :func:`sector_geometry` (the geometry
+rows of sampled sectors), :func:`trace_view_grid` (α and re of sectors on a grid of views and lights),
+:func:`bake_view_grid` (what the scene table stores, computed directly), and :func:`direct_sector_maps`
+(each sector at its own exact view and lights, from :func:`scene_sector_inputs`).  ``_march`` holds the
+march itself (front-to-back compositing, eq 1's transmittance, the light-depth grid, Phong shading in the
+plane), ``_geometry`` a sector's disc geometry, ``_viewgrid`` the view-grid bake, ``_direct`` the direct
+projection and ``_compact`` the host-side compaction of non-empty rows; the callers import their pieces by
+name.  JAX loads on first use of a name."""
 
 from .._lazy import lazy_exports
 
@@ -26,7 +28,7 @@ _LAZY = {
     "compact": "_compact", "prefix_count": "_compact",
 }
 
-__all__ = sorted(_LAZY)
+__all__ = ["bake_view_grid", "direct_sector_maps", "scene_sector_inputs", "sector_geometry", "trace_view_grid"]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

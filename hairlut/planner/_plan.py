@@ -76,6 +76,10 @@ class Step:
 
 @dataclass(frozen=True)
 class Plan:
+    """What :func:`plan` decided for ``scene``: its :class:`Step` s in order (``step(name)`` finds one) and the
+    table cache they refer to; ``to_json()`` is the plan as ``hairlut plan --json`` prints it, with the totals
+    to bake and to reuse."""
+
     scene: object
     steps: tuple
     cache_dir: str

@@ -5,9 +5,9 @@ reference, and the two compared.
 maps and rasterised in JAX (``_layered``, ``_fragments``, ``_raster``).  ``render_reference(scene)``:
 the strands as the Gaussian tubes of the sector densities, ray-marched through the camera and refined until
 converged (``_reference``, ``_strands``).  ``compare(a, b)``: RMSE, α bias, 8 × 8-block figures and FLIP
-(``_compare``).  ``write_frame``/``read_frame``: the EXR with R, G, B, A, Z and the camera (``_frame``).
-JAX loads on first use of a name.
-"""
+(``_compare``); ``layered_vs_reference(scene, out_dir)`` renders both and writes them side by side.
+Each render is a :class:`Frame`; ``write_frame``/``read_frame``: the EXR with R, G, B, A, Z and the camera
+(``_frame``).  JAX loads on first use of a name."""
 
 from .._lazy import lazy_exports
 
@@ -30,7 +30,10 @@ _LAZY = {
     "compare": "_compare", "block_average": "_compare", "side_by_side": "_compare",
 }
 
-__all__ = sorted(_LAZY)
+__all__ = [
+
+    "Frame", "compare", "layered_vs_reference", "read_frame", "render_layered", "render_reference", "write_frame",
+]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

@@ -1,12 +1,11 @@
 """Scenes: what a scene holds, decided before anything is baked.
 
-``load_scene`` / ``resolve_scene`` validate a scene file or mapping into a :class:`Scene`
+``load_scene`` / ``resolve_scene`` validate a scene file or mapping (:data:`SCHEMA`) into a :class:`Scene`
 (clusters or a groom, camera, lights, material, effects, environment light, shadows,
 tables); ``scene_clusters`` builds its clusters and strands (satf §3), and
-``scene_sectors`` measures their sectors.  The camera is ``Camera`` / ``make_camera``.
+``scene_sectors`` measures their sectors (a :class:`SceneSectors`).  The camera is ``Camera`` / ``make_camera``.
 This package reads ``hairlut.geometry`` only; the planner (``hairlut.planner``) and
-everything else build on it.  NumPy and JAX load on first use of a name.
-"""
+everything else build on it.  NumPy and JAX load on first use of a name."""
 
 from .._lazy import lazy_exports
 
@@ -20,7 +19,10 @@ _LAZY = {
     "scene_sectors": "_sectors",
 }
 
-__all__ = sorted(_LAZY)
+__all__ = [
+    "Camera", "SCHEMA", "Scene", "SceneSectors", "load_scene", "make_camera", "resolve_scene", "scene_clusters",
+    "scene_sectors",
+]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

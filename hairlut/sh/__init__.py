@@ -9,15 +9,18 @@ Convention (DESIGN.md): real, orthonormal on the unit sphere, flat index
 
 Public API:
 
-* :func:`real_sh` — the basis at directions (one jitted kernel per lmax; float32/float64);
-  :func:`real_sh_kernel` its unchecked jitted kernel and :func:`real_sh_soa` the unrolled form,
-  for use inside other kernels; :func:`check_dirs` the directions check it applies.
-* :func:`n_coeffs`, :func:`lm_index`, :func:`index_lm`, :func:`lm_arrays` — index helpers.
+* :func:`real_sh` — the basis at directions (one jitted kernel per lmax; float32/float64).
+* :func:`n_coeffs`, :func:`lm_index`, :func:`index_lm` — index helpers.
 * :func:`sphere_grid` / :class:`GaussLegendreGrid` — product quadrature exact to degree 2L.
 * :func:`project`, :func:`project_function`, :func:`evaluate` — coefficients ↔ values.
-* :func:`gaunt`, :func:`gaunt_sparse` — real Gaunt coefficients ∫ Y_i Y_j Y_k dω
-  (:func:`gaunt_quadrature`: the same before the selection rules, uncached).
-* :func:`real_sh_reference`, :func:`real_sh_scipy` — slow float64 references (tests, benchmarks).
+* :func:`gaunt`, :func:`gaunt_sparse` — real Gaunt coefficients ∫ Y_i Y_j Y_k dω.
+* :func:`real_sh_reference` — a slow float64 reference (tests, benchmarks).
+
+Wiring for other kernels and for tests, importable by name but not listed: ``real_sh_kernel`` (the unchecked
+jitted kernel behind :func:`real_sh`), ``real_sh_soa`` (its unrolled form, for use inside other kernels),
+``check_dirs`` (the directions check it applies), ``normalize_dirs``, ``lm_arrays``, ``selection_mask``,
+``gaunt_quadrature`` (the Gaunt coefficients before the selection rules, uncached) and ``real_sh_scipy``
+(a second reference, through SciPy).
 """
 
 from ._basis import (MAX_LMAX, check_dirs, index_lm, lm_arrays, lm_index, n_coeffs, normalize_dirs, real_sh,
@@ -27,24 +30,6 @@ from ._quadrature import GaussLegendreGrid, evaluate, project, project_function,
 from ._reference import real_sh_reference, real_sh_scipy
 
 __all__ = [
-    "MAX_LMAX",
-    "GaussLegendreGrid",
-    "check_dirs",
-    "evaluate",
-    "gaunt",
-    "gaunt_quadrature",
-    "gaunt_sparse",
-    "index_lm",
-    "lm_arrays",
-    "lm_index",
-    "n_coeffs",
-    "normalize_dirs",
-    "project",
-    "project_function",
-    "real_sh",
-    "real_sh_kernel",
-    "real_sh_reference",
-    "real_sh_scipy",
-    "real_sh_soa",
-    "selection_mask",
+    "GaussLegendreGrid", "evaluate", "gaunt", "gaunt_sparse", "index_lm", "lm_index", "n_coeffs", "project",
+    "project_function", "real_sh", "real_sh_reference", "sphere_grid",
 ]

@@ -1,7 +1,9 @@
-"""Volumetric self-shadowing of hair: density volumes and voxel SH transmittance (xing §5), the
-light-oriented density map (bertails) and opacity shadow maps (kim ch. 6), and
-``light_transmittance``: either of the last two per light at arbitrary points (the online
-module's shadow seam); ``ray_march``, the NumPy reference transmittance they are checked against."""
+"""Volumetric self-shadowing of hair: density volumes (:func:`voxelize`, a :class:`Volume`) and voxel
+SH transmittance (:func:`transmittance`, a :class:`Transmittance`; xing §5), the light-oriented density map
+(:func:`light_oriented_map`, a :class:`LightOrientedMap`; bertails) and opacity shadow maps
+(:func:`opacity_shadow_maps`, an :class:`OpacityMaps`; kim ch. 6), and :func:`light_transmittance`: either of
+the last two per light at arbitrary points (the online module's shadow seam); :func:`ray_march`, the NumPy
+reference transmittance they are checked against."""
 
 from ._light import light_frame
 from ._light_oriented import LightOrientedMap, light_oriented_map
@@ -11,6 +13,7 @@ from ._reference import ray_march
 from ._transmittance import Transmittance, transmittance
 from ._volume import Volume, gradient, trilinear, voxelize
 
-__all__ = ["LIGHT_METHODS", "LightOrientedMap", "OpacityMaps", "Transmittance", "Volume", "fibre_width", "gradient",
-           "light_frame", "light_oriented_map", "light_transmittance", "opacity_shadow_maps", "ray_march",
-           "transmittance", "trilinear", "voxelize"]
+__all__ = [
+    "LightOrientedMap", "OpacityMaps", "Transmittance", "Volume", "light_oriented_map", "light_transmittance",
+    "opacity_shadow_maps", "ray_march", "transmittance", "voxelize",
+]

@@ -1,10 +1,10 @@
 """Exact SH convolution tables for Kajiya–Kay hair under environment light (xing §4).
 
-``BAKER`` is the kind's declaration for :mod:`hairlut.bake.registry`; ``bake(recipe, out,
-light=...)`` writes an ``sh_tables`` asset, ``compute`` (alias ``bake_sh``) returns the
-tables in memory, ``load_sh_tables`` / ``SHTables.load`` read one.  Importing the package
-loads the declaration only (no JAX); the rest loads on first use of one of its names.
-"""
+``BAKER`` is the kind's declaration for :mod:`hairlut.bake.registry` and ``KIND`` its name;
+``resolve_recipe`` makes a recipe (:data:`SCHEMA`) explicit, ``bake(recipe, out, light=...)`` writes an
+``sh_tables`` asset, ``compute`` (alias ``bake_sh``) returns the tables in memory, and
+``load_sh_tables`` / ``SHTables.load`` read one into :class:`SHTables`.  Importing the package
+loads the declaration only (no JAX); the rest loads on first use of one of its names."""
 
 from .._lazy import lazy_exports
 
@@ -19,8 +19,7 @@ _LAZY = {
     "Bands": "_tables", "Contracted": "_tables", "SHTables": "_tables", "load_sh_tables": "_tables",
 }
 
-__all__ = ["BAKER", "BAKE_OVERHEAD", "KIND", "LIGHT_KIND", "METHOD", "SCHEMA", "bake_sh", "estimate", "full_recipe",
-           "light_identity", "resolve_recipe", "specular_band_rule", *sorted(_LAZY)]
+__all__ = ["BAKER", "KIND", "SCHEMA", "SHTables", "bake", "compute", "load_sh_tables", "resolve_recipe"]
 
 _get, __dir__ = lazy_exports(__name__, globals(), _LAZY)
 

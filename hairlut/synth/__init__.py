@@ -3,10 +3,10 @@
 ``synthesize(scene, db, sh=None)`` runs it for a scene (``hairlut.scene.load_scene`` / ``resolve_scene``)
 against an HRIR database (and the SH tables of its environment light, if it has one):
 ``render(prepare(scene, db, sh))``, where ``prepare`` does the view- and light-independent
-work (strands, sectors, features, the SATF index, texel frames, transmittance) once and
-``render`` a frame for any view and lights.  ``write_outputs`` writes one EXR and PNG per cluster.
-JAX loads on first use of a name.
-"""
+work (strands, sectors, features, the SATF index, texel frames, transmittance) once, into a
+:class:`Prepared`, and ``render`` a frame for any view and lights: a :class:`SynthResult` of one
+:class:`ClusterResult` per cluster.  ``write_outputs`` writes one EXR and PNG per cluster.
+JAX loads on first use of a name."""
 
 from .._lazy import lazy_exports
 
@@ -28,7 +28,7 @@ _LAZY = {
     "MapSource": "_methods", "prepare_map_source": "_methods", "sector_tangents": "_methods",
 }
 
-__all__ = sorted(_LAZY)
+__all__ = ["ClusterResult", "Prepared", "SynthResult", "prepare", "render", "synthesize", "write_outputs"]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

@@ -61,6 +61,10 @@ class ClusterResult:
 
 @dataclass(frozen=True, eq=False)
 class SynthResult:
+    """One synthesised frame (:func:`synthesize`, :func:`render`): the ``scene``, one :class:`ClusterResult` per
+    cluster in the scene's order, and ``stats`` (cluster, layer and HSV counts, the texture size, each
+    cluster's uniform fraction, the seconds per stage and the map method that ran)."""
+
     scene: Scene
     clusters: list
     stats: dict = field(default_factory=dict)
