@@ -45,7 +45,7 @@ def demo_cmd(out_dir, scenes, cache_root, no_progress, as_json):
     """
     from hairlut import demo
 
-    from .hrir import Bars
+    from .progress import Bars
 
     bars = Bars(not no_progress)
     report = demo.run(out_dir, list(scenes) or default_scenes(), cache_root, bars)
