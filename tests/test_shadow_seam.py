@@ -11,7 +11,7 @@ from hairlut import errors
 from hairlut.geometry import Strands
 from hairlut.scene import SHADOW_METHODS, plan, resolve_scene
 from hairlut.shadows import LIGHT_METHODS, light_transmittance
-from hairlut.synth import prepare, render, shade_lights
+from hairlut.synth import prepare, render_view, shade_lights
 
 from ._synth_fixtures import scene, synthetic_db
 
@@ -35,7 +35,7 @@ def frames(db):
     out = {}
     for method in SHADOW_METHODS:
         prep = prepare(with_shadows(method=method), db)
-        out[method] = (prep, render(prep))
+        out[method] = (prep, render_view(prep))
     return out
 
 
@@ -66,7 +66,7 @@ def test_scene_selects_each_method(frames, method):
 
 def test_smap_is_the_default_and_renders_exactly_as_before(frames, db):
     assert resolve_scene(scene()).config["shadows"]["method"] == "smap"
-    unmarked = render(prepare(scene(), db))
+    unmarked = render_view(prepare(scene(), db))
     _, explicit = frames["smap"]
     for a, b in zip(unmarked.clusters, explicit.clusters):
         for name in ("re", "alpha", "shadow", "lighting", "rgba", "final"):
@@ -159,7 +159,7 @@ def test_none_does_no_shadow_work(db, monkeypatch):
     given = with_shadows(method="none")
     given["render"]["resolution"] = [12, 6]  # a shape no other test traced, so the kernel traces afresh
     prep = prepare(given, db)
-    res = render(prep, lights=[[0.0, 1.0, 0.0]])
+    res = render_view(prep, lights=[[0.0, 1.0, 0.0]])
     assert "shadows" not in res.stats["seconds"]
     for c in res.clusters:
         np.testing.assert_array_equal(c.shadow, 1.0)
@@ -187,12 +187,12 @@ def test_plan_explains_the_shadow_method(tmp_path):
 
 def test_light_space_maps_are_rebuilt_only_when_the_lights_change(frames):
     prep, res = frames["light_oriented"]
-    again = render(prep)
+    again = render_view(prep)
     assert again.stats["seconds"]["shadows"] == prep.seconds["shadows"]  # the scene's own lights: not rebuilt
-    other = render(prep, lights=[[0.0, -1.0, 0.2]])
+    other = render_view(prep, lights=[[0.0, -1.0, 0.2]])
     assert other.clusters[0].shadow.shape[1] == 1
     assert other.stats["seconds"]["shadows"] > prep.seconds["shadows"]  # rebuilt for the new light
-    back = render(prep)  # and for the scene's own lights again
+    back = render_view(prep)  # and for the scene's own lights again
     for a, b in zip(res.clusters, back.clusters):
         np.testing.assert_allclose(a.shadow, b.shadow)
 

@@ -100,7 +100,7 @@ def describe(report: dict) -> list[str]:
 
 BAKER = Baker(
     kind=KIND,
-    command="scene",
+    command="scene_maps",
     description="per-groom sector projections: alpha on a view grid, re/alpha Fourier terms",
     required=("alpha", "ratio", "row"),
     schema=SCHEMA,
@@ -131,9 +131,9 @@ BAKER = Baker(
 
     \b
     Examples:
-      hairlut bake scene --scene tables/scenes/sintel-groom.toml
-      hairlut bake scene --scene tables/scenes/sintel-groom.toml --set table.views=128
-      hairlut bake scene --scene tables/scenes/sintel-groom.toml --out s0.h5 --shard 0/2   # and 1/2; then
+      hairlut bake scene_maps --scene tables/scenes/sintel-groom.toml
+      hairlut bake scene_maps --scene tables/scenes/sintel-groom.toml --set table.views=128
+      hairlut bake scene_maps --scene tables/scenes/sintel-groom.toml --out s0.h5 --shard 0/2   # and 1/2; then
       hairlut merge s0.h5 s1.h5 --out sintel-maps.h5
     """,
 )
