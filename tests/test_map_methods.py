@@ -133,7 +133,7 @@ def test_view_fetch_kernels_equal_the_reference_at_edge_angles():
 
 
 def test_scene_view_kernel_equals_fetch_then_sweep(baked):
-    """The scene method's one-kernel frame gives the maps of fetch_kernel's rows swept by sweep_sectors."""
+    """The scene method's one-kernel view gives the maps of fetch_kernel's rows swept by sweep_sectors."""
     import jax.numpy as jnp
 
     from hairlut.scenemaps import fetch_kernel

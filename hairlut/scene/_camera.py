@@ -28,7 +28,7 @@ the rasteriser projects and depth-sorts from it), so a float32 step at the eye's
 (``position``; ``fov``, whose fitted eye stands at radius / sin(fov/2); ``look_at``; ``extent``):
 
 - an eye so far that ε₃₂·D exceeds 1/16 of the thinnest strand's radius (``position`` 1e12 away; ``fov`` 1e-6,
-  which fits the eye 1e8 radii away): the reference would lose the strands and the rasteriser the depth order;
+  which fits the eye 1e8 radii away): the strand render would lose the strands and the rasteriser the depth order;
 - a pixel at the nearest hair narrower than 16 such steps (``extent`` 1e-30): neither could place an edge in it.
 
 A frame that is legal but catches no hair (``extent`` 1e30 or ``fov`` 179.9999, where the hair shrinks below a

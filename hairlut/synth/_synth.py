@@ -168,7 +168,7 @@ def prepare_cluster(scene: Scene, db, spec, strands) -> PreparedCluster:
 
 
 def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
-    """Everything of a scene that does not depend on the view or the lights (see :func:`render`);
+    """Everything of a scene that does not depend on the view or the lights (see :func:`render_view`);
     ``db``: the ``hrir_db`` the ``satf`` map method reads; ``sh``: the ``sh_tables`` file of the scene's
     environment light, when it has one; ``maps``: the ``scene_maps`` table the ``scene`` method reads.
     The method is :func:`resolve_method`'s; ``direct`` reads no table."""
