@@ -48,8 +48,10 @@ def demo_cmd(out_dir, scenes, cache_root, no_progress, as_json):
     from .progress import Bars
 
     bars = Bars(not no_progress)
-    report = demo.run(out_dir, list(scenes) or default_scenes(), cache_root, bars)
-    bars.close()
+    try:
+        report = demo.run(out_dir, list(scenes) or default_scenes(), cache_root, bars)
+    finally:
+        bars.close()
     if as_json:
         click.echo(json.dumps(report, indent=2, default=str))
         return
