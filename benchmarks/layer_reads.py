@@ -2,7 +2,7 @@
 camera ray crosses.  Two figures per phase count s_u, side by side:
 
 * **measured**: the layered render (``hairlut.render.render_layered``, ``direct`` maps: each sector's own density
-  projected at its exact angles) against the strand reference at level 0 (``render_reference``), mean-α bias over
+  projected at its exact angles) against the strand render at level 0 (``render_strands``), mean-α bias over
   the frame (``compare``), on a groom scene at ``--resolution`` with ``[groom] s_u`` set to each value (the fit,
   its strands and the camera stay; shadows off: α does not depend on them);
 * **geometric**: the same reads on an idealised cross-section: a uniform disc of radius 1 cut into the scene's
@@ -40,9 +40,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import save, table  # noqa: E402
 from render import with_config  # noqa: E402
 
-from hairlut.render import compare, render_layered, render_reference  # noqa: E402
+from hairlut.render import compare, render_layered, render_strands  # noqa: E402
 from hairlut.scene import load_scene  # noqa: E402
-from hairlut.synth import prepare, render  # noqa: E402
+from hairlut.synth import prepare, render_view  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -141,7 +141,7 @@ def main():
     truth = None
     if not args.no_render:
         t0 = time.perf_counter()
-        truth = render_reference(sc, levels=[0])
+        truth = render_strands(sc, levels=[0])
         print(f"reference level 0: {time.perf_counter() - t0:.0f} s")
     rows = []
     for s_u in args.su:
@@ -156,7 +156,7 @@ def main():
                 f = render_layered(layered, camera=truth.camera, prepared=prep)
                 figs = compare(f, truth, flip=True)[0]
                 w0, c0 = time.perf_counter(), time.process_time()
-                timing = render(prep).stats["seconds"]  # one more (warm) frame: its maps stage
+                timing = render_view(prep).stats["seconds"]  # one more (warm) frame: its maps stage
                 row.update(alpha_bias=figs["alpha_bias_relative"], alpha_rmse_8x8=figs["alpha_rmse_8x8"],
                            rgb_rmse_8x8=figs["rgb_rmse_8x8"], flip_mean=figs["flip_mean"],
                            maps_s=timing["maps"], frame_cpu_s=time.process_time() - c0,

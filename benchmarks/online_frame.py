@@ -3,10 +3,10 @@
 Builds procedural clusters around a head-sized ring (default: the paper's human model,
 17 clusters × 3 layers, s_t = 64, s_u = 16: 52K HSVs), prepares the scene once (strands,
 sectors, features, texel frames and the SATF neighbours: the view-independent index), then
-times a frame after jit warm-up with ``hairlut.synth.render`` and with a plain NumPy
+times a frame after jit warm-up with ``hairlut.synth.render_view`` and with a plain NumPy
 implementation of the same steps (eq 7 sweep, eqs 8–11 lighting, eqs 12–14) through the
 reference lookup (``_maps.fetch``: a k-NN search per query; every sector is fetched, not only
-those of non-uniform HSVs).  ``render``'s stages: "maps" (eq 6, the SATF fetches and the eq 7
+those of non-uniform HSVs).  ``render_view``'s stages: "maps" (eq 6, the SATF fetches and the eq 7
 sweep: three kernels) and "shade" (lighting, s-map, shading and blend: one kernel).
 Then the shadow seam: the same frame for each ``[shadows] method`` (smap, light_oriented,
 opacity_maps, none); the light-space maps are built once in ``prepare`` for the scene's
@@ -35,7 +35,7 @@ from _common import save, table  # noqa: E402
 from dataclasses import replace  # noqa: E402
 
 from hairlut.scene import SHADOW_METHODS, resolve_scene, scene_clusters  # noqa: E402
-from hairlut.synth import fetch, param_distance, prepare, prepare_shadows, render, sector_angles, texels, wrap  # noqa: E402
+from hairlut.synth import fetch, param_distance, prepare, prepare_shadows, render_view, sector_angles, texels, wrap  # noqa: E402
 
 
 def model(n_clusters: int, s_t: int, s_u: int, res: int, strands: int, shadows: str = "smap") -> dict:
@@ -136,13 +136,13 @@ def shadow_methods(prep, args, runs: int = 10) -> list[dict]:
         sc = resolve_scene(model(args.clusters, args.s_t, args.s_u, args.res, args.strands, method))
         build = {}
         variant = replace(prep, scene=sc, shadows=prepare_shadows(sc, strands, points, build))
-        render(variant)  # warm-up: compiles
-        frames = [timed(lambda: render(variant)) for _ in range(runs)]
+        render_view(variant)  # warm-up: compiles
+        frames = [timed(lambda: render_view(variant)) for _ in range(runs)]
         sec = np.array([t for t, _ in frames])
         best = frames[int(np.argmin(sec))][1]
-        render(variant, lights=[[0.4, 0.9, -0.5]])  # a first relight compiles what a new map size needs
-        relit, _ = timed(lambda: render(variant, lights=[[-0.4, 0.9, 0.5]]))
-        render(variant)  # back to the scene's lights (rebuilds the maps outside the timings)
+        render_view(variant, lights=[[0.4, 0.9, -0.5]])  # a first relight compiles what a new map size needs
+        relit, _ = timed(lambda: render_view(variant, lights=[[-0.4, 0.9, 0.5]]))
+        render_view(variant)  # back to the scene's lights (rebuilds the maps outside the timings)
         rows.append({"method": method, "build_s": build.get("shadows", 0.0), "ms": 1e3 * sec.min(),
                      "median": 1e3 * float(np.median(sec)), "shade": 1e3 * best.stats["seconds"]["shade"],
                      "relit_s": relit})
@@ -187,14 +187,14 @@ def map_methods(args, runs: int = 10) -> list[dict]:
         if method == "direct":
             d = prep.maps.density
             live = d.reshape(len(d), -1).max(axis=1) > 0
-        render(prep)  # warm-up: compiles
-        frames = [cpu_timed(lambda: render(prep)) for _ in range(runs if method == "scene" else 2)]
+        render_view(prep)  # warm-up: compiles
+        frames = [cpu_timed(lambda: render_view(prep)) for _ in range(runs if method == "scene" else 2)]
         sec, cpu = (np.array([f[i] for f in frames]) for i in (0, 1))
         best = frames[int(np.argmin(sec))][2]
         extra = {}
         if method == "scene":  # the maps stage alone (params, fetch, sweep), CPU time, best of the runs
             view, lights = prep.scene.view, prep.scene.lights
-            stage = [cpu_timed(lambda: jax.block_until_ready(prep.maps.frame(prep.index, view, lights)[:2]))[1]
+            stage = [cpu_timed(lambda: jax.block_until_ready(prep.maps.view(prep.index, view, lights)[:2]))[1]
                     for _ in range(runs)]
             extra["maps_cpu"] = 1e3 * min(stage)
             nbytes, secs = BAKER.estimate(recipe, sectors=live.size, live=int(live.sum()))
@@ -267,10 +267,10 @@ def main(argv=None) -> None:
         t0 = time.perf_counter()
         prep = prepare(sc, db)
         t_prep = time.perf_counter() - t0
-    render(prep)  # warm-up: compiles
+    render_view(prep)  # warm-up: compiles
     jax_runs = []
     for _ in range(20):
-        sec, res = timed(lambda: render(prep))
+        sec, res = timed(lambda: render_view(prep))
         jax_runs.append((sec, {k: v for k, v in res.stats["seconds"].items() if k not in ("strands", "index")}))
     numpy_frame(prep)
     np_runs = []
@@ -279,7 +279,7 @@ def main(argv=None) -> None:
         np_runs.append((sec, {}))
     err = max(float(np.abs(c.final[..., :3] - r).max()) for c, r in zip(res.clusters, ref))
     rows = []
-    for name, runs in (("hairlut.synth.render (JAX)", jax_runs), ("NumPy", np_runs)):
+    for name, runs in (("hairlut.synth.render_view (JAX)", jax_runs), ("NumPy", np_runs)):
         sec = np.array([t for t, _ in runs])
         rows.append({"impl": name, "runs": len(runs), "ms": 1e3 * sec.min(), "median": 1e3 * float(np.median(sec)),
                      **{k: 1e3 * v for k, v in runs[int(np.argmin(sec))][1].items()}})

@@ -1,7 +1,7 @@
-"""The strand reference's convergence (issue 13): each level ℓ of ``hairlut.render.render_reference`` (2^ℓ × 2^ℓ
+"""The strand render's convergence (issue 13): each level ℓ of ``hairlut.render.render_strands`` (2^ℓ × 2^ℓ
 samples per pixel, 2^(ℓ+1) steps per crossing, shadows from the lights' grids at cell 4 r̄ / 2^ℓ while they are
 small, else an exact shadow ray per step) on the vendored grooms, and its change from the level before: RMSE of the
-premultiplied RGB and of α, what ``render_reference`` compares with its ``bound``.  For a bound B the reference is
+premultiplied RGB and of α, what ``render_strands`` compares with its ``bound``.  For a bound B the reference is
 converged at the first level whose change is below B, and verified when the next level's change is below B too.
 
 Per level: CPU seconds (process time) and wall seconds, where the time went (``render_level``'s stats), where the
@@ -39,7 +39,7 @@ KEY = ("scene", "resolution", "crop", "pattern", "samples_per_pixel", "steps_per
 
 
 def change(a, b) -> dict:
-    """RMSE of premultiplied RGB and of α between two (h, w, 4) frames (``render_reference``'s convergence test)."""
+    """RMSE of premultiplied RGB and of α between two (h, w, 4) frames (``render_strands``'s convergence test)."""
     return {"rgb_rmse": float(np.sqrt(np.mean((a[..., :3] - b[..., :3]) ** 2))),
             "alpha_rmse": float(np.sqrt(np.mean((a[..., 3] - b[..., 3]) ** 2)))}
 

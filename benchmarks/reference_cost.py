@@ -1,4 +1,4 @@
-"""The strand reference's cost before and after a change to ``hairlut/render/_reference.py``, in one run: the module
+"""The strand render's cost before and after a change to ``hairlut/render/_strand_march.py``, in one run: the module
 at a git revision (``--base``, default HEAD~1) is loaded beside the working tree's and both render the same frame
 (``benchmarks/reference_convergence.py``'s crop of Ratboy, shadows on, the grid pattern both), alternating, CPU
 seconds (process time) each; the images' largest difference is printed (float32 rounding expected).
@@ -32,8 +32,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def load_at(rev: str):
-    """``hairlut.render._reference`` as it was at ``rev`` (relative imports resolve in today's package)."""
-    src = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:hairlut/render/_reference.py"], check=True,
+    """``hairlut.render._strand_march`` as it was at ``rev`` (relative imports resolve in today's package)."""
+    src = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:hairlut/render/_strand_march.py"], check=True,
                          capture_output=True, text=True).stdout
     path = Path(tempfile.mkdtemp()) / "_reference_base.py"
     path.write_text(src)

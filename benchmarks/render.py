@@ -1,15 +1,15 @@
 """Camera renders: frame time against image error (issue 13), for the layered model per map method and for the
-strand-level reference at several convergence levels, on the vendored grooms.
+strand render at several convergence levels, on the vendored grooms.
 
-Per scene: the reference at each level of ``--levels`` (``hairlut.render.render_reference(levels=[ℓ])``: 2^ℓ ×
+Per scene: the strand render at each level of ``--levels`` (``hairlut.render.render_strands(levels=[ℓ])``: 2^ℓ ×
 2^ℓ samples per pixel, 2^(ℓ+1) steps per crossing); the finest is the truth every other row is compared with
 (``hairlut.render.compare``: FLIP mean, mean-α bias, RGB RMSE, RGB RMSE after 8 × 8 block averaging).  Then the
 layered model (``render_layered``) for each ``[render] method`` that can run here: ``direct`` always; ``satf``
 when the scene's hrir_db is in the table cache; ``scene`` when its scene_maps table is.  ``frame_ms``: the
-layered rasteriser's warm time (maps excluded; ``maps_ms`` beside it) or the reference level's wall time.
-Two diagnostic rows separate the causes of a layered row's error: the reference of only the strand segments inside
+layered rasteriser's warm time (maps excluded; ``maps_ms`` beside it) or the strand render level's wall time.
+Two diagnostic rows separate the causes of a layered row's error: the strand render of only the segments inside
 the sectors' volume (``hairlut.render.inside_clusters``: what the cluster fit leaves out) against the truth, and each
-layered row against that inside-only reference (what the layered model itself loses); ``direct`` also runs with the
+layered row against that inside-only strand render (what the layered model itself loses); ``direct`` also runs with the
 in-plane α as the maps give it (no 1/sin ψ lengthening).
 Also, with ``--paper``, the layered render of the paper-scale procedural model of benchmarks/online_frame.py
 (17 clusters × 3 layers, s_t = 64, s_u = 16, 64² texels per layer, direct maps) at 1024 × 1024: the frame
@@ -36,7 +36,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import save, table  # noqa: E402
 
-from hairlut.render import compare, inside_clusters, render_layered, render_reference  # noqa: E402
+from hairlut.render import compare, inside_clusters, render_layered, render_strands  # noqa: E402
 from hairlut.scene import MAP_KEYS, MAP_KNOBS, find_assets, load_scene, resolve_scene, scene_clusters  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -88,10 +88,10 @@ def run_scene(path, levels, resolution):
     refs = {}
     for lv in levels:
         t0, c0 = time.perf_counter(), time.process_time()
-        refs[lv] = render_reference(sc, levels=[lv])
+        refs[lv] = render_strands(sc, levels=[lv])
         refs[lv].info["wall_ms"] = 1e3 * (time.perf_counter() - t0)
         refs[lv].info["cpu_ms"] = 1e3 * (time.process_time() - c0)
-        print(f"  reference level {lv}: {refs[lv].info['wall_ms'] / 1e3:.1f} s")
+        print(f"  strand render level {lv}: {refs[lv].info['wall_ms'] / 1e3:.1f} s")
     truth = refs[max(levels)]
     rows = []
     for lv in levels:
@@ -99,14 +99,14 @@ def run_scene(path, levels, resolution):
         figs = compare(f, truth)[0] if lv != max(levels) else {"flip_mean": 0.0, "alpha_bias": 0.0, "rgb_rmse": 0.0,
                                                                 "rgb_rmse_8x8": 0.0, "alpha_bias_relative": 0.0}
         last = f.info["levels"][-1]
-        rows.append(row(path, f"reference L{lv}", f.info["wall_ms"], f.info["cpu_ms"], figs,
+        rows.append(row(path, f"strands L{lv}", f.info["wall_ms"], f.info["cpu_ms"], figs,
                         spp=last.get("samples_per_pixel"), steps=last.get("steps_per_crossing")))
-    # what the cluster fit leaves out: the reference of only the strand segments inside the sectors' volume
+    # what the cluster fit leaves out: the strand render of only the segments inside the sectors' volume
     t0 = time.perf_counter()
     kept, fractions = inside_clusters(scene_clusters(sc))
-    inside = render_reference(sc, camera=truth.camera, levels=[max(levels)], strands=kept)
+    inside = render_strands(sc, camera=truth.camera, levels=[max(levels)], strands=kept)
     figs = compare(inside, truth)[0]
-    rows.append(row(path, f"reference L{max(levels)}, strands inside the sectors", 1e3 * (time.perf_counter() - t0), None,
+    rows.append(row(path, f"strands L{max(levels)}, inside the sectors", 1e3 * (time.perf_counter() - t0), None,
                     figs, length_fractions=fractions))
     print(f"  strand length inside the sectors: {fractions['inside']:.1%} (beyond the trajectory's ends "
           f"{fractions['before_start'] + fractions['after_end']:.1%}, core {fractions['core']:.1%}, outside the shell "
@@ -127,7 +127,7 @@ def run_scene(path, levels, resolution):
                             maps_ms=1e3 * sec["maps"], shade_ms=1e3 * sec["shade"], triangles=f.info["triangles"],
                             total_cpu_s=cpu))
             own = compare(f, inside)[0]  # against the strands the sectors hold: the layered model's own loss
-            rows.append(row(path, f"{name} vs inside-only reference", None, None, own))
+            rows.append(row(path, f"{name} vs inside-only strands", None, None, own))
             print(f"  {name}: raster {1e3 * sec['raster']:.0f} ms, maps {1e3 * sec['maps']:.0f} ms")
     return rows
 
@@ -154,16 +154,16 @@ def paper_model(resolution: int, texels: int = 64, frames: int = 5):
     from hairlut.geometry import ClusterGeometry
     from hairlut.render import (draw_layers, draw_plan, layer_textures, layout, lengthen, oblique_path, rasterise,
                                 scene_camera)
-    from hairlut.synth import prepare, render
+    from hairlut.synth import prepare, render_view
 
     cfg = model(17, 64, 16, texels, 200)
     cfg["render"]["method"] = "direct"
     cfg["camera"]["resolution"] = [resolution, resolution]
     prep = prepare(resolve_scene(cfg, "paper-scale model"))
     t0 = time.perf_counter()
-    result = render(prep)
+    result = render_view(prep)
     maps_first = time.perf_counter() - t0
-    maps, _ = _best(lambda: render(prep), 1)
+    maps, _ = _best(lambda: render_view(prep), 1)
     cam = scene_camera(prep.scene)
     meshes, tile, origins, _ = layout(cam, ClusterGeometry([pc.spec for pc in prep.clusters]))
     tex = lengthen(layer_textures(result), oblique_path(cam, np.stack([pc.tangent for pc in prep.clusters]),
@@ -191,7 +191,7 @@ def paper_model(resolution: int, texels: int = 64, frames: int = 5):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", action="append", help="scene files (default: the Sintel and ratboy grooms)")
-    ap.add_argument("--levels", type=int, nargs="+", default=[0, 1, 2], help="reference levels (the last is truth)")
+    ap.add_argument("--levels", type=int, nargs="+", default=[0, 1, 2], help="strand render levels (the last is truth)")
     ap.add_argument("--resolution", type=int, default=None, help="square frame side (default: the scene's camera)")
     ap.add_argument("--paper", action="store_true", help="also the paper-scale model at 1024 × 1024")
     ap.add_argument("--quick", action="store_true", help="256 × 256, levels 0 1")

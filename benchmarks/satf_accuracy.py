@@ -99,7 +99,7 @@ def lookup_rows(tmp: Path, sizes, n_test: int):
 
 def uniformity_rows(db_path: Path):
     from hairlut.scene import load_scene, resolve_scene
-    from hairlut.synth import prepare, render
+    from hairlut.synth import prepare, render_view
     from hairlut.recipes import load_toml
 
     scene_file = ROOT / "tables" / "scenes" / "two-clusters.toml"
@@ -109,8 +109,8 @@ def uniformity_rows(db_path: Path):
                       ("always one fetch (k_threshold = ∞)", float("inf"))):
         given = {**base, "material": {**base.get("material", {}), "k_threshold": thr}}
         prepared = prepare(resolve_scene(given, scene_file.parent, source=str(scene_file)), str(db_path))
-        render(prepared)
-        sec, res = best_of(lambda: render(prepared), repeat=3)
+        render_view(prepared)
+        sec, res = best_of(lambda: render_view(prepared), repeat=3)
         results[name] = (sec, res)
     ref = results["always two fetches (k_threshold = 0)"][1]
     rows = []

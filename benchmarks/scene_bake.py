@@ -5,7 +5,7 @@
 Builds the paper model of ``online_frame.py`` (17 clusters × 3 layers, s_t = 64, s_u = 16: 53,040 sectors, 400
 strands per cluster) as a scene whose ``render.method`` is ``scene``, and bakes its ``scene_maps`` table the way a
 user on this machine would: ``--processes`` shard processes (``hairlut.scenemaps.bake(..., shard="K/N")``, what
-``hairlut bake scene --shard K/N`` runs; each pinned to its own core unless ``--no-pin``), then
+``hairlut bake scene_maps --shard K/N`` runs; each pinned to its own core unless ``--no-pin``), then
 ``hairlut.bake.registry.merge`` of their shard files into one asset.  The wall clock runs from the first process's start
 to the merged file (each process builds the scene's sector inputs, compiles and writes its shard: all counted).
 

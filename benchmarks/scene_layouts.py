@@ -58,11 +58,11 @@ def _write(path: Path, recipe: dict, half, coef, row) -> int:
 
 
 def _frame(src, ix, sc, runs: int = 3):
-    src.frame(ix, sc.view, sc.lights)
+    src.view(ix, sc.view, sc.lights)
     best, out = np.inf, None
     for _ in range(runs):
         t0 = time.perf_counter()
-        out = src.frame(ix, sc.view, sc.lights)
+        out = src.view(ix, sc.view, sc.lights)
         out[0].block_until_ready()
         best = min(best, time.perf_counter() - t0)
     return 1e3 * best, (np.asarray(out[0]), np.asarray(out[1]))

@@ -226,8 +226,10 @@ def bake_group(ctx, scene, cache_root, no_progress, as_json):
         echo_plan(p)
     bars = Bars(not no_progress)
     start = time.perf_counter()
-    done = bake(p, bars)
-    bars.close()
+    try:
+        done = bake(p, bars)
+    finally:
+        bars.close()  # a live display gives the terminal back (its cursor) whatever happened
     if as_json:
         click.echo(json.dumps({"plan": p.to_json(), "assets": done, "seconds": time.perf_counter() - start},
                               indent=2, default=str))

@@ -17,7 +17,7 @@ def default_scenes() -> list[Path]:
 
 
 def _cached(status: str | None) -> str:
-    """What a reference figure's time means when the frame came from the cache (hairlut.render.cached_frame)."""
+    """What a strand-render figure's time means when the frame came from the cache (hairlut.render.cached_frame)."""
     return " when first rendered; this run reused the cached frame" if status == "reused" else ""
 
 
@@ -40,16 +40,18 @@ def demo_cmd(out_dir, scenes, cache_root, no_progress, as_json):
        (tables/grooms/sintel_lite.tfx, CC-BY 3.0 Blender Foundation) in
        six fitted clusters under two directional lights.
     The first run bakes each scene's tables into the cache and renders the
-    strand reference frames (minutes); later runs reuse both (the camera's
+    strand-render frames (minutes); later runs reuse both (the camera's
     layered frame and the comparison figures are computed every run).
     """
     from hairlut import demo
 
-    from .hrir import Bars
+    from .progress import Bars
 
     bars = Bars(not no_progress)
-    report = demo.run(out_dir, list(scenes) or default_scenes(), cache_root, bars)
-    bars.close()
+    try:
+        report = demo.run(out_dir, list(scenes) or default_scenes(), cache_root, bars)
+    finally:
+        bars.close()
     if as_json:
         click.echo(json.dumps(report, indent=2, default=str))
         return
@@ -67,25 +69,25 @@ def demo_cmd(out_dir, scenes, cache_root, no_progress, as_json):
         click.echo(f"  preview: {r['files']['preview']}")
         cam = r.get("camera")
         if cam:
-            f, lay, ref = cam["figures"], cam["layered"], cam["reference"]
+            f, lay, strand = cam["figures"], cam["layered"], cam["strands"]
             w, h = cam["resolution"]
             click.echo(f"  camera {w} x {h}: layered ({lay['map_method']} maps) frame {1e3 * lay['seconds']['raster']:.0f} ms "
-                       f"+ maps {1e3 * lay['seconds']['maps']:.0f} ms; reference level {ref['level']} "
-                       f"({ref['samples_per_pixel']} spp, {ref['steps_per_crossing']} steps per crossing; a fixed level, "
-                       f"not converged, environment {ref['environment']}) {ref['seconds']['frame']:.1f} s"
-                       + _cached((ref.get("cache") or {}).get("status")))
-            pr = ref.get("convergence_probe")
+                       f"+ maps {1e3 * lay['seconds']['maps']:.0f} ms; strand render level {strand['level']} "
+                       f"({strand['samples_per_pixel']} spp, {strand['steps_per_crossing']} steps per crossing; a fixed level, "
+                       f"not converged, environment {strand['environment']}) {strand['seconds']['frame']:.1f} s"
+                       + _cached((strand.get("cache") or {}).get("status")))
+            pr = strand.get("convergence_probe")
             if pr:
                 ch = pr["change_to_next"]
-                click.echo(f"  reference level {pr['level']} -> {pr['next_level']} at {pr['resolution'][0]} x "
+                click.echo(f"  strand render level {pr['level']} -> {pr['next_level']} at {pr['resolution'][0]} x "
                            f"{pr['resolution'][1]} (same camera): RGB RMSE {ch['rgb_rmse']:.4f}, alpha RMSE "
                            f"{ch['alpha_rmse']:.4f} ({pr['cpu_seconds']:.1f} CPU-s{_cached(pr.get('cache'))})")
-            click.echo(f"  layered vs reference: FLIP {f['flip_mean']:.3f}, mean-alpha bias {f['alpha_bias']:+.4f} "
+            click.echo(f"  layered vs strands: FLIP {f['flip_mean']:.3f}, mean-alpha bias {f['alpha_bias']:+.4f} "
                        f"({_relative(f['alpha_bias_relative'])}), RGB RMSE {f['rgb_rmse']:.4f}, 8x8 RGB RMSE {f['rgb_rmse_8x8']:.4f}")
-            click.echo(f"  side by side (layered | reference | FLIP): {cam['files']['side_by_side']}")
+            click.echo(f"  side by side (layered | strands | FLIP): {cam['files']['side_by_side']}")
     click.echo(f"demo finished in {report['total_seconds']:.1f} s; outputs in {out_dir}/ (sky map {report['sky']})")
 
 
 def _relative(x) -> str:
-    """A relative bias as a percentage; n/a where the reference's α is zero everywhere (compare gives None)."""
+    """A relative bias as a percentage; n/a where the strand render's α is zero everywhere (compare gives None)."""
     return "n/a" if x is None else f"{x:+.1%}"

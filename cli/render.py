@@ -12,7 +12,7 @@ import click
 @click.argument("scene", type=click.Path(dir_okay=False))
 @click.option("--out", "out_path", required=True, type=click.Path(dir_okay=False), help="The frame's EXR (R, G, B, A, Z).")
 @click.option("--png", is_flag=True, help="Also write a PNG beside the EXR.")
-@click.option("--reference", is_flag=True, help="The strand-level reference (the strands ray-marched, converged).")
+@click.option("--strands", is_flag=True, help="The strand render (the strands ray-marched, converged) instead of the layered model.")
 @click.option("--db", "db_path", type=click.Path(dir_okay=False),
               help="Layered: the hrir_db file of the satf map method (default: from the table cache).")
 @click.option("--sh", "sh_path", type=click.Path(dir_okay=False),
@@ -20,13 +20,13 @@ import click
 @click.option("--cache", "cache_root", type=click.Path(file_okay=False),
               help="Table cache folder (default: $HAIRLUT_CACHE, else tables/).")
 @click.option("--bound", default=None, type=float,
-              help="Reference: stop when one more level changes RGB and α RMSE by less than this "
-                   "(default: the scene's [render] reference_bound, 0.01 unless set).")
-@click.option("--max-level", default=3, show_default=True, type=int, help="Reference: the finest level tried.")
+              help="--strands: stop when one more level changes RGB and α RMSE by less than this "
+                   "(default: the scene's [render] strands_bound, 0.01 unless set).")
+@click.option("--max-level", default=3, show_default=True, type=int, help="--strands: the finest level tried.")
 @click.option("--verify", is_flag=True,
-              help="Reference: once converged, render one more level and store whether the bound still holds.")
+              help="--strands: once converged, render one more level and store whether the bound still holds.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
-def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bound, max_level, verify, as_json):
+def render_cmd(scene, out_path, png, strands, db_path, sh_path, cache_root, bound, max_level, verify, as_json):
     """Render SCENE through its [camera] into an EXR (R, G, B, A premultiplied, Z; the camera's
     4 x 4 world-to-clip matrix, resolution and projection in the hairlut:camera header, JSON).
 
@@ -36,25 +36,26 @@ def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bo
     rasterised in JAX with perspective-correct interpolation, eq 14 between a cluster's
     layers and front-to-back "over" between clusters.  The maps' time and the frame time
     (the rasteriser, maps excluded) are reported.
-    --reference: the strands as the Gaussian tubes of the sector densities, ray-marched with
-    Beer-Lambert opacity, shaded with the scene's terms per strand tangent and shadowed through
-    the same density; refined until converged (the bound and each level's change are stored).
+    --strands, the strand render: the strands as the Gaussian tubes of the sector
+    densities, ray-marched with Beer-Lambert opacity, shaded with the scene's terms per
+    strand tangent and shadowed through the same density; refined until converged (the
+    bound and each level's change are stored).
     Examples:
       hairlut render tables/scenes/sintel-groom.toml --out out/sintel.exr --png
-      hairlut render tables/scenes/sintel-groom.toml --reference --out out/sintel-ref.exr --png
+      hairlut render tables/scenes/sintel-groom.toml --strands --out out/sintel-strands.exr --png
     """
     from pathlib import Path
 
     from hairlut.atomic import check_writable
-    from hairlut.render import render_layered, render_reference, write_frame
+    from hairlut.render import render_layered, render_strands, write_frame
     from hairlut.scene import load_scene
     from hairlut.planner import scene_assets
 
     for path in [out_path] + ([Path(out_path).with_suffix(".png")] if png else []):
         check_writable(path)  # before the frame is computed
     sc = load_scene(scene)
-    if reference:
-        frame = render_reference(sc, bound=bound, max_level=max_level, verify=verify)
+    if strands:
+        frame = render_strands(sc, bound=bound, max_level=max_level, verify=verify)
     else:
         db_path, sh_path, maps_path = scene_assets(sc, cache_root, db=db_path, sh=sh_path)
         frame = render_layered(sc, db=db_path, sh=sh_path, maps=maps_path)
@@ -67,10 +68,10 @@ def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bo
         click.echo(json.dumps(report, indent=2, default=str))
         return
     cam = frame.camera
-    if reference:
+    if strands:
         last = frame.info["levels"][-1]
         ch = last.get("change_from_previous", {})
-        click.echo(f"reference {cam.width} x {cam.height} ({cam.projection}): frame "
+        click.echo(f"strands {cam.width} x {cam.height} ({cam.projection}): frame "
                    f"{frame.info['seconds']['frame']:.1f} s, level {last['level']} ({last['samples_per_pixel']} spp, "
                    f"{last['steps_per_crossing']} steps), converged={frame.info['converged']} "
                    + (f"(change RGB {ch['rgb_rmse']:.2g}, alpha {ch['alpha_rmse']:.2g}; bound {frame.info['bound']:g})"
@@ -97,8 +98,8 @@ def render_cmd(scene, out_path, png, reference, db_path, sh_path, cache_root, bo
 @click.option("--png", "diff_png", type=click.Path(dir_okay=False), help="Write the FLIP heat map as a PNG.")
 @click.option("--json", "as_json", is_flag=True, help="Print the figures as JSON.")
 def compare_cmd(a, b, diff_png, as_json):
-    """Compare frame A against B (the reference): RGB and alpha RMSE, mean-alpha bias, the same
-    after 8 x 8 block averaging, and NVIDIA FLIP (flip-evaluator) with its heat map."""
+    """Measure frame A against frame B (e.g. a layered frame against the strand render): RGB and
+    alpha RMSE, mean-alpha bias, the same after 8 x 8 block averaging, and NVIDIA FLIP (flip-evaluator) with its heat map."""
     import numpy as np
 
     from hairlut.assets import atomic_write_bytes, encode_png

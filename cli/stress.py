@@ -44,8 +44,10 @@ def stress_cmd(quick: bool, as_json: bool, only: str | None, reasons: bool, no_p
 
     names = None if only is None else [w for w in only.split(",")]
     bar = Progress(not no_progress and not as_json, label="stress", unit="cases")
-    report = run_stress(quick=quick, only=names, progress=lambda done, total, name: bar(done, total))
-    bar.close()
+    try:
+        report = run_stress(quick=quick, only=names, progress=lambda done, total, name: bar(done, total))
+    finally:
+        bar.close()
     if as_json:
         click.echo(json.dumps(report.as_dict(), indent=2))
     else:

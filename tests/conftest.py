@@ -55,7 +55,7 @@ def pytest_unconfigure(config):
 #: started last.  Only the order changes: every test still runs, and a file's own tests keep their order.
 #: Measured on the loaded 2-core machine (load 3-30; file CPU seconds, some files only partly run): hostile_bitflips
 #: 206, hostile_limits 172, distributed_bake 140, scale_devices 127, render_layered 105, direct_maps 72, reliability
-#: 66, render_reference 62, plan 57, scale_faults 48, cli 47, env_bands 34, map_methods 33, bench_shadows 30, fit 28,
+#: 66, render_strands 62, plan 57, scale_faults 48, cli 47, env_bands 34, map_methods 33, bench_shadows 30, fit 28,
 #: parts_features 20, satf_projection 19, bench 19, opacity_maps 15, atomic 14, density 10, cache 9; the other files
 #: measured, under 5.  Not measured (time ran out): test_synth_track_reads.py (160-420 s of wall time in earlier
 #: whole runs, so first), the hrir_*, kernels, light_oriented, sh_*, shadow*, stress*, synth_* (but track_reads),
@@ -69,7 +69,7 @@ COSTLIEST_FIRST = (
     "test_render_layered.py",
     "test_direct_maps.py",
     "test_reliability.py",
-    "test_render_reference.py",
+    "test_render_strands.py",
     "test_plan.py",
     "test_scale_faults.py",
     "test_cli.py",

@@ -51,7 +51,7 @@ def test_next_block_starts_before_the_previous_is_written(tmp_path):
     assert units.log == [("launch", 0), ("launch", 8), ("write", 0), ("launch", 16), ("write", 8), ("write", 16)]
     assert all(p.read_text() == f"{8 * i}-{8 * i + 8}" for i, p in enumerate(parts))
     assert report["computed"] == 24 and len(report["block_seconds"]) == len(report["block_cpu_seconds"]) == 3
-    assert seen == [(8, 24), (16, 24), (24, 24)]
+    assert seen == [(0, 24), (8, 24), (16, 24), (24, 24)]  # first the resumed units (none), before any work
 
 
 def test_a_part_that_writes_itself_is_not_pipelined(tmp_path):

@@ -176,7 +176,7 @@ def test_usage_errors_are_status_2(tmp_path):
 
 @pytest.mark.parametrize("command", [
     ["render", "{missing}/s.toml", "--out", "{out}/r.exr"],
-    ["render", "{missing}/s.toml", "--reference", "--out", "{out}/sub/r.exr", "--png"],
+    ["render", "{missing}/s.toml", "--strands", "--out", "{out}/sub/r.exr", "--png"],
     ["compare", "{missing}/a.exr", "{missing}/b.exr", "--png", "{out}/d.png"],
     ["strands", "convert", "{missing}/a.tfx", "{out}/a.hair"],
     ["synth", "{missing}/s.toml", "--out", "{out}/maps"],

@@ -107,6 +107,7 @@ def test_interrupted_bake_resumes_to_identical_bytes(tmp_path):
     seen = []
     rep = bake(SMALL, out, block=3, progress=lambda d, t: seen.append((d, t)))
     assert rep["resumed"] == 6 and rep["computed"] == 4 and seen[-1] == (10, 10)
+    assert seen[0] == (6, 10) and all(d > 6 for d, _ in seen[1:])  # the resumed sectors once, before any work
     assert _sha(ref["out"]) == _sha(out)
 
 

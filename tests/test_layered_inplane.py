@@ -6,7 +6,7 @@ middle of the cluster, mean α over the hair's 26 pixels (through the axis in br
 
 | stage | smooth on (default) | smooth off |
 |---|---|---|
-| (a) strands' analytic α / (e) strand reference L0 | 0.506 / 0.506 (0.632) | same |
+| (a) strands' analytic α / (e) strand render L0 | 0.506 / 0.506 (0.632) | same |
 | (b) sector densities' chord integral (= strands cut to the shells) | 0.475 (0.606) | same |
 | (c) every sector's direct-map α at the chord, composited | 0.457 | 0.476 |
 | (d) texels the renderer reads, composited over the layer hits, track | 0.423 (0.499) | 0.474 |

@@ -14,7 +14,7 @@ from hairlut.hrir import trace_sectors
 from hairlut.scene import resolve_scene
 from hairlut.planner import map_method, plan, scene_maps_recipe
 from hairlut.scenemaps import compress, fetch_rows, hrir_recipe, load_scene_maps, scene_inputs
-from hairlut.synth import prepare, render
+from hairlut.synth import prepare, render_view
 
 from ._synth_fixtures import scene as base_scene
 
@@ -108,8 +108,8 @@ def test_fetch_kernel_equals_an_elementwise_reference(dtype, step):
     assert not a[row < 0].any() and not r[row < 0].any()
 
 
-def test_frame_fetch_kernels_equal_the_reference_at_edge_angles():
-    """index_kernel then terms_kernel (a frame's fetch) at grid views, the mirror seam, 2π − ε, 0 and
+def test_view_fetch_kernels_equal_the_reference_at_edge_angles():
+    """index_kernel then terms_kernel (a view's fetch) at grid views, the mirror seam, 2π − ε, 0 and
     negative angles: the element-wise reference, and bitwise fetch_kernel's α and ratio terms."""
     import jax
     import jax.numpy as jnp
@@ -134,8 +134,8 @@ def test_frame_fetch_kernels_equal_the_reference_at_edge_angles():
     assert not a[row < 0].any()  # an empty sector: α = 0, hence re = α ρ = 0
 
 
-def test_scene_frame_kernel_equals_fetch_then_sweep(baked):
-    """The scene method's one-kernel frame gives the maps of fetch_kernel's rows swept by sweep_sectors."""
+def test_scene_view_kernel_equals_fetch_then_sweep(baked):
+    """The scene method's one-kernel view gives the maps of fetch_kernel's rows swept by sweep_sectors."""
     import jax.numpy as jnp
 
     from hairlut.scenemaps import fetch_kernel
@@ -154,7 +154,7 @@ def test_scene_frame_kernel_equals_fetch_then_sweep(baked):
     assert tl.shape[1] == 2 and len(maps.row) == len(tv)
     a, r = fetch_kernel(*dev, tv, tl)
     re_ref, a_ref = sweep_sectors(ix, a, r, cs)
-    re_map, a_map, uniform = MapSource("scene", "", maps.pixels, maps=maps, device=dev).frame(
+    re_map, a_map, uniform = MapSource("scene", "", maps.pixels, maps=maps, device=dev).view(
         ix, prep.scene.view, prep.scene.lights)
     assert not uniform.any() and float(jnp.max(a_ref)) > 0.1 and float(jnp.max(re_ref)) > 0.01
     np.testing.assert_allclose(np.asarray(a_map), np.asarray(a_ref), atol=1e-7, rtol=0)
@@ -187,8 +187,8 @@ def test_scene_and_direct_maps_agree_on_a_small_scene(baked, tmp_path):
     sc, _, _, _ = baked
     f16 = resolve_scene(scene("scene", views=32))
     report = registry.bake("scene_maps", scene_maps_recipe(f16), tmp_path / "s.h5", scene=f16)
-    by_scene = render(prepare(f16, maps=report["out"]))
-    by_direct = render(prepare(resolve_scene(scene("direct"))))
+    by_scene = render_view(prepare(f16, maps=report["out"]))
+    by_direct = render_view(prepare(resolve_scene(scene("direct"))))
     assert by_scene.stats["map_method"] == "scene" and by_direct.stats["map_method"] == "direct"
     a_s = np.concatenate([c.alpha.ravel() for c in by_scene.clusters])
     a_d = np.concatenate([c.alpha.ravel() for c in by_direct.clusters])

@@ -182,13 +182,13 @@ KERNELS = {
         (False, lambda: ((A(6, 3), A(6, 3), A(9, dtype=i32), A(9, dtype=i32), A(7, 3), A(7, 3), A(7), A(7), A(7), 0.0), {}))],
     "hairlut.render._light:shadow_kernel": [
         (False, lambda: ((A(2, 3), A(3), A(2, 5, dtype=i32), A(), A(7, 3), A(7, 3), A(7), A(7), A(7)), dict(depth=4)))],
-    "hairlut.render._reference:camera_rays": [
+    "hairlut.render._strand_march:camera_rays": [
         (False, lambda: ((A(2, 2, dtype=i32), A(6, 3)), dict(tile=4, ss=2, perspective=p))) for p in (True, False)],
-    "hairlut.render._reference:reference_kernel": [
+    "hairlut.render._strand_march:strand_march_kernel": [
         (False, lambda: ((A(4, 15), A(4, 15), A(4, 15, dtype=i32), A(4, 3), A(3), A(7, 2, 3), A(4, 15, 2)),
                          dict(perspective=p)))
         for p in (True, False)],
-    "hairlut.render._reference:step_points": [
+    "hairlut.render._strand_march:step_points": [
         (False, lambda: ((A(4, 3), A(4, 3), A(4, 5, dtype=i32), A(7, 3), A(7, 3), A(7), A(7), A(7)),
                          dict(steps=3, perspective=p)))
         for p in (True, False)],
@@ -248,17 +248,17 @@ KERNELS = {
                                   dict(n_views=4, n_pix=8, n_steps=16, rays=1, m=m, shade_rays=0, shade_steps=0,
                                        shadow=s, smooth=True, bins=2)))
         for m in (0, 4) for s in (False, True)],
-    "hairlut.synth._frame:params_kernel": [
+    "hairlut.synth._view:params_kernel": [
         (False, lambda: ((_map_index(), A(3), A(2, 3), A()), dict(n_v=8, n_l=8)))],
-    "hairlut.synth._frame:fetch_kernel": [
+    "hairlut.synth._view:fetch_kernel": [
         (False, lambda: ((_map_index(), A(24, 8, 16), A(24, 8, 8, 16), A(12), A(12, 2), A(8, dtype=bool),
                           A(4, dtype=i32), (A(12, 2, 16), A(12, 16))), {}))],
-    "hairlut.synth._frame:sweep_rows": [
+    "hairlut.synth._view:sweep_rows": [
         (False, lambda: ((_map_index(), A(12, 2, 16), A(12, 16), A(12, 2), A(8, dtype=bool), A(8, dtype=i32)), {}))],
-    "hairlut.synth._methods:scene_frame_kernel": [
+    "hairlut.synth._methods:scene_view_kernel": [
         (False, lambda: ((_map_index(neighbours=False), A(12, 16), A(12, 2, 4), A(12, 2), A(1, 2, 4, 4, dtype=i32),
                           A(1, 2, 4, 4, dtype=i32)), {}))],
-    "hairlut.synth._frame:sweep_sectors": [
+    "hairlut.synth._view:sweep_sectors": [
         (False, lambda: ((_map_index(neighbours=False), A(12, 16), A(12, 2, 16), A(12, 2)), {}))],
     "hairlut.synth._maps:sweep_kernel": [
         (False, lambda: ((A(6, 2, 16), A(6, 2, 16), A(6, 16), A(6, 16), A(10, dtype=i32), A(10), A(10), A(10)), {}))],

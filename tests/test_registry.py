@@ -125,6 +125,17 @@ def test_a_new_kind_is_one_subpackage_and_one_line(toy, tmp_path):
     assert bad.exit_code == 2 and "n=0: must be >= 1" in bad.output and len(bad.output.strip().splitlines()) == 1
 
 
+def test_the_scene_maps_command_is_its_kind_name():
+    """`hairlut bake scene_maps` bakes one kind; `hairlut bake --scene FILE` bakes what a scene plans: the kind's
+    command is no longer the bare word `scene`."""
+    assert registry.get("scene_maps").command == "scene_maps"
+    listed = run("bake", "--help").output
+    assert "scene_maps" in listed and "per-groom sector projections" in listed
+    assert run("bake", "scene_maps", "--help").exit_code == 0
+    res = run("bake", "scene", "--help")
+    assert res.exit_code == 2 and "No such command" in res.output
+
+
 def test_unknown_kinds_and_kinds_that_cannot_shard(tmp_path):
     res = run("bake", "nonsense")
     assert res.exit_code == 2 and "No such command" in res.output

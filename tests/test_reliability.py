@@ -94,12 +94,12 @@ def test_empty_clusters_render_transparent(db, method):
 
 
 @pytest.mark.parametrize("thr", [1.0, math.inf])
-def test_empty_sectors_give_zero_alpha_on_the_frame_path_and_the_reference(db, thr):
+def test_empty_sectors_give_zero_alpha_on_the_view_path_and_the_reference(db, thr):
     """A sparse groom (6 clumped strands per cluster): empty sectors hold no hair, so a texel whose
     HSV has two empty sectors has α = re = 0, an HSV with one empty end is never uniform (eq 7 fades
-    to 0 towards it), and the per-frame path equals the reference build_maps."""
+    to 0 towards it), and the per-view path equals the reference build_maps."""
     from hairlut.synth import prepare
-    from hairlut.synth._frame import frame_maps
+    from hairlut.synth._view import view_maps
     from hairlut.synth._maps import build_maps, sector_angles, texels
 
     given = scene(k_threshold=thr)
@@ -112,7 +112,7 @@ def test_empty_sectors_give_zero_alpha_on_the_frame_path_and_the_reference(db, t
     n_u, n_t = sc.config["render"]["resolution"]
     tx = texels(prep.table, sp, prep.clusters[0].spec.n_layers, (n_u, n_t), db.alpha.shape[-1])
     ref = build_maps(db, prep.table, sp, tx, thr, sc.config["render"]["neighbours"])
-    re, alpha, uniform = frame_maps(prep.index, db, sc.view, sc.lights, thr)
+    re, alpha, uniform = view_maps(prep.index, db, sc.view, sc.lights, thr)
     np.testing.assert_array_equal(uniform, ref.uniform)
     np.testing.assert_allclose(np.asarray(alpha), ref.alpha, atol=2e-6)
     np.testing.assert_allclose(np.asarray(re), ref.re, atol=2e-6)

@@ -264,12 +264,12 @@ def test_cli_render_layered(tmp_path):
 def test_cli_render_of_a_frame_with_no_hair_is_empty_and_says_so(tmp_path, keys):
     """Issue 29 N2: a legal camera whose frame catches no hair (the hair shrinks far below a pixel, about the
     frame's centre, a pixel corner of this even-sized frame) renders α = 0 everywhere with a warning line, both
-    the layered model and the strand reference (the layered render crashed with an IndexError)."""
+    the layered model and the strand render (the layered render crashed with an IndexError)."""
     from hairlut_cli.main import cli
 
     scene = tmp_path / "tiny.toml"
     scene.write_text(TINY.replace("resolution = [48, 40]", f"resolution = [24, 20]\n{keys}"))
-    for extra in ([], ["--reference", "--max-level", "1"]):
+    for extra in ([], ["--strands", "--max-level", "1"]):
         out = tmp_path / f"f{len(extra)}.exr"
         r = CliRunner().invoke(cli, ["render", str(scene), "--out", str(out), *extra])
         assert r.exit_code == 0, r.output

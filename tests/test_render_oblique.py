@@ -1,4 +1,4 @@
-"""The layered model's oblique lengthening against closed forms and the strand reference (issue 13).
+"""The layered model's oblique lengthening against closed forms and the strand render (issue 13).
 
 A texel's α-map value is an in-plane opacity (rays in the cross-section); a camera ray at angle ψ to the strands
 crosses the same strands along chords longer by 1 / sin ψ.  Which exponent turns the in-plane α into the camera's:
@@ -7,12 +7,12 @@ crosses the same strands along chords longer by 1 / sin ψ.  Which exponent turn
 * strands at random positions (Campbell's theorem, averaged over their placement for a Poisson line process): G(a / sin ψ) / G(a), a = κ √π the
   optical depth across a strand's axis (``strands``, :func:`hairlut.render._layered.strand_path`).
 
-The furnaces below render straight strands with the reference (``render_level``, itself tested against the chord
-integral and Beer–Lambert in test_render_reference.py) and check each law where it holds.
+The furnaces below render straight strands with the strand render (``render_level``, itself tested against the chord
+integral and Beer–Lambert in test_render_strands.py) and check each law where it holds.
 
 Measured, not tested (a scene render per angle takes ~40 CPU-s): one straight procedural cluster (R 0.1, strands
-along the axis, r 0.01, 96², direct maps, track reads, reference level 1) and the same cluster flaring 4× along
-its length (a cone: its strands follow the layers, up to 21° off the axis), the layered/reference mean-α ratio at
+along the axis, r 0.01, 96², direct maps, track reads, strand render level 1) and the same cluster flaring 4× along
+its length (a cone: its strands follow the layers, up to 21° off the axis), the layered/strands mean-α ratio at
 ψ = 90° / 50° / 30° to the axis:
 
 | case | law, tangent | 90° | 50° | 30° |
@@ -31,7 +31,7 @@ flat where 1 / sin ψ drifts up.  Clumped strands are not independent (a clump a
 strand): the truth lies between the ``strands`` law and none, so the law still lengthens 6 % too much at 30°.  Exact
 for any arrangement is the in-plane α traced with σ_t / sin ψ (each crossing longer by 1 / sin ψ), in the maps: the
 ``rays`` law, the default with direct maps (tests/test_render_oblique_rays.py).  The ratio's level (0.8, not 1, already at 90°) is the maps' in-plane α, not the
-lengthening (on the straight 600-strand cylinder seen at 90°, α through the axis is 0.64 against the reference's 0.71,
+lengthening (on the straight 600-strand cylinder seen at 90°, α through the axis is 0.64 against the strand render's 0.71,
 analytic 0.70).
 """
 
@@ -101,8 +101,8 @@ def _row_depths(y_strands, r, a, y_rows):
 
 
 @pytest.mark.parametrize("psi", [90.0, 45.0, 30.0])
-def test_reference_lengthens_every_crossing_by_one_over_sin_psi(psi):
-    """The strand reference seen at ψ to a slab of straight strands at random depths: each row's α is
+def test_strand_render_lengthens_every_crossing_by_one_over_sin_psi(psi):
+    """The strand render seen at ψ to a slab of straight strands at random depths: each row's α is
     1 − exp(−Σ_k κ √π e^{−b_k²/r²} / sin ψ), every crossing's chord integral longer by 1 / sin ψ (to 1e-4)."""
     rng = np.random.default_rng(11)
     r, y_view, rows = 0.01, 3.0, 512

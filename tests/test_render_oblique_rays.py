@@ -7,11 +7,11 @@ per-texel lengthening (``strand_path``: Campbell's theorem, which assumes strand
 
 Checked here against closed forms: one Gaussian strand's chord integral at ψ = 90°, 45°, 30°; factor 1 giving the
 in-plane maps bit for bit; and a sector of clumped strands against the exact pixel average of the Gaussian tubes'
-chord sums (the strand reference's quantity: ``render_level`` equals it to 1e-4, tests/test_render_oblique.py),
+chord sums (the strand render's quantity: ``render_level`` equals it to 1e-4, tests/test_render_oblique.py),
 where the per-texel Campbell law overshoots and the per-ray law does not.
 
-Measured, not tested (128², reference level 0, direct maps, track reads, shadows off; mean-α bias of the layered
-render against the strand reference; README, "oblique"):
+Measured, not tested (128², strand render level 0, direct maps, track reads, shadows off; mean-α bias of the layered
+render against the strand render; README, "oblique"):
 
 | groom, density grid | rays | strands | volume | off |
 |---|---|---|---|---|
@@ -19,8 +19,8 @@ render against the strand reference; README, "oblique"):
 | Sintel, 96² / 192 steps | +3.0 % | +3.5 % | +5.9 % | −0.2 % |
 | Ratboy, 96² / 192 steps (its scene file) | −2.2 % | −1.5 % | −0.5 % | −3.1 % |
 
-A straight cylinder (R 0.1, 120 strands of r 0.01, direct maps, track reads, 96², reference level 0): the layered /
-reference mean-α ratio at ψ = 90° (every law the same) and at 30°:
+A straight cylinder (R 0.1, 120 strands of r 0.01, direct maps, track reads, 96², strand render level 0): the layered /
+strands mean-α ratio at ψ = 90° (every law the same) and at 30°:
 
 | strands | 90° | rays 30° | strands 30° | volume 30° | off 30° |
 |---|---|---|---|---|---|
@@ -186,16 +186,16 @@ def test_rays_law_needs_the_direct_maps():
 
     src = MapSource("scene", "", 16)
     with pytest.raises(errors.ValidationError, match="direct map method"):
-        src.frame(None, np.zeros(3), np.zeros((1, 3)), path=np.ones(4))
+        src.view(None, np.zeros(3), np.zeros((1, 3)), path=np.ones(4))
 
 
 @pytest.mark.slow
-def test_clumped_cylinder_against_the_strand_reference():
+def test_clumped_cylinder_against_the_strand_render():
     """A straight cylinder (R 0.1, 120 strands of r 0.01 in clumps, spread 0.03, direct maps, track reads, 96²) seen
-    at ψ = 90° and 30° to its axis, the layered render against the strand reference (level 0): the ratio of mean α
+    at ψ = 90° and 30° to its axis, the layered render against the strand render (level 0): the ratio of mean α
     stays where it is at 90° with the rays law (measured 0.871 → 0.873) and climbs with Campbell's (→ 0.907).
     The 90° ratio (the in-plane maps' own loss, laws equal there) divides out."""
-    from hairlut.render import render_layered, render_reference
+    from hairlut.render import render_layered, render_strands
     from hairlut.scene import resolve_scene
     from hairlut.synth import prepare
 
@@ -209,7 +209,7 @@ def test_clumped_cylinder_against_the_strand_reference():
             "strands": {"count": 120, "radius": 0.01, "profile": "clumped", "spread": 0.03, "seed": 3},
             "clusters": [{"trajectory": [[0.0, 0.4, 0.0], [0.0, 0.0, 0.0], [0.0, -0.4, 0.0]], "half_axis_a": 0.1,
                           "half_axis_b": 0.1, "s_t": 4, "s_u": 8}]})
-        ref = render_reference(sc, levels=[0])
+        ref = render_strands(sc, levels=[0])
         prep = prepare(sc)
         for law in ("rays", "strands") if psi < 90 else ("rays",):
             f = render_layered(sc, camera=ref.camera, prepared=prep, oblique=law, repeat=0)

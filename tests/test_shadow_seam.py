@@ -12,7 +12,7 @@ from hairlut.geometry import Strands
 from hairlut.scene import SHADOW_METHODS, resolve_scene
 from hairlut.planner import plan
 from hairlut.shadows import LIGHT_METHODS, light_transmittance
-from hairlut.synth import prepare, render, shade_lights
+from hairlut.synth import prepare, render_view, shade_lights
 
 from ._synth_fixtures import scene, synthetic_db
 
@@ -31,12 +31,12 @@ def db():
 
 
 @pytest.fixture(scope="module")
-def frames(db):
-    """One prepared scene and its frame per shadow method."""
+def views(db):
+    """One prepared scene and its view (render_view) per shadow method."""
     out = {}
     for method in SHADOW_METHODS:
         prep = prepare(with_shadows(method=method), db)
-        out[method] = (prep, render(prep))
+        out[method] = (prep, render_view(prep))
     return out
 
 
@@ -54,8 +54,8 @@ def slab(n=400, seed=0):
 
 
 @pytest.mark.parametrize("method", SHADOW_METHODS)
-def test_scene_selects_each_method(frames, method):
-    prep, res = frames[method]
+def test_scene_selects_each_method(views, method):
+    prep, res = views[method]
     assert prep.scene.shadow_method == method and prep.scene.effects["shadow"] is (method != "none")
     n_lights = len(prep.scene.lights)
     for c in res.clusters:
@@ -65,10 +65,10 @@ def test_scene_selects_each_method(frames, method):
     assert ("shadows" in prep.seconds) is (method in LIGHT_METHODS)
 
 
-def test_smap_is_the_default_and_renders_exactly_as_before(frames, db):
+def test_smap_is_the_default_and_renders_exactly_as_before(views, db):
     assert resolve_scene(scene()).config["shadows"]["method"] == "smap"
-    unmarked = render(prepare(scene(), db))
-    _, explicit = frames["smap"]
+    unmarked = render_view(prepare(scene(), db))
+    _, explicit = views["smap"]
     for a, b in zip(unmarked.clusters, explicit.clusters):
         for name in ("re", "alpha", "shadow", "lighting", "rgba", "final"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
@@ -124,8 +124,8 @@ def test_light_space_T_is_one_in_front_of_the_hair_and_darkens_behind(method):
 
 
 @pytest.mark.parametrize("method", LIGHT_METHODS)
-def test_rendered_texels_facing_the_light_are_lit_and_the_far_side_darker(frames, method):
-    prep, res = frames[method]
+def test_rendered_texels_facing_the_light_are_lit_and_the_far_side_darker(views, method):
+    prep, res = views[method]
     for j, light in enumerate(prep.scene.lights):
         lit, dark = [], []
         for pc, c in zip(prep.clusters, res.clusters):
@@ -140,8 +140,8 @@ def test_rendered_texels_facing_the_light_are_lit_and_the_far_side_darker(frames
     assert inner.mean() < outer.mean()  # the inner layer lies deeper in the hair
 
 
-def test_smap_is_one_on_the_outer_layer_and_darker_inside(frames):
-    _, res = frames["smap"]
+def test_smap_is_one_on_the_outer_layer_and_darker_inside(views):
+    _, res = views["smap"]
     for c in res.clusters:
         np.testing.assert_array_equal(c.shadow[-1], 1.0)  # nothing outside the outer layer
         assert np.all(c.shadow[0] <= 1.0) and c.shadow[0].min() < 1.0
@@ -160,7 +160,7 @@ def test_none_does_no_shadow_work(db, monkeypatch):
     given = with_shadows(method="none")
     given["render"]["resolution"] = [12, 6]  # a shape no other test traced, so the kernel traces afresh
     prep = prepare(given, db)
-    res = render(prep, lights=[[0.0, 1.0, 0.0]])
+    res = render_view(prep, lights=[[0.0, 1.0, 0.0]])
     assert "shadows" not in res.stats["seconds"]
     for c in res.clusters:
         np.testing.assert_array_equal(c.shadow, 1.0)
@@ -186,14 +186,14 @@ def test_plan_explains_the_shadow_method(tmp_path):
     assert st["shadow_maps"].details["kappa"] == 0.02
 
 
-def test_light_space_maps_are_rebuilt_only_when_the_lights_change(frames):
-    prep, res = frames["light_oriented"]
-    again = render(prep)
+def test_light_space_maps_are_rebuilt_only_when_the_lights_change(views):
+    prep, res = views["light_oriented"]
+    again = render_view(prep)
     assert again.stats["seconds"]["shadows"] == prep.seconds["shadows"]  # the scene's own lights: not rebuilt
-    other = render(prep, lights=[[0.0, -1.0, 0.2]])
+    other = render_view(prep, lights=[[0.0, -1.0, 0.2]])
     assert other.clusters[0].shadow.shape[1] == 1
     assert other.stats["seconds"]["shadows"] > prep.seconds["shadows"]  # rebuilt for the new light
-    back = render(prep)  # and for the scene's own lights again
+    back = render_view(prep)  # and for the scene's own lights again
     for a, b in zip(res.clusters, back.clusters):
         np.testing.assert_allclose(a.shadow, b.shadow)
 

@@ -8,7 +8,7 @@ from hairlut import errors
 from hairlut.assets import read_exr, write_exr
 from hairlut.scene import resolve_scene
 from hairlut.planner import bake, find_assets, plan
-from hairlut.synth import prepare, render, synthesize
+from hairlut.synth import prepare, render_view, synthesize
 from hairlut_cli.main import cli
 from tests.test_plan import TINY_HRIR, _write_toml, scene
 
@@ -43,8 +43,8 @@ def test_constant_light_diffuse_is_pi_squared(tmp_path, white_sky):
 def test_environment_adds_before_blending(tmp_path, white_sky):
     s = scene({"map": str(white_sky)}, ks_I=0.0, ks_II=0.0)
     assets = _baked(s, tmp_path)
-    lit = render(prepare(s, assets["hrir_db"], assets["sh_tables"]))
-    dark = render(prepare(scene(None, ks_I=0.0, ks_II=0.0), assets["hrir_db"]))
+    lit = render_view(prepare(s, assets["hrir_db"], assets["sh_tables"]))
+    dark = render_view(prepare(scene(None, ks_I=0.0, ks_II=0.0), assets["hrir_db"]))
     hair = np.asarray(resolve_scene(s).material["hair_color"])
     for a, b in zip(lit.clusters, dark.clusters):
         np.testing.assert_allclose(a.alpha, b.alpha)

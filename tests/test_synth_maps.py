@@ -135,15 +135,15 @@ def test_too_many_neighbours_names_the_key(db):
 
 
 def test_render_reuses_prepared_scene_for_new_lights(db):
-    from hairlut.synth import prepare, render
+    from hairlut.synth import prepare, render_view
 
     # eq 6 off (k_threshold 0): a uniform HSV's α is read at Params_ave, whose angles include the lights', so with it
     # α would follow the lights wherever an HSV's uniformity flips (the t = 0 HSVs, since their sectors hold the roots)
     prep = prepare(scene(k_threshold=0.0), db)
-    base = render(prep)
+    base = render_view(prep)
     direct = synthesize(scene(k_threshold=0.0), db)
     np.testing.assert_allclose(base.clusters[0].final, direct.clusters[0].final, atol=1e-6)
-    moved = render(prep, lights=[[0.0, -1.0, 0.2]])
+    moved = render_view(prep, lights=[[0.0, -1.0, 0.2]])
     assert moved.clusters[0].re.shape[1] == 1
     assert not np.allclose(moved.clusters[0].lighting, base.clusters[0].lighting)
     np.testing.assert_allclose(moved.clusters[0].alpha, base.clusters[0].alpha, atol=1e-6)  # α: view only

@@ -1,4 +1,4 @@
-"""``[render] layer_reads = "track"`` (``hairlut.synth._frame.sweep_track``) against eq 7's pair read on an
+"""``[render] layer_reads = "track"`` (``hairlut.synth._view.sweep_track``) against eq 7's pair read on an
 idealised cross-section: a uniform disc (or annulus) cut into tracks and s_u phase sectors, every sector's α row
 its own exact projection (the chord length of each pixel's line inside the sector, sampled finely here, not with
 the package's geometry).  A camera ray crosses the layer surfaces; the optical depths its fragments read must add
@@ -134,7 +134,7 @@ def test_satf_track_read_sweeps_every_sectors_own_fetch():
     """The ``satf`` path with the track read (every HSV fetched as non-uniform) gives the maps of every sector's own
     row fetched by the reference k-NN lookup (``_maps.fetch``) swept by ``sweep_sectors``."""
     from hairlut.synth import params_kernel, prepare
-    from hairlut.synth._frame import frame_maps
+    from hairlut.synth._view import view_maps
     from hairlut.synth._maps import fetch, sector_angles
 
     from ._synth_fixtures import synthetic_db
@@ -144,7 +144,7 @@ def test_satf_track_read_sweeps_every_sectors_own_fetch():
     given["render"] = {**given["render"], "method": "satf", "layer_reads": "track"}
     prep = prepare(given, db)
     sc, ix = prep.scene, prep.index
-    re, alpha, uniform = frame_maps(ix, db, sc.view, sc.lights, sc.material["k_threshold"])
+    re, alpha, uniform = view_maps(ix, db, sc.view, sc.lights, sc.material["k_threshold"])
     assert ix.reads == "track" and not uniform.any()
     sp = sector_angles(prep.frames, sc.view, sc.lights)
     r_ref, a_ref = fetch(db, sp.features, sp.theta_v, sp.theta_l, sc.config["render"]["neighbours"])

@@ -15,7 +15,8 @@ field and value):
 ``bake(recipe, out, *, progress=None, shard=None, **options) -> dict``
     writes the asset ``out`` atomically (temporary file + ``os.replace``) and returns a
     report with at least ``out``, ``kind``, ``bytes``, ``seconds`` and ``recipe_hash``.
-    ``progress(done, total)`` counts ``Baker.unit``; ``shard`` ('K/N') bakes the K-th of
+    ``progress(done, total)`` counts ``Baker.unit``, its first call made before any work
+    with the units already done (resumed from an earlier bake's parts; 0 when none); ``shard`` ('K/N') bakes the K-th of
     N slices into a ``Baker.shard_kind`` file, or raises ValidationError when the kind
     cannot shard (:func:`no_shard`).
 ``load(path)``

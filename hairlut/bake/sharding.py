@@ -119,12 +119,12 @@ def _bake_blocks(units, recipe: dict, todo, parts, total: int, digest: str, bake
         if progress:
             progress(done, want)
 
-    for (s, e), part in zip(todo, parts):
-        if part.exists() and _intact(part, baker, digest, s, e, total):
-            report["resumed"] += e - s
-            done += e - s
-            if progress:
-                progress(done, want)
+    intact = [part.exists() and _intact(part, baker, digest, s, e, total) for (s, e), part in zip(todo, parts)]
+    report["resumed"] = done = sum(e - s for (s, e), ok in zip(todo, intact) if ok)
+    if progress:  # once, before any work: the resumed units (a progress bar's rate leaves them out)
+        progress(done, want)
+    for (s, e), part, ok in zip(todo, parts, intact):
+        if ok:
             continue
         started = time.perf_counter(), time.process_time()
         try:
@@ -172,7 +172,8 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
         keep_parts: bool = False, distributed: bool | Process = False, merge: str | None = None, **inputs) -> dict:
     """Bake (or resume) ``recipe`` of ``baker``'s kind into ``out`` along its units; returns a report.
 
-    ``progress(done, total)`` counts this process's units (resumed blocks first).  ``distributed``:
+    ``progress(done, total)`` counts this process's units: first once with the resumed units (0 when none), then
+    after each computed block.  ``distributed``:
     this process is one of JAX's distributed processes (:func:`hairlut.bake.devices.initialize` first).
     The leader's report says how long writing the final asset took (``assemble_s``: virtual or copy); each
     computed block's wall and CPU seconds are ``block_seconds`` and ``block_cpu_seconds`` (CPU time over wall

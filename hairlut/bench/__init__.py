@@ -32,9 +32,9 @@ def _unavailable(module: str, name: str):
 PARTS: dict[str, Part] = {p.name: p for p in (
     Part("sh", "SH convolution tables: bake and per-vertex radiance (xing §4)", _runner("_sh")),
     Part("hrir", "HRIR database bake: density grid, march steps, rays per pixel (satf §4–5)", _runner("_hrir")),
-    Part("maps", "Online maps: every map method against a converged truth, and the online frame (satf §6)",
+    Part("maps", "Online maps: every map method against a converged truth, and the online step of one view (satf §6)",
          _runner("_maps"), _unavailable("_maps", "unavailable")),
-    Part("render", "Camera renders: the layered model and the strand-level reference's levels", _runner("_render"),
+    Part("render", "Camera renders: the layered model and the strand render's levels", _runner("_render"),
          _unavailable("_render", "unavailable")),
     Part("shadows", "Shadow methods against an exact strand-level transmittance", _runner("_shadows")),
     Part("plan", "The planner: needed-only bakes against a full bake", _runner("_plan")),

@@ -1,10 +1,10 @@
-"""Part ``render``: camera frames of the layered model per map method and of the strand-level
-reference at each convergence level, against the finest level (``benchmarks/render.py``, run as
+"""Part ``render``: camera frames of the layered model per map method and of the strand render at
+each convergence level, against the finest level (``benchmarks/render.py``, run as
 a subprocess per scene: FLIP mean error, frame time).
 
 Sizes (:data:`RUNS`): the full run renders the Sintel groom at 128 × 128, levels 0–2 (level 2: 16 samples
 per pixel, 8 steps per crossing, the truth of levels 0 and 1), and the ten-times-denser Ratboy crest at 128 × 128,
-level 0 only: the reference's shadow grids (spacing 4 r̄ / 2^ℓ over the hair's bounds, whatever the frame size)
+level 0 only: the strand render's shadow grids (spacing 4 r̄ / 2^ℓ over the hair's bounds, whatever the frame size)
 hold 1 G nodes at its level 1 (about 8 GB on host and device) and 7.6 G at level 2 (refused by the memory budget);
 Sintel's level 3 needs 0.4 G nodes (about 3 GB) and several minutes.  ``--quick`` renders Sintel at 32 × 32, levels
 0 and 1."""
@@ -17,7 +17,7 @@ from ._scripts import ROOT, run_script, script_missing
 
 PART = "render"
 SINTEL, RATBOY = "tables/scenes/sintel-groom.toml", "tables/scenes/ratboy-groom.toml"
-#: (scene, square resolution, reference levels: the last is the truth) per run size.
+#: (scene, square resolution, strand render levels: the last is the truth) per run size.
 RUNS = {"quick": [(SINTEL, 32, (0, 1))], "full": [(SINTEL, 128, (0, 1, 2)), (RATBOY, 128, (0,))]}
 
 
@@ -27,13 +27,13 @@ def unavailable() -> str | None:
 
 def _figures(rows: list[dict], levels: tuple[int, ...]) -> list[Figure]:
     figs = []
-    truth, coarse = f"reference L{max(levels)}", f"reference L{min(levels)}"
+    truth, coarse = f"strands L{max(levels)}", f"strands L{min(levels)}"
     for r in rows:
         if r.get("scene") == "paper-scale" or r.get("frame_ms") is None:
             continue
         method = r["method"]
         ms = r["frame_ms"] + (r.get("maps_ms") or 0.0)  # a layered frame: its maps (made per frame) and the raster
-        figs.append(Figure(PART, f"{r['scene']}: frame against the finest reference level", method, ms / 1e3,
+        figs.append(Figure(PART, f"{r['scene']}: frame against the strand render's finest level", method, ms / 1e3,
                            None if method == truth else r.get("flip_mean"), "FLIP mean",
                            {k: r[k] for k in ("spp", "steps", "triangles", "resolution") if r.get(k) is not None},
                            baseline=method == coarse, paper=method == "layered satf",
@@ -50,7 +50,7 @@ def run(ctx: Context) -> list[Figure]:
         rows = doc.get("rows", doc.get("records", []))
         figs += _figures(rows, levels)
         shown.append(f"--scene {scene} --resolution {resolution} --levels {' '.join(map(str, levels))}")
-    ctx.note(PART, f"benchmarks/render.py {'; '.join(shown)}; the finest reference level is the truth (its error is 0 by "
+    ctx.note(PART, f"benchmarks/render.py {'; '.join(shown)}; the strand render's finest level is the truth (its error is 0 by "
                    "definition); a layered frame's time is its maps plus the raster (maps_ms and the raster alone are in "
-                   "results.json); the baseline is the coarsest reference level")
+                   "results.json); the baseline is the strand render's coarsest level")
     return figs

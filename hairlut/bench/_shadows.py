@@ -22,7 +22,7 @@ Methods: ``light_oriented_map`` (cells along the longest side; bertails uses 128
 on SH of order lmax at sample voxels every ``stride``, interpolated, evaluated toward the light;
 the paper keeps 9 coefficients, lmax 2), and the straightforward baseline, a NumPy ray march
 through a world-aligned density (``hairlut.shadows.ray_march``).  The s-map (satf eq 12) needs
-a frame's α-maps, not strand positions; it is measured with the maps and render parts.
+a view's α-maps, not strand positions; it is measured with the maps and render parts.
 """
 
 from __future__ import annotations
@@ -177,5 +177,5 @@ def run(ctx: Context) -> list[Figure]:
                    "trilinear lookup), so finer grids resolve more of it and come out darker than a wider beam")
     ctx.note(PART, "second table: each setting against the reference at its own footprint (σ = half its cell, world "
                    "voxels for the ray march and voxel SH): the method's error apart from the choice of footprint")
-    ctx.note(PART, "the s-map (satf eq 12) works on a frame's α-maps, not on strand positions: see the maps part")
+    ctx.note(PART, "the s-map (satf eq 12) works on a view's α-maps, not on strand positions: see the maps part")
     return figs

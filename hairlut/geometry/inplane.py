@@ -2,7 +2,7 @@
 the azimuths of the view and the lights in it.
 
 Shared by the planner (which measures the angles a scene's sectors produce before anything
-is baked) and the online module (Params(b) of every sector, each frame).  Angles in a
+is baked) and the online module (Params(b) of every sector, each view).  Angles in a
 sector's plane are azimuths in [0, 2π) from the sector's local +x axis (the outward ellipse
 normal at its parametric centre; +y the tangent of increasing phase: the HRIR tracer's frame).
 

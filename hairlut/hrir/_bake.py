@@ -161,8 +161,8 @@ def bake(given: dict | None, out, *, shard=None, block: int | None = None, progr
 
     ``shard`` ('K/N' or (K, N)) bakes only that slice into an ``hrir_shard`` file for ``registry.merge``;
     ``distributed`` makes this process one of JAX's distributed processes (``merge`` 'virtual', the default
-    there, or 'copy').  ``progress(done, total)`` is called with sector counts as blocks complete (resumed
-    blocks first).  Returns a report dict."""
+    there, or 'copy').  ``progress(done, total)`` is called with sector counts, first once with the resumed
+    sectors, then as blocks complete.  Returns a report dict."""
     from ..bake import registry
 
     return registry.bake(KIND, given, out, progress=progress, shard=shard, distributed=distributed, merge=merge,

@@ -1,7 +1,7 @@
 """Direct sector maps: every sector's α and re at its own exact in-plane view and light angles.
 
 The ``direct`` map method: instead of looking an HRIR up in a random database on
-an angle grid (satf §6.2), each frame traces every sector of the scene at the θv and θl it
+an angle grid (satf §6.2), each view traces every sector of the scene at the θv and θl it
 actually sees (Params(b), satf §6.2.1), from its own density grid.  The result is the same
 physical quantity the HRIR database stores (satf §5.1, eqs 4–5), computed with the planar
 tracer's conventions (``hairlut.hrir``'s tracer module docstring) and its own march, normals and
@@ -43,7 +43,7 @@ jitted kernel takes N sectors each with its **own** view angle and its own L lig
 truth had to be traced one sector at a time).  Empty sectors (all-zero density: α = re = 0
 exactly) are dropped on the host and never reach the kernel.  The live sectors are padded to
 a bucketed count (``block`` × 1, 2, 3, 4, 6, 8, …, or 8, 16, 32, … below one block) and mapped
-``block`` at a time (vmapped inside a ``lax.map``), so a few compilations serve every frame.
+``block`` at a time (vmapped inside a ``lax.map``), so a few compilations serve every view.
 With ``L = 0`` lights (``theta_l`` of shape (N, 0)) only α is computed: no shading work.
 
 Everything is float32; the one contraction (the weighted sum of the shading over the

@@ -26,7 +26,7 @@ def fence(fn, *args):
     """fn(*args), materialised once: both branches of a ``lax.cond`` are fn, so the result is the same whichever
     runs, and XLA cannot fuse fn's work into its consumers.  XLA:CPU drops ``optimization_barrier`` and fuses a
     producer into each consumer, recomputing it there: a gather fused with its index arithmetic (atan2, sqrt)
-    recomputes that arithmetic per gathered value (``hairlut.synth._frame._fenced`` does the same for the frame)."""
+    recomputes that arithmetic per gathered value (``hairlut.synth._view._fenced`` does the same for a view's maps)."""
     lead = jnp.ravel(jax.tree_util.tree_leaves(args)[0])[0]
     return jax.lax.cond(lead == lead, fn, fn, *args)
 

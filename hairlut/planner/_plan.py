@@ -260,15 +260,15 @@ def map_method(scene, sectors: int | None = None, live: int | None = None) -> tu
     """The map method a scene runs (``direct``, ``scene`` or ``satf``) and why, in words.
 
     ``render.method`` unless it is ``auto``; then: on a GPU (or another accelerator), ``direct``;
-    on the CPU with moving hair (``render.animated``), ``satf`` (a per-groom table would be stale each
-    frame and the exact projection costs seconds a frame on a CPU); on the CPU with static hair,
+    on the CPU with moving hair (``render.animated``), ``satf`` (a per-groom table would be stale once
+    the hair moves and the exact projection costs seconds a view on a CPU); on the CPU with static hair,
     ``scene`` when its table fits in a quarter of the machine's memory, else ``satf``.  ``sectors``
     and ``live``: the scene's sector counts when known (an upper bound from its settings otherwise)."""
     sc = as_scene(scene)
     r = sc.config["render"]
     method = r["method"]
-    words = {"direct": "every sector projected from its own density at the exact view and lights each frame",
-             "scene": "the groom's own sector projections, baked once, read at the exact angles each frame",
+    words = {"direct": "every sector projected from its own density at the exact view and lights, each view",
+             "scene": "the groom's own sector projections, baked once, read at the exact angles of each view",
              "satf": "the paper's SATF database lookup (no per-scene bake)"}
     if method != "auto":
         return method, f"render.method = {method!r}: {words[method]}"
@@ -278,8 +278,8 @@ def map_method(scene, sectors: int | None = None, live: int | None = None) -> tu
     if backend != "cpu":
         return "direct", f"auto: the device is a {backend}, so {words['direct']} (no per-scene bake; hair may move)"
     if r["animated"]:
-        return "satf", ("auto: the hair moves (render.animated) on the CPU: a per-groom table would be stale each "
-                        f"frame and the exact projection costs seconds a frame here, so {words['satf']}")
+        return "satf", ("auto: the hair moves (render.animated) on the CPU: a per-groom table would be stale once the "
+                        f"hair moves and the exact projection costs seconds a view here, so {words['satf']}")
     n = _sector_bound(sc) if sectors is None else int(sectors)
     nbytes, _ = registry.get("scene_maps").estimate(scene_maps_recipe(sc), n, live)
     mem = budget.physical_memory() or budget.FALLBACK
@@ -326,7 +326,7 @@ def _shadow_steps(scene) -> list[Step]:
            "material.k_shadow = 0" if given == "smap" else "shadows.method = 'none'")
     if method == "smap":
         smap = Step("s_map", "run", "eq 12 s-map from the outer layers' α (shadows.method = 'smap'): one τ per texel "
-                    "for every light, no per-frame map")
+                    "for every light, no per-view map")
     elif method == "none":
         smap = Step("s_map", "skip", f"{off}: τ = 1, no shadow work")
     else:

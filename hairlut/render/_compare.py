@@ -1,6 +1,6 @@
 """Two frames compared: what the layered model loses against the strands it stands for.
 
-``compare(a, b)`` (b the reference) returns, over the whole frame:
+``compare(a, b)`` (b the frame a is measured against, e.g. the strand render) returns, over the whole frame:
 
 - ``rgb_rmse``: RMSE of the premultiplied linear RGB; ``alpha_rmse``: RMSE of α;
 - ``alpha_bias``: mean α of a minus mean α of b, and ``alpha_bias_relative`` (over b's mean α; None, with the

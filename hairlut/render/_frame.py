@@ -4,7 +4,7 @@ as metadata.
 The camera travels in the EXR header attribute ``hairlut:camera`` (JSON, ``Camera.to_json``: the 4 × 4
 ``world_to_clip`` matrix, ``resolution`` and ``projection``, plus the eye and axes), so any EXR tool can
 reproduce the projection; the ``hairlut:recipe`` JSON holds the same record under ``camera`` beside the
-frame's ``method``, ``seconds`` and, for the reference, its convergence record; the asset kind is
+frame's ``method``, ``seconds`` and, for the strand render, its convergence record; the asset kind is
 ``render_frame``.  ``Z`` is 1e10 where nothing was drawn (A = 0).
 """
 

@@ -1,9 +1,9 @@
-"""Strand reference frames kept in the table cache, content-addressed like the tables.
+"""Strand-render frames kept in the table cache, content-addressed like the tables.
 
-A reference frame at a fixed level is a pure function of the scene (its resolved tables and its strands' geometry:
+A strand-render frame at a fixed level is a pure function of the scene (its resolved tables and its strands' geometry:
 the groom file's bytes and fit, or the clusters), the camera, the levels and the code that renders it.  A warm ``hairlut demo``
 used to render the same frames every run (about 25 s on the 2-core CPU); :func:`cached_frame` stores each one as
-``reference-<first 16 hex of its key>.exr`` in the table cache folder (``hairlut.bake.cache.cache_dir``: ``--cache``,
+``strands-<first 16 hex of its key>.exr`` in the table cache folder (``hairlut.bake.cache.cache_dir``: ``--cache``,
 ``$HAIRLUT_CACHE`` or ``tables/``), written atomically through :func:`write_frame`, and returns it again while the
 key matches.
 
@@ -32,7 +32,7 @@ from ._frame import KIND, Frame, read_frame, write_frame
 
 log = logging.getLogger(__name__)
 
-PREFIX = "reference-"
+PREFIX = "strands-"
 
 
 @functools.lru_cache(maxsize=1)
@@ -50,7 +50,7 @@ def code_record() -> dict:
 
 
 def scene_record(scene) -> dict:
-    """What of a :class:`~hairlut.scene.Scene` determines its reference frames: the resolved tables (lights,
+    """What of a :class:`~hairlut.scene.Scene` determines its strand-render frames: the resolved tables (lights,
     material, effects, shadows, camera, the HRIR recipe's extinction) and its strands' identity
     (:func:`hairlut.scenemaps.geometry_key`: the groom file's bytes and fit, or the clusters and strand settings)."""
     from ..scenemaps import geometry_key
@@ -116,16 +116,16 @@ def cached_frame(scene, record: dict, render: Callable[[], Frame], root=None) ->
         write_frame(Frame(frame.rgba, frame.depth, frame.camera, {**frame.info, "cache_key": key}), path)
         stored = str(path)
     except (errors.HairlutError, OSError) as exc:  # a read-only or full cache folder costs the cache, not the frame
-        log.warning("cannot keep the reference frame in the cache (%s)", exc)
+        log.warning("cannot keep the strand-render frame in the cache (%s)", exc)
         stored = None
     frame.info["cache"] = {"status": "rendered", "path": stored, "key": key}
     return frame
 
 
-def reference_frame(scene, camera, *, levels, root=None, strands=None) -> Frame:
-    """:func:`~hairlut.render.render_reference` of ``scene`` through ``camera`` at exactly ``levels``, through
+def strands_frame(scene, camera, *, levels, root=None, strands=None) -> Frame:
+    """:func:`~hairlut.render.render_strands` of ``scene`` through ``camera`` at exactly ``levels``, through
     :func:`cached_frame` (the camera's record and the levels are the frame's record)."""
-    from ._render import render_reference
+    from ._render import render_strands
 
-    return cached_frame(scene, {"what": "reference", "camera": camera.to_json(), "levels": list(levels)},
-                        lambda: render_reference(scene, camera, levels=list(levels), strands=strands), root)
+    return cached_frame(scene, {"what": "strands", "camera": camera.to_json(), "levels": list(levels)},
+                        lambda: render_strands(scene, camera, levels=list(levels), strands=strands), root)

@@ -1,11 +1,11 @@
-"""Which (ray, segment) pairs of a tile add optical depth, compacted per ray: the reference's first pass.
+"""Which (ray, segment) pairs of a tile add optical depth, compacted per ray: the strand render's first pass.
 
 A tile's candidates (``_tiles.bin_boxes``) are every segment whose screen box overlaps it, but one ray meets
 only the few tubes it passes within √D2_CUT r of (``_strands.support``).  :func:`hit_kernel` evaluates each
 pair's support only (no erfc, no sort) for all rays of a chunk of tiles; :func:`compact` keeps, per ray, the
 segments it is ``near`` and groups the rays by how many, padded to a power of two K; a :class:`Queue` gathers
 those rows into batches of fixed shape (N rays × K segments), so the second pass (the optical depths, shading,
-sorting and compositing of ``_reference``) works on K ≪ M pairs per ray and compiles once per K.  A pair left
+sorting and compositing of ``_strand_march``) works on K ≪ M pairs per ray and compiles once per K.  A pair left
 out has an empty support or a ray farther than √D2_CUT r from its axis: it adds no optical depth above float32
 rounding, so both passes together compute what one dense pass over every candidate would.
 """

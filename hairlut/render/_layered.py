@@ -1,6 +1,6 @@
 """``render_layered(scene)``: the layered cluster model through the scene's camera (satf §6), as a :class:`Frame`.
 
-The online module (``hairlut.synth.prepare`` / ``render``) gives every layer of every cluster its shaded
+The online module (``hairlut.synth.prepare`` / ``render_view``) gives every layer of every cluster its shaded
 RGBA on the (n_t, n_u) texel grid: the map method's re- and α-maps, the scene's lights (eqs 8–11), its
 shadow method (eq 12 or a light-space map), eq 13 and the environment term when the scene has one, all
 for the scene's ``[camera] view`` (a perspective camera's per-pixel view direction is not re-shaded).
@@ -134,7 +134,7 @@ def oblique_path(cam, tangent, position) -> np.ndarray:
     same cross-section density over a path longer by 1/sin ψ (the density is constant along the axis to first
     order), so in a continuous medium its optical depth is −ln(1 − α)/sin ψ; through strands, each crossing's
     is (:func:`strand_path`).  The layer's tangent, not the cluster's axis: where a cluster flares its strands
-    follow the layers (a cone of strands, tests/test_render_oblique.py's notes: the layered/reference mean-α ratio
+    follow the layers (a cone of strands, tests/test_render_oblique.py's notes: the layered/strands mean-α ratio
     moves 1.2 % from ψ = 90° to 30° with the layer's tangent, 15 % with the cluster's axis)."""
     t = np.asarray(tangent, np.float64)
     if cam.projection == "perspective":
@@ -150,7 +150,7 @@ def sector_paths(cam, prepared) -> tuple[np.ndarray, np.ndarray]:
     """The ``rays`` law's optical-path factors of a ``hairlut.synth.Prepared`` scene with the direct map method:
     (S,) for the camera ray through each sector (:func:`oblique_path` at the sector's centre and tangent,
     ``hairlut.synth.sector_tangents``) and (S, L) for each of the scene's lights (1 / sin ψ_l against the same
-    tangent, capped at :data:`MAX_PATH`).  ``hairlut.synth.render(path=, light_path=)`` multiplies every traced ray's
+    tangent, capped at :data:`MAX_PATH`).  ``hairlut.synth.render_view(path=, light_path=)`` multiplies every traced ray's
     optical depth by them before the rays are averaged to pixels (satf eq 4 along the camera ray: exact for strands
     parallel to the tangent, whatever their arrangement in the cross-section; ``hairlut.march._direct``)."""
     from ..synth import sector_tangents
@@ -183,7 +183,7 @@ def strand_path(path: np.ndarray, kappa: float) -> np.ndarray:
     −ln(1 − α) = λ r G(κ √π) and a ray crossing the same strands at angle ψ sees λ r G(κ √π / sin ψ): each crossing
     is longer by 1 / sin ψ, but a ray that already crossed a strand's core gains little from a longer chord.
     The 1 / sin ψ of a continuous medium (a volume density) is the limit κ → 0; for the tracer's κ = 2/π
-    (opaque discs) ψ = 30° gives 1.50, not 2.  Tested against the strand reference
+    (opaque discs) ψ = 30° gives 1.50, not 2.  Tested against the strand render
     (tests/test_render_oblique.py)."""
     a0 = float(kappa) * math.sqrt(math.pi)
     grid = np.linspace(1.0, MAX_PATH, 1025)
@@ -249,7 +249,7 @@ def render_layered(scene, camera=None, *, db=None, sh=None, maps=None, prepared=
     :func:`strand_path`'s exponent, ``"volume"`` by 1 / sin ψ, ``"off"`` (False) not at all (the in-plane α)."""
     from ..geometry import ClusterGeometry
     from ..scene import as_scene
-    from ..synth import prepare, render
+    from ..synth import prepare, render_view
     from ._render import extinction, scene_camera
 
     law = None if oblique is True else ("off" if oblique is False else oblique)
@@ -265,7 +265,7 @@ def render_layered(scene, camera=None, *, db=None, sh=None, maps=None, prepared=
     t1 = time.perf_counter()
     cam = scene_camera(sc) if camera is None else camera
     paths = sector_paths(cam, prep) if law == "rays" else (None, None)
-    result = render(prep, path=paths[0], light_path=paths[1])
+    result = render_view(prep, path=paths[0], light_path=paths[1])
     geometry = ClusterGeometry([pc.spec for pc in prep.clusters])
     meshes, tile, origins, subdiv = layout(cam, geometry, edge_pixels=edge_pixels)
     tex = layer_textures(result)

@@ -1,9 +1,9 @@
-"""Optical depth toward a light through the strands' tubes: the strand reference's shadows (``_reference``).
+"""Optical depth toward a light through the strands' tubes: the strand render's shadows (``_strand_march``).
 
 τ_l(x) = ∫₀^∞ σ_t ρ(x + s·l) ds, the exact line integral of every segment's density from x toward the light
 direction l (``_strands``: one erfc pair per crossing), and the transmittance T_l(x) = exp(−τ_l(x)).
 
-**At any points** (:func:`point_depths`, what the reference uses since its shadow term must converge with the
+**At any points** (:func:`point_depths`, what the strand render uses since its shadow term must converge with the
 image, not with a grid).  A light's :class:`LightIndex` bins the segments' tubes (cut at ``Z_CUT`` r) on the plane
 across the light into square tiles of ``LIGHT_TILE`` median radii, each tile's segments sorted by how far toward
 the light their tube reaches.  A point's shadow ray tests only the segments of its tile that reach beyond it
@@ -15,8 +15,8 @@ bounds, and a batch of points at a time; work: one shadow ray per point.
 bounds, each column of nodes one ray toward the light whose crossings are found once and integrated from every
 node on, interpolated trilinearly between nodes.  At a node both paths compute the same integral (to float32
 rounding, tests); the grid's work and memory grow as the bounds' volume / cell³ (Ratboy at a cell of 2 median
-radii: about 10⁹ nodes, 8 GB), the points' as the image's samples, so the reference takes the grid only while
-it is small (``_reference.GRID_NODES``).
+radii: about 10⁹ nodes, 8 GB), the points' as the image's samples, so the strand render takes the grid only
+while it is small (``_strand_march.GRID_NODES``).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Scene-level entry point :func:`render_reference` (the strands, ``_reference``), returning a :class:`Frame`."""
+"""Scene-level entry point of the strand render, :func:`render_strands` (``_strand_march``), returning a :class:`Frame`."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import numpy as np
 
 from .. import errors
 from ._frame import Frame
-from ._reference import render_level
+from ._strand_march import render_level
 from ._strands import segments_of
 
-#: Default convergence bound (the scene schema's ``render.reference_bound``): RMSE of the premultiplied RGB and of α
+#: Default convergence bound (the scene schema's ``render.strands_bound``): RMSE of the premultiplied RGB and of α
 #: between successive levels.
 BOUND = 0.01
 
@@ -71,18 +71,18 @@ def _change(a: np.ndarray, b: np.ndarray) -> dict:
             "alpha_rmse": float(np.sqrt(np.mean((a[..., 3] - b[..., 3]) ** 2)))}
 
 
-def render_reference(scene, camera=None, *, bound: float | None = None, max_level: int = 3, min_level: int = 1,
+def render_strands(scene, camera=None, *, bound: float | None = None, max_level: int = 3, min_level: int = 1,
                      levels: list | None = None, strands=None, verify: bool = False) -> Frame:
-    """The converged strand-level reference of ``scene`` (``_reference``): levels ``min_level − 1``, … until the
+    """The converged strand render of ``scene`` (``_strand_march``): levels ``min_level − 1``, … until the
     change from the level before is below ``bound`` in both RGB and α RMSE (or ``max_level``).  With ``levels``
     (e.g. [2]) exactly those levels are rendered and the last returned (no convergence claim).  ``verify``: once
     converged, one more level is rendered and its change from the returned image stored as ``info["verified"]``
     (``holds``: below ``bound`` too); the returned image stays the converged one.  ``bound`` None: the scene's
-    ``[render] reference_bound``."""
+    ``[render] strands_bound``."""
     from ..scene import as_scene
 
     sc = as_scene(scene)
-    bound = float(sc.config["render"].get("reference_bound", BOUND)) if bound is None else bound
+    bound = float(sc.config["render"].get("strands_bound", BOUND)) if bound is None else bound
     if not (np.isfinite(bound) and bound > 0):
         raise errors.ValidationError("bound", bound, "must be finite and > 0")
     if isinstance(max_level, bool) or not isinstance(max_level, int) or not 0 <= max_level <= 4:
@@ -116,7 +116,7 @@ def render_reference(scene, camera=None, *, bound: float | None = None, max_leve
         ch = _change(finer, img)
         verified = {"level": history[-1]["level"] + 1, "change_from_returned": ch, "holds": max(ch.values()) < bound,
                     "seconds": time.perf_counter() - tl}
-    info = {"method": "reference", "scene": sc.source, "bound": bound if levels is None else None,
+    info = {"method": "strands", "scene": sc.source, "bound": bound if levels is None else None,
             "converged": converged, "verified": verified, "levels": history, "segments": segs.n, "extinction_kappa": extinction(sc),
             "shadows": shadows, "environment": "not included",
             "seconds": {"setup": t1 - t0, "frame": time.perf_counter() - t1}}

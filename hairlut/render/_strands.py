@@ -1,4 +1,4 @@
-"""The strands as Gaussian tubes and the exact line integrals of their density (the reference's geometry).
+"""The strands as Gaussian tubes and the exact line integrals of their density (the strand render's geometry).
 
 **Density.**  A strand of radius r is the tube whose cross-section is the 2-D Gaussian the sector
 densities use (``hairlut.geometry.splats``: σ = r/√2, mass π r² per unit length), so at distance d
@@ -70,7 +70,7 @@ def segments_of(strands, kappa: float) -> Segments:
     p0s, p1s, rs = [], [], []
     for s in strands:
         if s.thickness is None:
-            raise errors.ValidationError("strands.thickness", None, "the reference needs each strand's thickness")
+            raise errors.ValidationError("strands.thickness", None, "the strand render needs each strand's thickness")
         pts, th = np.asarray(s.points, np.float64), np.asarray(s.thickness, np.float64)
         last = np.zeros(len(pts), bool)
         last[np.asarray(s.offsets)[1:] - 1] = True

@@ -22,13 +22,13 @@ camera, 1 for an orthographic one; NDC in [−1, 1]); pixel (x, y) of NDC (X, Y)
 ((X + 1)/2 · w, (1 − Y)/2 · h): x to the right, y downward from the top row, pixel centres at
 integers + ½.  ``depth`` is the eye-space distance along the viewing axis (the EXR ``Z``).
 
-*Precision.*  Both renderers work in float32 world coordinates (the strand reference marches rays from the eye;
+*Precision.*  Both renderers work in float32 world coordinates (the strand render marches rays from the eye;
 the rasteriser projects and depth-sorts from it), so a float32 step at the eye's distance D from the hair,
 ε₃₂·D, is their resolution there.  :func:`make_camera` refuses, naming the key that placed the eye or the frame
 (``position``; ``fov``, whose fitted eye stands at radius / sin(fov/2); ``look_at``; ``extent``):
 
 - an eye so far that ε₃₂·D exceeds 1/16 of the thinnest strand's radius (``position`` 1e12 away; ``fov`` 1e-6,
-  which fits the eye 1e8 radii away): the reference would lose the strands and the rasteriser the depth order;
+  which fits the eye 1e8 radii away): the strand render would lose the strands and the rasteriser the depth order;
 - a pixel at the nearest hair narrower than 16 such steps (``extent`` 1e-30): neither could place an edge in it.
 
 A frame that is legal but catches no hair (``extent`` 1e30 or ``fov`` 179.9999, where the hair shrinks below a
@@ -55,7 +55,7 @@ MAX_SIDE = 16384
 MARGIN = 0.05
 #: float32's relative spacing (the renderers' precision, module docstring *Precision*).
 FLOAT32_EPS = float(np.finfo(np.float32).eps)
-#: A length the frame must show spans at least this many float32 steps (about 1e-3 α RMSE in the strand reference).
+#: A length the frame must show spans at least this many float32 steps (about 1e-3 α RMSE in the strand render).
 RESOLVE = 16
 #: Without a strand radius, the detail a frame must resolve is the hair's radius over this.
 DETAIL = 1024

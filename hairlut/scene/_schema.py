@@ -61,6 +61,8 @@ def _pair(check):
 REQUIRED = {"camera.view": "missing required key (or give both camera.position and camera.look_at: the view is "
                            "derived from them)",
             "lights.directions": "missing required key"}
+#: Keys that were renamed: old dotted key → new one (an old key is refused naming the new one).
+RENAMED = {"render.reference_bound": "render.strands_bound"}
 
 #: ``[shadows] method``: where each light's transmittance at a texel comes from (eq 13 with one τ per light).
 SHADOW_METHODS = ("smap", "light_oriented", "opacity_maps", "none")
@@ -106,9 +108,9 @@ SCHEMA = {
                             "scene: the re/α terms are kept on every ratio_step-th view (a divisor of views)"),
         "precision": Field("float16", _S, one_of("float16", "float32"),
                            "scene: storage precision of the per-groom table"),
-        "reference_bound": Field(0.01, _F, in_range(1e-6, 1.0),
-                                 "the strand reference (render --reference): stop refining once one more level changes "
-                                 "the RGB and α RMSE by less than this; the bound is stored in the frame"),
+        "strands_bound": Field(0.01, _F, in_range(1e-6, 1.0),
+                                 "the strand render (render --strands): stop refining once one more level changes "
+                               "the RGB and α RMSE by less than this; the bound is stored in the frame"),
         "layer_reads": Field("pair", _S, one_of("pair", "track"),
                              "what a layer texel reads: pair (eq 7: its HSV's two sectors) or track (every sector "
                              "its in-plane ray crosses in its track, on its side of the chord: closer to the strands, "
@@ -292,6 +294,9 @@ def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -
     clusters, groom = given.pop("clusters", None), given.pop("groom", None)
     if "camera" in given:
         given["camera"] = derive_view(given["camera"])
+    for old, new in RENAMED.items():
+        if get_path(given, old) is not None:
+            raise errors.ValidationError(old, get_path(given, old), f"renamed: write {new} instead")
     for key, reason in REQUIRED.items():
         if get_path(given, key) is None:
             raise errors.ValidationError(key, None, reason)

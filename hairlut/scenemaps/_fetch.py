@@ -8,7 +8,7 @@ the same way on their own grid of V_r = V / ratio_step views and evaluated at ea
 re_l(p) = α(p) ρ_l(q(p)), q(p) = ⌊p Q / P⌋.  One jitted kernel, float32 arithmetic (the contraction
 over the terms at HIGHEST precision), empty sectors masked to exactly 0.
 
-A frame (the ``scene`` map method, ``hairlut.synth``) runs the same fetch as two kernels,
+A view's maps (the ``scene`` map method, ``hairlut.synth``) run the same fetch as two kernels,
 :func:`index_kernel` (each sector's rows and weights) then :func:`terms_kernel` (the gathers), so that
 the row indices are materialised before the row copies that use them.
 """
@@ -98,9 +98,9 @@ def fetch_terms(alpha_t, ratio_t, row, theta_v, theta_l, *, shade: bool = True):
 
 @partial(jax.jit, static_argnames=("half", "views"))
 def index_kernel(row, theta_v, *, half: int, views: int):
-    """:func:`fetch_index` as a kernel of its own, for a frame's fetch: its few (S,) index arrays are then
+    """:func:`fetch_index` as a kernel of its own, for a view's fetch: its few (S,) index arrays are then
     materialised before :func:`terms_kernel` gathers with them.  Fused into one kernel, XLA:CPU recomputes a
-    row's index arithmetic for each of the P elements it copies (measured 2.5 of the paper-scale frame's
+    row's index arithmetic for each of the P elements it copies (measured 2.5 of the paper-scale view's
     ~12 ms fetch, 2-core CPU)."""
     return fetch_index(row, theta_v, half=half, views=views)
 

@@ -43,7 +43,7 @@ def scene_rows(recipe: dict, scene) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     Built once per recipe hash (which holds the groom's geometry key) and process."""
     if scene is None:
         raise errors.ValidationError("scene", None, "a scene_maps table is one scene's: give the scene "
-                                     "(hairlut bake scene --scene SCENE.toml, or hairlut bake --scene SCENE.toml)")
+                                     "(hairlut bake scene_maps --scene SCENE.toml, or hairlut bake --scene SCENE.toml)")
     key = recipe_hash(recipe)
     if key not in _ROWS:
         density, geometry = scene_inputs(scene, recipe)

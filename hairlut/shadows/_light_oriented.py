@@ -1,7 +1,7 @@
 """3D light-oriented density/shadow map (bertails §2–3).
 
 The map is a uniform grid of cubic cells in the light frame R = (O, X_map, Y_map, Z_map)
-with X_map = L, the unit direction *toward* the light (§2.1).  Per frame:
+with X_map = L, the unit direction *toward* the light (§2.1).  Each build:
 
 1. density (§3.1): every segment is resampled at ``SUBSTEPS`` points per cell edge and each
    sample adds its share of the segment length to its cell; ``density`` is hair length per

@@ -14,7 +14,7 @@ Both are evaluated with one κ meaning: the light-blocking width of a fibre, a l
 the scene's units (opacity maps are built with unit width, so Ω is hair length per unit
 area, as the density map's ∫ ρ dl).  ``kappa=None`` takes the strands' mean diameter
 (``Strands.thickness``): fibres that block what they cover.  The eq 12 s-map is not here:
-it needs the α-maps of a frame and lives with the online shading kernel.
+it needs the α-maps of a view and lives with the online shading kernel.
 """
 
 from __future__ import annotations

@@ -25,11 +25,11 @@ Non-uniform: l = (1 − γ)·HRIR⊤[x⊤] + γ·HRIR⊥[x⊥] (eq 7); uniform: 
 the HSV at x̄ = (x⊤ + x⊥)/2.
 
 **Two implementations.**  :func:`sector_angles`, :func:`texels`, :func:`fetch` and
-:func:`build_maps` are the reference: NumPy, a k-NN search per fetch.  The per-frame path
+:func:`build_maps` are the reference: NumPy, a k-NN search per fetch.  The per-view path
 splits the work as the paper's index does: :func:`map_index` (once per scene) keeps what
 does not change with the view or the lights (the SATF neighbours and weights of every
 sector and of every HSV's averaged features, eq 6's feature term, each texel's offsets in
-its sectors' frames), and :func:`frame_maps` runs a frame in three jitted kernels:
+its sectors' frames), and :func:`view_maps` runs a view in three jitted kernels:
 :func:`params_kernel` (angles, eq 6), :func:`fetch_kernel` (one HRIR row per HSV, a second
 for the non-uniform ones, compacted on the host) and :func:`sweep_rows` (eq 7).  They stay
 separate kernels because XLA:CPU otherwise fuses each row's gathers into every consumer
@@ -63,7 +63,7 @@ class SectorFrames:
     coordinates, ``extent`` R (N,), ``half_axes`` (N, 2), ``twist`` (N,), outer radius
     ``v_outer`` (N,), the 3-D ``reference`` and ``binormal`` (N, 3) of its cross-section, and
     ``occupied`` (N,): whether any strand crosses it (an empty sector holds no hair: α = re = 0), and its
-    track's inner radius ``v_inner`` (N,) (the track read, ``_frame.sweep_track``)."""
+    track's inner radius ``v_inner`` (N,) (the track read, ``_view.sweep_track``)."""
 
     features: np.ndarray
     centre: np.ndarray

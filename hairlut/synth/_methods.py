@@ -1,15 +1,15 @@
-"""Where a frame's per-sector rows come from: the map methods ``direct`` and ``scene``.
+"""Where a view's per-sector rows come from: the map methods ``direct`` and ``scene``.
 
-``satf`` (the paper's lookup, ``_frame.frame_maps``) fetches database rows at Params(b).  The
-other two give every sector its own row, then run the same eq 7 sweep (``_frame.sweep_sectors``,
+``satf`` (the paper's lookup, ``_view.view_maps``) fetches database rows at Params(b).  The
+other two give every sector its own row, then run the same eq 7 sweep (``_view.sweep_sectors``,
 two sectors per HSV), so the shading kernel receives the same (re, α) map arrays:
 
-* ``direct``: each frame, every non-empty sector traced at its exact θv and θl from its own density
+* ``direct``: each view, every non-empty sector traced at its exact θv and θl from its own density
   grid (``_direct.direct_sector_maps``; the inputs, ``scene_sector_inputs``, built once here);
 * ``scene``: each sector's row read from the groom's baked ``scene_maps`` table at its exact angles
   (``hairlut.scenemaps.fetch_kernel``).
 
-:func:`prepare_map_source` builds the method's inputs once; :meth:`MapSource.frame` makes a frame's maps.
+:func:`prepare_map_source` builds the method's inputs once; :meth:`MapSource.view` makes a view's maps.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import numpy as np
 
 from .. import errors
 from ..march import direct_sector_maps, scene_sector_inputs
-from ._frame import MapIndex, _fenced, _split, _texels, params_kernel, sweep_sectors
+from ._view import MapIndex, _fenced, _split, _texels, params_kernel, sweep_sectors
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,7 +44,7 @@ class MapSource:
 
     def sectors_of(self, ix):
         """Each texel's top and bottom sector, (C, K, n_t, n_u) int32 twice, for the index ``ix``: static per
-        scene, so built once here and passed to :func:`scene_frame_kernel` (computed in the kernel, XLA:CPU
+        scene, so built once here and passed to :func:`scene_view_kernel` (computed in the kernel, XLA:CPU
         redoes the (C, s_t + 1, G, s_u) → texel index arithmetic for every read: the paper-scale sweep
         measured 16.6 → 5.0 CPU-ms with them given)."""
         hit = self.texel_sectors.get(id(ix))
@@ -53,8 +53,8 @@ class MapSource:
             hit = self.texel_sectors[id(ix)] = (ix, *(jnp.asarray(np.asarray(_texels(ix, x))) for x in ids))
         return hit[1:]
 
-    def frame(self, ix, view, lights, path=None, light_path=None):
-        """re (C, K, Lt, n_t, n_u) and α (C, K, n_t, n_u) (device arrays) of one frame, and the uniform
+    def view(self, ix, view, lights, path=None, light_path=None):
+        """re (C, K, Lt, n_t, n_u) and α (C, K, n_t, n_u) (device arrays) of one view, and the uniform
         mask (H,) (all False: every HSV sweeps its two sectors' own rows).  ``path`` (S,) and ``light_path`` (S, Lt):
         the ``direct`` method's per-sector optical-path factors of the camera's and the lights' rays
         (``_direct.direct_sector_maps``; :func:`sector_tangents` gives each sector's axis); other methods refuse them."""
@@ -71,7 +71,7 @@ class MapSource:
 
             alpha_t, ratio_t, row = self.device
             index = index_kernel(row, tv, half=alpha_t.shape[1], views=ratio_t.shape[1])
-            re_map, a_map = scene_frame_kernel(ix, *terms_kernel(alpha_t, ratio_t, index, tv, tl), cs,
+            re_map, a_map = scene_view_kernel(ix, *terms_kernel(alpha_t, ratio_t, index, tv, tl), cs,
                                                *self.sectors_of(ix))
             return re_map, a_map, np.zeros(int(np.prod(ix.grid)), bool)
         re_map, a_map = sweep_sectors(ix, alpha, re, cs)
@@ -96,7 +96,7 @@ def sector_tangents(clusters) -> tuple[np.ndarray, np.ndarray]:
 
 
 @jax.jit
-def scene_frame_kernel(ix: MapIndex, alpha, ratio, cs, top, bot):
+def scene_view_kernel(ix: MapIndex, alpha, ratio, cs, top, bot):
     """The ``scene`` method's eq 7 from every sector's α (S, P) and re/α ratio ρ (S, Lt, Q), read from its
     table row at its exact angles (``hairlut.scenemaps.index_kernel`` then ``terms_kernel``: separate
     kernels, because fused into this one XLA:CPU recomputes the rows' gathers and index arithmetic per

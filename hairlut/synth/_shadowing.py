@@ -2,7 +2,7 @@
 
 ``Scene.shadow_method`` (``[shadows] method``, hairlut.scene) selects it:
 
-``smap``            eq 12 from the frame's α-maps, inside the shading kernel (nothing here);
+``smap``            eq 12 from the view's α-maps, inside the shading kernel (nothing here);
 ``light_oriented``  the light-oriented density map (bertails §2–3) of all the scene's strands,
 ``opacity_maps``    or its opacity shadow maps (kim ch. 6), one map per light, evaluated at
                     the texels' 3-D positions on the layer surfaces → T (C, K, n_t, n_u, L),
@@ -10,8 +10,8 @@
 ``none``            no shadow work at all: τ = 1.
 
 The light-space maps do not depend on the view: :func:`prepare_shadows` builds them once in
-``prepare`` for the scene's lights, and :meth:`Shadows.for_lights` rebuilds them in ``render``
-only when a frame's lights differ from those it holds.
+``prepare`` for the scene's lights, and :meth:`Shadows.for_lights` rebuilds them in ``render_view``
+only when a view's lights differ from those it holds.
 """
 
 from __future__ import annotations

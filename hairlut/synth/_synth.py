@@ -4,13 +4,13 @@ Pipeline.  :func:`prepare` (once per scene): clusters and strands → sectors an
 (``hairlut.geometry``) → sector features and frames → the index of eqs 6–7 (``_maps.map_index``:
 the SATF neighbours of every sector and averaged HSV, texel → HSV and image-line offsets)
 → per-texel frames on each layer surface (tangent ∂P/∂t, normal ∂P/∂u × ∂P/∂t, as in
-``layer_meshes``).  :func:`render` (per frame, any view and lights): Params(b) angles, the
-uniformity test, SATF fetches and re-/α-maps (``_maps.frame_maps``, eqs 6–7) → lighting
+``layer_meshes``).  :func:`render_view` (per view, for any view and lights): Params(b) angles, the
+uniformity test, SATF fetches and re-/α-maps (``_maps.view_maps``, eqs 6–7) → lighting
 (eqs 8–11), shadows, shading and blending (eqs 12–14) in one kernel.  Shadows come from the
 scene's method (``_shadowing``): eq 12's s-map in the kernel, or one transmittance per
 (texel, light) from a light-space map built in ``prepare`` (rebuilt when the lights change).
 Each cluster's strands, sectors and features are its own (so results do not depend on the
-order of the clusters); a frame then runs all clusters together through each kernel once.
+order of the clusters); a view then runs all clusters together through each kernel once.
 :func:`write_outputs` writes one EXR and one PNG per cluster plus an orthographic preview
 of the whole set.
 """
@@ -31,7 +31,7 @@ import numpy as np
 from .. import errors
 from ..assets import atomic_write_bytes, encode_png, tonemap, write_exr
 from ..scene import Scene, as_scene, scene_clusters
-from ._frame import frame_maps, geometry_index, map_index
+from ._view import view_maps, geometry_index, map_index
 from ._maps import SectorFrames, sector_frames, texel_grid
 from ._environment import prepare_environment
 from ._shading import compose_clusters_kernel, lighting_kernel, value_noise
@@ -107,10 +107,10 @@ class PreparedCluster:
 
 @dataclass(frozen=True, eq=False)
 class Prepared:
-    """A scene made ready for :func:`render`: its clusters, the database, the seconds it took, and
+    """A scene made ready for :func:`render_view`: its clusters, the database, the seconds it took, and
     the clusters merged into one multi-cluster ``table`` and ``frames`` (sector ids offset by
     cluster, as in a multi-cluster :class:`~hairlut.geometry.SectorTable`) with stacked texel
-    arrays (float32 device arrays) and the maps' ``index`` (``_frame.MapIndex``), so a frame runs
+    arrays (float32 device arrays) and the maps' ``index`` (``_view.MapIndex``), so a view runs
     every cluster through one call of each kernel; ``environment`` (``_environment.Environment``)
     when the scene has an environment light; ``shadows`` (``_shadowing.Shadows``), the shadow method
     and its per-light maps."""
@@ -172,7 +172,7 @@ def prepare_cluster(scene: Scene, db, spec, strands) -> PreparedCluster:
 
 
 def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
-    """Everything of a scene that does not depend on the view or the lights (see :func:`render`);
+    """Everything of a scene that does not depend on the view or the lights (see :func:`render_view`);
     ``db``: the ``hrir_db`` the ``satf`` map method reads; ``sh``: the ``sh_tables`` file of the scene's
     environment light, when it has one; ``maps``: the ``scene_maps`` table the ``scene`` method reads.
     The method is :func:`resolve_method`'s; ``direct`` reads no table."""
@@ -231,11 +231,11 @@ def shade_kernel(re, alpha, tangent, normal, noise, view, lights, light_rgb, mat
 
 def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict | None = None, extra=None,
                     paths: tuple = (None, None)) -> list:
-    """One frame of every prepared cluster, all clusters batched: eqs 6–7 from the index
-    (``_frame.frame_maps``: three kernels, timed as "maps"), then eqs 8–14 (:func:`shade_kernel`, "shade");
+    """The maps and shaded layers of every prepared cluster for one view, all clusters batched: eqs 6–7 from the index
+    (``_view.view_maps``: three kernels, timed as "maps"), then eqs 8–14 (:func:`shade_kernel`, "shade");
     ``extra`` (C, K, n_t, n_u, 3), the environment term, is added to each layer's shaded colour.  A light-space
     shadow method's maps are rebuilt first (timed as "shadows") when ``lights`` differ from the prepared ones.
-    ``paths``: the direct method's per-sector optical-path factors (view, lights) (:func:`render`)."""
+    ``paths``: the direct method's per-sector optical-path factors (view, lights) (:func:`render_view`)."""
     timing = {} if timing is None else timing
     scene, db = prepared.scene, prepared.db
     cfg, fx = scene.config, scene.effects
@@ -245,9 +245,9 @@ def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict
     if prepared.maps is None:
         if any(p is not None for p in paths):
             raise errors.ValidationError("path", prepared.method, "per-ray optical paths need the direct map method")
-        re, alpha, uniform = frame_maps(prepared.index, db, view, lights, scene.material["k_threshold"])
+        re, alpha, uniform = view_maps(prepared.index, db, view, lights, scene.material["k_threshold"])
     else:
-        re, alpha, uniform = prepared.maps.frame(prepared.index, view, lights, *paths)
+        re, alpha, uniform = prepared.maps.view(prepared.index, view, lights, *paths)
     jax.block_until_ready(alpha)
     t1 = time.perf_counter()
     mat, colours = material_arrays(scene)
@@ -275,8 +275,8 @@ def _direction(name, d) -> np.ndarray:
     return directions(d, name)  # finite, non-zero 3-vectors, normalised (the shared rule)
 
 
-def render(prepared: Prepared, *, view=None, lights=None, light_colors=None, path=None, light_path=None) -> SynthResult:
-    """One frame of a prepared scene, for its own or the given view and lights (directions toward
+def render_view(prepared: Prepared, *, view=None, lights=None, light_colors=None, path=None, light_path=None) -> SynthResult:
+    """The maps and shaded layers of a prepared scene for one view: its own or the given view and lights (directions toward
     the viewer / lights; ``light_colors`` (L, 3), white by default when ``lights`` is given).  ``path`` (S,) and
     ``light_path`` (S, L): with the ``direct`` map method, the optical-path factors 1/sin ψ of the camera's and the
     lights' rays through each sector (``_methods.sector_tangents``), applied per ray inside the trace
@@ -306,11 +306,11 @@ def render(prepared: Prepared, *, view=None, lights=None, light_colors=None, pat
 
 def synthesize(scene, db=None, sh=None, maps=None) -> SynthResult:
     """Synthesise re-, α-, s-maps, lighting, shaded layers and composites for every cluster:
-    :func:`render` of :func:`prepare`.  ``scene``: a :class:`Scene`, a scene mapping or a TOML
+    :func:`render_view` of :func:`prepare`.  ``scene``: a :class:`Scene`, a scene mapping or a TOML
     path; ``db``: an ``HRIRDB`` or the path of an ``hrir_db`` file; ``sh``: the ``sh_tables``
     file of the scene's environment light; ``maps``: the ``scene_maps`` table of the ``scene`` map method
     (``hairlut.planner.find_assets`` finds them in the cache)."""
-    return render(prepare(scene, db, sh, maps))
+    return render_view(prepare(scene, db, sh, maps))
 
 
 def _plain(x):

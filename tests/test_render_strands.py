@@ -1,4 +1,4 @@
-"""The strand-level reference against closed forms: one straight strand side-on (the Gaussian's chord
+"""The strand render against closed forms: one straight strand side-on (the Gaussian's chord
 integral), a uniform slab of strands (Beer–Lambert), and the camera matrix against where a strand is drawn."""
 
 import math
@@ -70,7 +70,7 @@ def test_alpha_is_exact_at_any_step_count():
 @pytest.mark.parametrize("projection", ["orthographic", "perspective"])
 def test_matrix_projects_a_strand_where_it_is_drawn(projection):
     """A short strand's centre, projected with the camera's 4 × 4 world-to-clip matrix, lands on the pixel
-    of the reference's α peak."""
+    of the strand render's α peak."""
     c = np.array([0.7, -0.4, 0.2])
     pts = np.stack([c - [0.05, 0, 0], c + [0.05, 0, 0]])
     box = np.array([[-2.0, -2.0, -1.0], [2.0, 2.0, 1.0]])
@@ -91,8 +91,8 @@ def test_segments_need_positive_extinction():
         segments_of(Strands(pts, np.array([2]), thickness=np.full(2, 0.1)), 0.0)
 
 
-def test_cli_render_reference(tmp_path):
-    """`hairlut render --reference` on a tiny scene: an EXR with R, G, B, A and Z, the camera in ``hairlut:camera``
+def test_cli_render_strands(tmp_path):
+    """`hairlut render --strands` on a tiny scene: an EXR with R, G, B, A and Z, the camera in ``hairlut:camera``
     (its matrix projects a strand point onto a drawn pixel), converged, the bound and each level's change stored."""
     import json
 
@@ -106,12 +106,12 @@ def test_cli_render_reference(tmp_path):
     scene = tmp_path / "tiny.toml"
     scene.write_text(TINY.replace("resolution = [48, 40]", "resolution = [24, 20]").replace("radius = 0.006", "radius = 0.025")
                      + '[shadows]\nmethod = "none"\n')
-    out = tmp_path / "ref.exr"
-    r = CliRunner().invoke(cli, ["render", str(scene), "--reference", "--bound", "0.05", "--max-level", "1",
+    out = tmp_path / "strands.exr"
+    r = CliRunner().invoke(cli, ["render", str(scene), "--strands", "--bound", "0.05", "--max-level", "1",
                                  "--out", str(out), "--json"])
     assert r.exit_code == 0, r.output
     rep = json.loads(r.output[r.output.index("{"):])
-    assert rep["method"] == "reference" and rep["converged"], rep["levels"] and rep["bound"] == 0.05
+    assert rep["method"] == "strands" and rep["converged"], rep["levels"] and rep["bound"] == 0.05
     f = OpenEXR.File(str(out), separate_channels=True)
     assert sorted(f.channels()) == ["A", "B", "G", "R", "Z"]
     cam = json.loads(f.header()["hairlut:camera"])
@@ -126,8 +126,8 @@ def test_cli_render_reference(tmp_path):
     assert a[int(y), int(x)] > 0.05
 
 
-def test_cli_render_reference_without_a_bound_reports_the_scene_default(tmp_path):
-    """Issue 29 N1: no ``--bound`` and no ``[render] reference_bound``: the text report shows the default bound
+def test_cli_render_strands_without_a_bound_reports_the_scene_default(tmp_path):
+    """Issue 29 N1: no ``--bound`` and no ``[render] strands_bound``: the text report shows the default bound
     the render used (it formatted the option, None, and crashed after writing the EXR)."""
     from click.testing import CliRunner
 
@@ -138,18 +138,18 @@ def test_cli_render_reference_without_a_bound_reports_the_scene_default(tmp_path
     scene = tmp_path / "tiny.toml"
     scene.write_text(TINY.replace("resolution = [48, 40]", "resolution = [16, 12]").replace("radius = 0.006", "radius = 0.025")
                      + '[shadows]\nmethod = "none"\n')
-    assert "reference_bound" not in scene.read_text()
+    assert "strands_bound" not in scene.read_text()
     out = tmp_path / "ref.exr"
-    r = CliRunner().invoke(cli, ["render", str(scene), "--reference", "--max-level", "1", "--out", str(out)])
+    r = CliRunner().invoke(cli, ["render", str(scene), "--strands", "--max-level", "1", "--out", str(out)])
     assert r.exit_code == 0, r.output
     assert f"bound {BOUND:g})" in r.output and f"wrote {out}" in r.output
     assert read_frame(out).info["bound"] == BOUND
 
 
 @pytest.mark.slow
-def test_reference_bound_holds_one_level_finer(tmp_path):
+def test_strands_bound_holds_one_level_finer(tmp_path):
     """``verify``: the converged image against one more refinement changes by less than the bound too."""
-    from hairlut.render import render_reference
+    from hairlut.render import render_strands
     from hairlut.scene import resolve_scene
     import tomllib
 
@@ -157,8 +157,8 @@ def test_reference_bound_holds_one_level_finer(tmp_path):
 
     cfg = tomllib.loads(TINY.replace("resolution = [48, 40]", "resolution = [24, 20]").replace("radius = 0.006", "radius = 0.025"))
     cfg["shadows"] = {"method": "none"}
-    cfg.setdefault("render", {})["reference_bound"] = 0.05  # the scene's own bound, as the Ratboy scene sets it
-    f = render_reference(resolve_scene(cfg, None), max_level=1, verify=True)
+    cfg.setdefault("render", {})["strands_bound"] = 0.05  # the scene's own bound, as the Ratboy scene sets it
+    f = render_strands(resolve_scene(cfg, None), max_level=1, verify=True)
     assert f.info["converged"] and f.info["bound"] == 0.05
     v = f.info["verified"]
     assert v["level"] == f.info["levels"][-1]["level"] + 1 and v["holds"], v
@@ -166,16 +166,30 @@ def test_reference_bound_holds_one_level_finer(tmp_path):
 
 
 @pytest.mark.parametrize("bad", [0.0, -0.01, float("nan"), 2.0, "tight"])
-def test_a_bad_reference_bound_is_refused_naming_the_key(bad):
+def test_a_bad_strands_bound_is_refused_naming_the_key(bad):
     from hairlut.scene import resolve_scene
     import tomllib
 
     from tests.test_render_layered import TINY
 
     cfg = tomllib.loads(TINY)
-    cfg.setdefault("render", {})["reference_bound"] = bad
-    with pytest.raises(errors.ValidationError, match="reference_bound"):
+    cfg.setdefault("render", {})["strands_bound"] = bad
+    with pytest.raises(errors.ValidationError, match="strands_bound"):
         resolve_scene(cfg, None)
+
+
+def test_the_old_reference_bound_key_is_refused_naming_the_new_one():
+    """``[render] reference_bound`` was renamed ``strands_bound`` ("reference" means an oracle only)."""
+    from hairlut.scene import resolve_scene
+    import tomllib
+
+    from tests.test_render_layered import TINY
+
+    cfg = tomllib.loads(TINY)
+    cfg.setdefault("render", {})["reference_bound"] = 0.05
+    with pytest.raises(errors.ValidationError, match="render.strands_bound") as exc:
+        resolve_scene(cfg, None)
+    assert exc.value.field == "render.reference_bound"
 
 
 def test_inside_clusters_splits_strand_length_by_where_the_sectors_see_it():
@@ -254,23 +268,23 @@ def test_point_shadows_equal_the_grid_at_its_nodes():
 
 
 def test_demo_probe_is_the_change_between_the_two_levels():
-    """The demo states how far its reference level is from the next (``hairlut.demo.reference_probe``): the same
+    """The demo states how far its strand render level is from the next (``hairlut.demo.strands_probe``): the same
     camera at a smaller size, with the aspect kept; the change is the RMSE between the two levels rendered apart."""
     import tomllib
 
-    from hairlut.demo import reference_probe
-    from hairlut.render import render_reference, scene_strands
+    from hairlut.demo import strands_probe
+    from hairlut.render import render_strands, scene_strands
     from hairlut.scene import make_camera, resolve_scene
     from tests.test_render_layered import TINY
 
     cfg = tomllib.loads(TINY.replace("radius = 0.006", "radius = 0.025"))
     cfg["shadows"] = {"method": "none"}
     sc = resolve_scene(cfg, None)
-    pr = reference_probe(sc, level=0, size=24)
+    pr = strands_probe(sc, level=0, size=24)
     assert pr["resolution"] == [24, 20] and pr["next_level"] == 1
     pts = np.concatenate([s.points for s in scene_strands(sc)])
     cam = make_camera({**sc.config["camera"], "resolution": [24, 20]}, pts)
-    a, b = (render_reference(sc, cam, levels=[lv]).rgba for lv in (0, 1))
+    a, b = (render_strands(sc, cam, levels=[lv]).rgba for lv in (0, 1))
     assert pr["change_to_next"]["alpha_rmse"] == pytest.approx(np.sqrt(np.mean((a[..., 3] - b[..., 3]) ** 2)), rel=1e-5)
     assert pr["change_to_next"]["rgb_rmse"] == pytest.approx(np.sqrt(np.mean((a[..., :3] - b[..., :3]) ** 2)), rel=1e-5)
     assert pr["change_to_next"]["alpha_rmse"] > 1e-4  # the levels differ: the test can see a wrong pair
@@ -280,7 +294,7 @@ def test_rendered_grid_shadows_converge_to_the_shadow_rays(monkeypatch):
     """A frame's shadows from the grid (cell 4 r̄ / 2^ℓ, trilinear) against the exact shadow ray per step: α is the
     same, the colours differ by the grid's interpolation, which falls at second order from level 0 to 1 (measured
     0.067 → 0.015 RMSE, against a shadow effect of 0.19)."""
-    import hairlut.render._reference as ref
+    import hairlut.render._strand_march as ref
 
     lines, segs = _curls()
     cam = _camera(np.concatenate(lines), resolution=[32, 32])
@@ -306,7 +320,7 @@ def _dense_oracle(segs, cam, lit, light, level, lattice):
     """Every pixel's rays through every segment (no tiles, no first pass, no ``SEEN`` cut), the steps sorted by numpy
     and composited in float64, each step shadowed by its own exact shadow ray: what ``render_level`` computes."""
     from hairlut.render import light_index, point_depths
-    from hairlut.render._reference import camera_array, camera_rays
+    from hairlut.render._strand_march import camera_array, camera_rays
 
     ss, steps = 1 << level, 2 << level
     tiles = np.stack(np.meshgrid(np.arange(cam.width // 8), np.arange(cam.height // 8), indexing="ij"), -1).reshape(-1, 2)
@@ -339,8 +353,8 @@ def _dense_oracle(segs, cam, lit, light, level, lattice):
 @pytest.mark.parametrize("lattice", [False, True])
 def test_frame_equals_the_dense_march_to_float32_rounding(monkeypatch, lattice):
     """The tiled, first-pass-filtered frame whose crossings are found once (``step_points``) and composited from
-    them (``reference_kernel``) equals a dense float64 march of every ray through every segment, shadows included."""
-    import hairlut.render._reference as ref
+    them (``strand_march_kernel``) equals a dense float64 march of every ray through every segment, shadows included."""
+    import hairlut.render._strand_march as ref
 
     lines, segs = _curls()
     cam = _camera(np.concatenate(lines), resolution=[24, 16])

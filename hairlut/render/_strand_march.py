@@ -1,4 +1,4 @@
-"""The strand-level reference: the strands' Gaussian tubes ray-marched through the camera (``_strands``).
+"""The strand render's ray march: the strands' Gaussian tubes ray-marched through the camera (``_strands``).
 
 **Opacity** (Beer–Lambert).  Each camera ray meets the tubes of the segments binned to its screen tile
 (``_tiles``) that it passes near (``_hits``: a first pass keeps, per ray, only the pairs that can add optical
@@ -21,7 +21,7 @@ the steps in front of a camera transmittance of ``SEEN`` need it (those behind w
 4^ℓ distinct columns and rows, where the regular 2^ℓ × 2^ℓ grid has 2^ℓ, so a strand thinner than the grid's spacing
 is not seen by whole rows or missed by them; on a dense 32² window of Ratboy at 128² its α error is 1.1–1.6× smaller
 at 4–64 samples against 256 samples of either pattern, ``benchmarks/reference_convergence.py``), 2^(ℓ+1) steps per
-crossing and (on the grid) a cell of 4 r̄ / 2^ℓ; the exact rays are the grid's limit.  :func:`render_reference`
+crossing and (on the grid) a cell of 4 r̄ / 2^ℓ; the exact rays are the grid's limit.  :func:`render_strands`
 refines level by level until the image changes by less than ``bound`` (RMSE of premultiplied RGB and of α,
 each) from the level before, and stores the levels' changes; ``converged`` is false when ``max_level`` is
 reached first.
@@ -115,7 +115,7 @@ def step_points(o, d, cand, p0, t, length, radius, sigma_t, *, steps: int, persp
     into ``steps`` equal steps), mid-point s (N, M), segment (N, M) (0 where none: τ = 0), mid-point x (N, M, 3) and
     whether the step needs its shadow (N, M): it holds optical depth and the camera ray's transmittance in front of
     it is at least ``SEEN`` (the steps behind weigh less than ``SEEN`` together).  The crossings are found once
-    here; :func:`reference_kernel` composites these sorted steps."""
+    here; :func:`strand_march_kernel` composites these sorted steps."""
     valid = cand >= 0
     ix = jnp.where(valid, cand, 0)
     tau, s = crossings(o[:, None], d[:, None], *(a[ix] for a in (p0, t, length, radius, sigma_t)),
@@ -130,7 +130,7 @@ def step_points(o, d, cand, p0, t, length, radius, sigma_t, *, steps: int, persp
 
 
 @partial(jax.jit, static_argnames=("perspective",))
-def reference_kernel(tau, s, seg, d, back, lit, shade, *, perspective: bool):
+def strand_march_kernel(tau, s, seg, d, back, lit, shade, *, perspective: bool):
     """Premultiplied RGB, α, Σ w·depth and Σ w of N rays (unit directions ``d`` (N, 3)) from their steps sorted along
     the ray (:func:`step_points`: optical depth ``tau``, mid-point ``s``, segment ``seg``, all (N, M)): (N, 6)
     (module docstring).  ``back`` (3,) the camera's back axis; ``lit`` (S, L, 3) each segment's lighting; ``shade``
@@ -144,7 +144,7 @@ def reference_kernel(tau, s, seg, d, back, lit, shade, *, perspective: bool):
 
 
 def camera_array(camera) -> np.ndarray:
-    """The (6, 3) camera rows :func:`reference_kernel` and the rasteriser take."""
+    """The (6, 3) camera rows :func:`strand_march_kernel` and the rasteriser take."""
     if camera.projection == "perspective":
         c = np.tan(np.radians(camera.fov) / 2)
         half = (c * camera.aspect, c)
@@ -173,7 +173,7 @@ def render_level(segs: Segments, camera, lit, lights, *, level: int, shadows: bo
                  samples: int | None = None, steps: int | None = None, lattice: bool | None = None) -> np.ndarray:
     """The (h, w, 5) RGBA + depth of one convergence level (module docstring).  ``stats`` gets where the shadows came
     from (``grid`` or ``rays``), the seconds of the lights' grids or indexes, of the shadow lookups (``_light``), of
-    the first pass (``_hits``) and of the second (:func:`reference_kernel`), and the pair counts."""
+    the first pass (``_hits``) and of the second (:func:`strand_march_kernel`), and the pair counts."""
     ss = 1 << level if samples is None else int(samples)
     steps = 2 << level if steps is None else int(steps)
     lattice = LATTICE if lattice is None else bool(lattice)
@@ -210,7 +210,7 @@ def render_level(segs: Segments, camera, lit, lights, *, level: int, shadows: bo
             for li, lookup in enumerate(lookups):
                 shade[live, li] = lookup(pts)
             st["shadow_seconds"] += time.perf_counter() - ts
-        res = np.asarray(reference_kernel(tau, s, seg, d, back, lit, f32(shade), perspective=perspective), np.float64)
+        res = np.asarray(strand_march_kernel(tau, s, seg, d, back, lit, f32(shade), perspective=perspective), np.float64)
         good = ids >= 0
         for c in range(6):
             acc[c] += np.bincount(ids[good], res[good, c], minlength=acc.shape[1])
@@ -249,5 +249,5 @@ def render_level(segs: Segments, camera, lit, lights, *, level: int, shadows: bo
                      pattern="lattice" if lattice else "grid", **st)
     out = out[:h, :w]
     if not np.isfinite(out).all():
-        raise errors.ValidationError("reference", "non-finite", "the reference produced non-finite pixels")
+        raise errors.ValidationError("strands", "non-finite", "the strand render produced non-finite pixels")
     return out

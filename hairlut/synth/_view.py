@@ -1,7 +1,7 @@
-"""The per-frame path of eqs 6–7 (satf §6.2): the index once, then three jitted kernels a frame.
+"""The per-view path of eqs 6–7 (satf §6.2): the index once, then three jitted kernels a view.
 
 :func:`map_index` (once per scene, in ``prepare``) keeps what does not change with the view
-or the lights; :func:`frame_maps` runs :func:`params_kernel` (angles, eq 6),
+or the lights; :func:`view_maps` runs :func:`params_kernel` (angles, eq 6),
 :func:`fetch_kernel` (the SATF rows, non-uniform HSVs compacted on the host) and
 :func:`sweep_rows` (eq 7).  Conventions and the reference implementation: ``_maps``.
 
@@ -155,7 +155,7 @@ def params_kernel(ix: MapIndex, view, lights, k_threshold, *, n_v: int, n_l: int
 
 @partial(jax.jit, donate_argnames=("scratch",), keep_unused=True)
 def fetch_kernel(ix: MapIndex, alpha, refl, tv, tl, uniform, nonuniform, scratch):
-    """The SATF rows of a frame from the index's neighbours (``hairlut.hrir.interpolate``):
+    """The SATF rows of a view from the index's neighbours (``hairlut.hrir.interpolate``):
     re (M, Lt, P), α (M, P).  Row h < H is HSV h's first HRIR (at Params_ave if it is uniform,
     else its top sector's); row H + i the bottom sector's HRIR of HSV ``nonuniform[i]``.
     ``scratch``: two arrays of those shapes, donated, so that the rows reuse their memory."""
@@ -267,12 +267,12 @@ def track_window(ix: MapIndex, cs, used: tuple, by_sector: bool = False):
     return {k: v.reshape(-1, *v.shape[4:]) for k, v in geo.items()}
 
 
-def _track_slot(m: int, geo: dict, acc, trans, flat_a, flat_re, frame, s_u: int, P: int):
+def _track_slot(m: int, geo: dict, acc, trans, flat_a, flat_re, section, s_u: int, P: int):
     """Slot m of :func:`sweep_track`'s front-to-back composite, for the entries of ``geo`` (all, or a subset)."""
     Lt = acc.shape[-1]
     k = jnp.mod(geo["j0"] + geo["sig"] * m, s_u)
     w = geo["w"][:, m]
-    h = frame[geo["base"] + k]
+    h = section[geo["base"] + k]
     x = ((geo["Px"] - h[..., 0]) * -geo["dy"] + (geo["Py"] - h[..., 1]) * geo["dx"]) / h[..., 2]
     row, p = geo["row0"] + k, (x + 1.0) * P / 2.0 - 0.5
     f = jnp.clip(p, 0.0, P - 1.0)  # _maps._sample's pixel, materialised before the gathers that use it
@@ -313,12 +313,12 @@ def sweep_track(ix: MapIndex, rows_re, rows_a, cs, by_sector: bool = False):
     Lt, P = rows_re.shape[1:]
     used, pos = _track_layout(ix)
     geo = _fenced(lambda ix, cs: track_window(ix, cs, used, by_sector), ix, cs)  # materialised before the gathers
-    flat_re, flat_a, frame = rows_re.reshape(-1), rows_a.reshape(-1), ix.track[:, 5:8]  # centre, extent
+    flat_re, flat_a, section = rows_re.reshape(-1), rows_a.reshape(-1), ix.track[:, 5:8]  # centre, extent
     n = geo["j0"].shape[0]
     acc, trans = jnp.zeros((n, Lt), jnp.float32), jnp.ones(n, jnp.float32)
     for m in range(geo["w"].shape[1]):
         def slot(state, m=m):
-            return _track_slot(m, geo, *state, flat_a, flat_re, frame, s_u, P)
+            return _track_slot(m, geo, *state, flat_a, flat_re, section, s_u, P)
 
         # a slot no window reaches is skipped (a weight-0 slot is an exact no-op: the same numbers either way)
         acc, trans = slot((acc, trans)) if m == 0 else jax.lax.cond(jnp.any(geo["last"] > m), slot, lambda s: s,
@@ -361,11 +361,11 @@ def sweep_rows(ix: MapIndex, rows_re, rows_a, cs, uniform, slot):
 _SCRATCH: dict[int, tuple] = {}
 
 
-def frame_rows(ix: MapIndex, db, view, lights, k_threshold: float):
-    """Eq 6 and the SATF fetches of one frame: :func:`sweep_rows`'s arguments after ``ix`` (device
+def view_rows(ix: MapIndex, db, view, lights, k_threshold: float):
+    """Eq 6 and the SATF fetches of one view: :func:`sweep_rows`'s arguments after ``ix`` (device
     arrays) and the uniform mask (H,) on the host.  Two kernels: the uniformity test, then, with the
     few non-uniform HSVs compacted on the host (padded to a bucket size), the fetches.  The rows
-    stay valid until the next frame of ``ix``, which reuses their memory."""
+    stay valid until the next view of ``ix``, which reuses their memory."""
     _, alpha, refl, _, _ = _device_db(db)
     f32 = partial(np.asarray, dtype=np.float32)  # NumPy in: a jnp conversion would dispatch a kernel per argument
     tv, tl, cs, _, uni = params_kernel(ix, f32(view), f32(lights), f32(k_threshold), n_v=len(db.theta_v),
@@ -390,9 +390,9 @@ def frame_rows(ix: MapIndex, db, view, lights, k_threshold: float):
     return (*rows, cs, uni, slot), uniform
 
 
-def frame_maps(ix: MapIndex, db, view, lights, k_threshold: float):
-    """Eqs 6–7 of one frame from the index: re, α as :func:`build_maps` (device arrays) and the uniform mask."""
-    args, uniform = frame_rows(ix, db, view, lights, k_threshold)
+def view_maps(ix: MapIndex, db, view, lights, k_threshold: float):
+    """Eqs 6–7 of one view from the index: re, α as :func:`build_maps` (device arrays) and the uniform mask."""
+    args, uniform = view_rows(ix, db, view, lights, k_threshold)
     return (*sweep_rows(ix, *args), uniform)
 
 
