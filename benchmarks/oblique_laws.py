@@ -9,24 +9,22 @@ the direct maps on an N × N density grid with K steps instead of the scene's ``
 the default 32 × 32, Ratboy's 96 × 96 / 192).  Beside each row: the online frame's warm CPU seconds (maps and
 shading: best of ``--repeat`` calls of ``hairlut.synth.render`` with the law's paths, computed once before).
 
-Usage: python benchmarks/oblique_laws.py [--scene S.toml ...] [--resolution 128] [--laws rays strands volume off]
+Usage: python -m benchmarks.oblique_laws [--scene S.toml ...] [--resolution 128] [--laws rays strands volume off]
        [--grid 96 --steps 192]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import save, table  # noqa: E402
-from render import SCENES, with_config  # noqa: E402
+from hairlut.bench import with_config
+from hairlut.render import OBLIQUE_LAWS, compare, render_layered, render_reference, sector_paths
+from hairlut.scene import load_scene
+from hairlut.synth import prepare, render
 
-from hairlut.render import OBLIQUE_LAWS, compare, render_layered, render_reference, sector_paths  # noqa: E402
-from hairlut.scene import load_scene  # noqa: E402
-from hairlut.synth import prepare, render  # noqa: E402
+from ._common import SCENES, save, table
 
 
 def frame_cpu(prep, cam, law: str, repeat: int) -> float:
