@@ -1,4 +1,5 @@
-"""Shared helpers for the benchmark scripts: timing, tables, the machine record, JSON output.
+"""What the investigations share: where the repository's example scenes and results are, timing, markdown tables,
+the machine record and JSON output.
 
 Every JSON that :func:`save` writes carries ``machine`` (:func:`hairlut.bench.machine`: CPU model, cores, memory;
 JAX backend, device kind and memory; the NVIDIA driver and CUDA version where there is one; the
@@ -14,7 +15,10 @@ from pathlib import Path
 
 from hairlut.bench import machine, machine_line  # noqa: F401  (re-exported for the scripts)
 
+ROOT = Path(__file__).resolve().parents[1]
 RESULTS = Path(__file__).resolve().parent / "results"
+#: The vendored grooms' scenes (tables/grooms/): Sintel, then the denser Ratboy crest.
+SCENES = [ROOT / "tables" / "scenes" / "sintel-groom.toml", ROOT / "tables" / "scenes" / "ratboy-groom.toml"]
 
 
 def best_of(fn, repeat: int = 5, min_time: float = 0.0):
@@ -27,6 +31,24 @@ def best_of(fn, repeat: int = 5, min_time: float = 0.0):
         if min_time and best > min_time:
             break
     return best, out
+
+
+def best_wall_cpu(fn, n: int, *, warm: bool = False) -> tuple[float, float]:
+    """(best wall seconds, best process CPU seconds: every thread) of ``n`` calls of ``fn``; with ``warm``, after
+    one untimed call, each call's result waited for (``jax.block_until_ready``)."""
+    ready = (lambda x: x)
+    if warm:
+        import jax
+
+        ready = jax.block_until_ready
+        ready(fn())
+    wall, cpu = [], []
+    for _ in range(n):
+        t0, c0 = time.perf_counter(), time.process_time()
+        ready(fn())
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return min(wall), min(cpu)
 
 
 def table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:

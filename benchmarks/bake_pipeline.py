@@ -12,28 +12,26 @@ bake, all after compilation, and prints:
 - the whole bake (``hairlut.hrir.bake``: parts, then the assembled file) beside the serial sum of its
   pieces: below the sum where the overlap pays.
 
-Usage: python benchmarks/bake_pipeline.py [--quick] [--json OUT]
+Usage: python -m benchmarks.bake_pipeline [--quick] [--json OUT]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import emit, table  # noqa: E402
-
-from hairlut.assets import Axis, Variable, register_kind, write_table  # noqa: E402
-from hairlut.assets.chunks import workers  # noqa: E402
-from hairlut.geometry.density import sector_density  # noqa: E402
+from hairlut.assets import Axis, Variable, register_kind, write_table
+from hairlut.assets.chunks import workers
+from hairlut.geometry.density import sector_density
 from hairlut.hrir import bake, resolve_recipe, sample_block, trace_sectors
-from hairlut.march import sector_geometry# noqa: E402
+from hairlut.march import sector_geometry
+
+from ._common import emit, table
 
 BLOCK = 32
 register_kind("bench_block", ("alpha", "reflectance"), "a block of HRIR tables (benchmarks/bake_pipeline.py)")

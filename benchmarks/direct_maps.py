@@ -1,6 +1,6 @@
 """Direct sector maps (issue 12's ``direct`` method) against tracing each sector on its own.
 
-    python benchmarks/direct_maps.py [--scene tables/scenes/sintel-groom.toml] [--quick] [--json OUT]
+    python -m benchmarks.direct_maps [--scene tables/scenes/sintel-groom.toml] [--quick] [--json OUT]
 
 The scene's sectors (its own clusters and strands, as ``hairlut.synth.prepare`` builds them)
 are made into kernel inputs by ``scene_sector_inputs`` (density grid 32², the HRIR
@@ -28,14 +28,12 @@ Prints a table and writes JSON (``--json OUT``; benchmarks/results/direct_maps.j
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import best_of, emit, table  # noqa: E402
+from ._common import best_of, emit, table
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "tables" / "scenes" / "sintel-groom.toml"

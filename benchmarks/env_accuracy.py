@@ -1,6 +1,6 @@
 """Environment radiance against a 30-band reference: RMS error and clamped texels (issue 12 item 4).
 
-    python benchmarks/env_accuracy.py [--scene S.toml ...] [--bands 8 12 16] [--stride 4] [--json OUT]
+    python -m benchmarks.env_accuracy [--scene S.toml ...] [--bands 8 12 16] [--stride 4] [--json OUT]
 
 For every example scene with an environment light (default: each ``tables/scenes/*.toml`` with an
 ``[environment]`` map), through the public API: plan, bake (a temporary cache), prepare, and the
@@ -29,8 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import emit, table  # noqa: E402
+from ._common import emit, table
 
 ROOT = Path(__file__).resolve().parents[1]
 WINDOWS = ("none", "hanning", "lanczos")

@@ -1,6 +1,6 @@
 """Environment term with self-shadowing: where its clamped texels come from (transmittance bands, de-ringing).
 
-    python benchmarks/env_transmittance.py [--scene tables/scenes/sky-clusters.toml] [--bands 3 5 8] [--json OUT]
+    python -m benchmarks.env_transmittance [--scene tables/scenes/sky-clusters.toml] [--bands 3 5 8] [--json OUT]
 
 The environment term of a texel is E = Σ_j b_j (kd f_dif Cd_j + ks Cs_j) (xing eq 2 through the contracted
 tables; ``hairlut.synth``'s environment module), b the strands' voxel SH transmittance truncated to
@@ -16,15 +16,13 @@ where even s = 0 is negative: the band-0 term itself rings) and error.
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import emit, table  # noqa: E402
+from ._common import emit, table
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -160,9 +160,8 @@ printf '{"name": "setup", "rc": %d, "wall_s": %s, "cap_s": 120, "cmd": "venv + w
   "$(python3 -c "import time; print(round(time.time() - $t0, 2))")" >> "$STEPS"
 cat "$LOGS/setup.log" | tail -n 3
 "$PY" - > "$OUT/machine.json" 2> "$LOGS/machine.log" <<'PY'
-import json, sys
-sys.path.insert(0, "benchmarks")
-from _common import machine
+import json
+from hairlut.bench import machine
 print(json.dumps(machine(), indent=1, default=str))
 PY
 summary
@@ -183,7 +182,7 @@ T=$WORK/assets; mkdir -p "$T"
 if [ $SMALL = 1 ]; then
   TINY="--set angles.views=8 --set angles.lights=8 --set trace.pixels=16 --set trace.steps=16"
   DEFAULT="--set sectors.count=64 $TINY"; BIG="--set sectors.count=192 $TINY"
-  PROD=(64 16 16 16); QUICK=--quick; PAPER="--paper-resolution 128 --paper-texels 16"
+  PROD=(64 16 16 16); QUICK=--quick; PAPER="--resolution 128 --texels 16"
 else
   DEFAULT=""; BIG="--set sectors.count=16384"; PROD=(512 64 64 64); QUICK=""; PAPER=""
 fi
@@ -194,10 +193,25 @@ step hrir-default-cold 120 $HL bake hrir --out "$T/default-1.h5" --no-progress -
 step hrir-default-warm 90 $HL bake hrir --out "$T/default-2.h5" --no-progress --json $DEFAULT
 step hrir-16384 180 $HL bake hrir --out "$T/big.h5" --no-progress --json $BIG
 unset JAX_COMPILATION_CACHE_DIR JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES
-step online-frame 120 "$PY" benchmarks/online_frame.py $QUICK
-step radiance-1e6-f64 90 "$PY" benchmarks/sh_tables.py --radiance-only $QUICK
-step render-paper-1024 150 "$PY" benchmarks/render.py --paper-only $PAPER
-step direct-frame 90 "$PY" benchmarks/online_frame.py --map-methods --methods direct $QUICK
+# the studies of `hairlut bench` that the GPU figures need, one each, their records in $LOGS/NAME.json
+cat > "$WORK/study.py" <<'PY'
+import json, sys, tempfile
+from pathlib import Path
+import hairlut.bench as hb
+name, out, quick = sys.argv[1], Path(sys.argv[2]), "--quick" in sys.argv[3:]
+if name == "online-frame":  # the maps part's online frame (the paper's model unless --quick)
+    doc = hb.online_frame_study(quick)
+else:  # the sh part's radiance table: exact radiance of 10^6 vertices in float64, beside dense tables
+    with tempfile.TemporaryDirectory() as d:
+        ctx = hb.Context(quick=quick, workdir=Path(d))
+        doc = {"figures": [f.to_json() for f in hb.sh_radiance_figures(ctx)], "notes": ctx.notes}
+print(json.dumps(doc, indent=1, default=str))
+out.write_text(json.dumps(doc, default=str))
+PY
+step online-frame 120 "$PY" "$WORK/study.py" online-frame "$LOGS/online-frame.json" $QUICK
+step radiance-1e6-f64 90 "$PY" "$WORK/study.py" radiance "$LOGS/radiance-1e6-f64.json" $QUICK
+step render-paper-1024 150 "$PY" -m benchmarks.paper_render $PAPER
+step direct-frame 90 "$PY" -m benchmarks.frame_methods --methods direct $QUICK
 # issue 16: one device's steady throughput on the production recipe (64 x 64 angles, 64 px, float16)
 cat > "$WORK/production.py" <<'PY'
 import json, statistics, sys, tempfile, time

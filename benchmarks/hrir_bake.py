@@ -15,19 +15,16 @@ Prints three tables and writes benchmarks/results/hrir_bake.json:
 
 The measurements are ``hairlut.bench.hrir_bake_study``; this script prints them.
 
-Usage: python benchmarks/hrir_bake.py [--quick]
+Usage: python -m benchmarks.hrir_bake [--quick]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import save, table  # noqa: E402
+from hairlut.bench import hrir_bake_study
 
-from hairlut.bench import hrir_bake_study  # noqa: E402
+from ._common import save, table
 
 
 def main(argv=None) -> None:

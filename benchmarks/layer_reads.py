@@ -2,7 +2,7 @@
 camera ray crosses.  Two figures per phase count s_u, side by side:
 
 * **measured**: the layered render (``hairlut.render.render_layered``, ``direct`` maps: each sector's own density
-  projected at its exact angles) against the strand render at level 0 (``render_strands``), mean-α bias over
+  projected at its exact angles) against the strand reference at level 0 (``render_strands``), mean-α bias over
   the frame (``compare``), on a groom scene at ``--resolution`` with ``[groom] s_u`` set to each value (the fit,
   its strands and the camera stay; shadows off: α does not depend on them);
 * **geometric**: the same reads on an idealised cross-section: a uniform disc of radius 1 cut into the scene's
@@ -23,28 +23,24 @@ rows also hold the 8 × 8-block RGB RMSE, the FLIP mean and the maps stage's wal
 
 With ``--paper``: only the maps stage's cost per read on the paper-scale model (:func:`paper_cost`).
 
-Usage: python benchmarks/layer_reads.py [--scene S.toml] [--su 4 8 16] [--reads pair track] [--resolution 128]
+Usage: python -m benchmarks.layer_reads [--scene S.toml] [--su 4 8 16] [--reads pair track] [--resolution 128]
 [--no-render] [--paper]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import save, table  # noqa: E402
-from render import with_config  # noqa: E402
+from hairlut.bench import ring_model, with_config
+from hairlut.render import compare, render_layered, render_strands
+from hairlut.scene import load_scene
+from hairlut.synth import prepare, render_view
 
-from hairlut.render import compare, render_layered, render_strands  # noqa: E402
-from hairlut.scene import load_scene  # noqa: E402
-from hairlut.synth import prepare, render_view  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[1]
+from ._common import ROOT, best_wall_cpu, save, table
 
 
 def geometric_bias(s_u: int, layer_radii, tau: float, rays: int = 1500, steps: int = 2001, seed: int = 0) -> float:
@@ -75,34 +71,19 @@ def geometric_bias(s_u: int, layer_radii, tau: float, rays: int = 1500, steps: i
     return float(model.mean() / truth.mean() - 1.0)
 
 
-def _best(fn, n: int):
-    """Best wall and process seconds of ``n`` calls of ``fn`` (after one untimed warm-up call)."""
-    import jax
-
-    jax.block_until_ready(fn())
-    wall, cpu = [], []
-    for _ in range(n):
-        w0, c0 = time.perf_counter(), time.process_time()
-        jax.block_until_ready(fn())
-        wall.append(time.perf_counter() - w0)
-        cpu.append(time.process_time() - c0)
-    return min(wall), min(cpu)
-
-
 def paper_cost(frames: int = 5) -> list[dict]:
-    """The part of the maps stage the read changes on the paper-scale model (benchmarks/online_frame.py's: 17
+    """The part of the maps stage the read changes on the paper-scale model (``hairlut.bench.ring_model``: 17
     clusters × 3 layers, s_t 64, s_u 16, 64² texels): the sweep from every sector's rows to the texels
     (``sweep_sectors`` on fixed random rows of 32 pixels), best of ``frames``, wall and process time.  The rows
     themselves (the direct method's trace, the scene table's fetch) are the same for both reads."""
     import jax.numpy as jnp
-    from online_frame import model
 
     from hairlut.scene import resolve_scene
     from hairlut.synth import params_kernel, sweep_sectors
 
     rows = []
     for reads in ("pair", "track"):
-        cfg = model(17, 64, 16, 64, 200)
+        cfg = ring_model(17, 64, 16, 64, 200)
         cfg["render"].update(method="direct", layer_reads=reads)
         prep = prepare(resolve_scene(cfg, "paper-scale model"))
         ix, sc = prep.index, prep.scene
@@ -112,7 +93,7 @@ def paper_cost(frames: int = 5) -> list[dict]:
         rng = np.random.default_rng(0)
         alpha = jnp.asarray(rng.uniform(0, 0.5, (S, 32)), jnp.float32)
         re = jnp.asarray(rng.uniform(0, 0.2, (S, Lt, 32)), jnp.float32)
-        wall, cpu = _best(lambda: sweep_sectors(ix, alpha, re, cs), frames)
+        wall, cpu = best_wall_cpu(lambda: sweep_sectors(ix, alpha, re, cs), frames, warm=True)
         row = {"scene": "paper-scale", "reads": reads, "sweep_ms": 1e3 * wall, "sweep_cpu_ms": 1e3 * cpu,
                "texels": int(np.prod(ix.offset.shape[2:])), "sectors": S}
         rows.append(row)

@@ -1,7 +1,7 @@
 """Light-oriented shadow map (bertails §2–3) against a per-vertex NumPy ray march.
 
-    python benchmarks/light_oriented.py [--resolutions 32 64 128] [--reference 256] [--kappa 0.05] [--quick]
-    python benchmarks/light_oriented.py --footprints [64 128 256 512 1024]
+    python -m benchmarks.light_oriented [--resolutions 32 64 128] [--reference 256] [--kappa 0.05] [--quick]
+    python -m benchmarks.light_oriented --footprints [64 128 256 512 1024]
 
 On the Sintel groom (tables/grooms/sintel_lite.tfx), for each resolution N:
 - hairlut: ``light_oriented_map`` (jitted, float64: density + transmittance in the light
@@ -24,13 +24,10 @@ benchmarks/results/light_oriented.json.
 from __future__ import annotations
 
 import argparse
-import sys
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import save, table  # noqa: E402
+from hairlut.bench import footprint_study, light_oriented_study
 
-from hairlut.bench import footprint_study, light_oriented_study  # noqa: E402
+from ._common import save, table
 
 
 def footprints(divisors) -> None:

@@ -1,6 +1,6 @@
-"""The layered render's oblique law against the strand render (issue 13): mean-α bias per law and groom.
+"""The layered render's oblique law against the strand reference (issue 13): mean-α bias per law and groom.
 
-Per scene: the strand render at level 0 (``render_strands(levels=[0])``) with shadows off (α does not depend
+Per scene: the strand reference at level 0 (``render_strands(levels=[0])``) with shadows off (α does not depend
 on them), then the layered model (``render_layered``, ``direct`` maps, the scene's layer reads) once per oblique law
 of ``--laws`` (``hairlut.render.OBLIQUE_LAWS``: ``rays`` traces each sector's maps with every ray's optical depth ×
 1/sin ψ; ``strands`` lengthens each texel by Campbell's law; ``volume`` by 1/sin ψ; ``off`` not at all), compared
@@ -9,28 +9,26 @@ the direct maps on an N × N density grid with K steps instead of the scene's ``
 the default 32 × 32, Ratboy's 96 × 96 / 192).  Beside each row: the online frame's warm CPU seconds (maps and
 shading: best of ``--repeat`` calls of ``hairlut.synth.render_view`` with the law's paths, computed once before).
 
-Usage: python benchmarks/oblique_laws.py [--scene S.toml ...] [--resolution 128] [--laws rays strands volume off]
+Usage: python -m benchmarks.oblique_laws [--scene S.toml ...] [--resolution 128] [--laws rays strands volume off]
        [--grid 96 --steps 192]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import save, table  # noqa: E402
-from render import SCENES, with_config  # noqa: E402
+from hairlut.bench import with_config
+from hairlut.render import OBLIQUE_LAWS, compare, render_layered, render_strands, sector_paths
+from hairlut.scene import load_scene
+from hairlut.synth import prepare, render_view
 
-from hairlut.render import OBLIQUE_LAWS, compare, render_layered, render_strands, sector_paths  # noqa: E402
-from hairlut.scene import load_scene  # noqa: E402
-from hairlut.synth import prepare, render_view  # noqa: E402
+from ._common import SCENES, save, table
 
 
 def frame_cpu(prep, cam, law: str, repeat: int) -> float:
-    """Best process seconds of a whole online frame (``render_view``: maps and shading) over ``repeat`` warm calls."""
+    """Best process seconds of a whole online frame (``render``: maps and shading) over ``repeat`` warm calls."""
     paths = sector_paths(cam, prep) if law == "rays" else (None, None)
     render_view(prep, path=paths[0], light_path=paths[1])  # warm
     best = float("inf")

@@ -13,19 +13,16 @@ discretisation: should be ~0).
 The measurements are ``hairlut.bench.opacity_maps_study``; this script prints a table and writes
 benchmarks/results/opacity_maps.json.
 
-Usage: python benchmarks/opacity_maps.py [--kappa 0.05] [--quick]
+Usage: python -m benchmarks.opacity_maps [--kappa 0.05] [--quick]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import save, table  # noqa: E402
+from hairlut.bench import opacity_maps_study
 
-from hairlut.bench import opacity_maps_study  # noqa: E402
+from ._common import save, table
 
 
 def main(argv=None) -> None:

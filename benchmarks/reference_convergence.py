@@ -13,7 +13,7 @@ the two half-refinements from ℓ − 1 (ℓ's samples with ℓ − 1's steps, a
 change of a level separates into pixel supersampling and step size.  ``--crop N``: the N × N block of the frame with
 the most partial coverage (Σ α(1 − α) at level 0), same pixel size: a cheap, dense window for such studies.
 
-Usage: python benchmarks/reference_convergence.py [--scene sintel ratboy] [--levels 0 1 2] [--resolution 128]
+Usage: python -m benchmarks.reference_convergence [--scene sintel ratboy] [--levels 0 1 2] [--resolution 128]
 """
 
 from __future__ import annotations
@@ -21,20 +21,19 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import sys
 import time
 from pathlib import Path
 
 import jax.numpy as jnp
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from render import SCENES, with_config  # noqa: E402
+from hairlut.bench import with_config
+from hairlut.render import extinction, render_level, scene_camera, scene_strands, segment_lighting, segments_of
+from hairlut.scene import load_scene
 
-from hairlut.render import extinction, render_level, scene_camera, scene_strands, segment_lighting, segments_of  # noqa: E402
-from hairlut.scene import load_scene  # noqa: E402
+from ._common import RESULTS, SCENES
 
-OUT = Path(__file__).resolve().parent / "results" / "reference_convergence.json"
+OUT = RESULTS / "reference_convergence.json"
 KEY = ("scene", "resolution", "crop", "pattern", "samples_per_pixel", "steps_per_crossing")
 
 

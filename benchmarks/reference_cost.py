@@ -3,7 +3,7 @@ at a git revision (``--base``, default HEAD~1) is loaded beside the working tree
 (``benchmarks/reference_convergence.py``'s crop of Ratboy, shadows on, the grid pattern both), alternating, CPU
 seconds (process time) each; the images' largest difference is printed (float32 rounding expected).
 
-Usage: python benchmarks/reference_cost.py [--base REV] [--level 2] [--crop 32] [--repeats 2]
+Usage: python -m benchmarks.reference_cost [--base REV] [--level 2] [--crop 32] [--repeats 2]
 """
 
 from __future__ import annotations
@@ -13,7 +13,6 @@ import importlib.util
 import inspect
 import json
 import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -21,14 +20,12 @@ from pathlib import Path
 import jax.numpy as jnp
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from reference_convergence import crop_camera  # noqa: E402
-from render import SCENES, with_config  # noqa: E402
+from hairlut.bench import with_config
+from hairlut.render import extinction, render_level, scene_camera, scene_strands, segment_lighting, segments_of
+from hairlut.scene import load_scene
 
-from hairlut.render import extinction, render_level, scene_camera, scene_strands, segment_lighting, segments_of  # noqa: E402
-from hairlut.scene import load_scene  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[1]
+from ._common import ROOT, SCENES
+from .reference_convergence import crop_camera
 
 
 def load_at(rev: str):

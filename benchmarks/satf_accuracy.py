@@ -1,6 +1,6 @@
 """SATF lookup accuracy: lookups against directly traced HRIRs of held-out sectors.
 
-    python benchmarks/satf_accuracy.py [--quick] [--sections 123] [--db hrir_db.h5]
+    python -m benchmarks.satf_accuracy [--quick] [--sections 123] [--db hrir_db.h5]
 
 1. Databases of N random sectors (two feature sets: the paper's (ρ_st, ρ_s, ρ_t) and
    the richer "moments" set) are queried with the features of held-out sectors
@@ -34,17 +34,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import RESULTS, best_of, save, table  # noqa: E402
+from hairlut.hrir import HRIRDB, bake
 
-from hairlut.hrir import HRIRDB, bake  # noqa: E402
+from ._common import RESULTS, best_of, save, table
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "tables" / "scenes" / "sintel-groom.toml"
@@ -98,9 +96,9 @@ def lookup_rows(tmp: Path, sizes, n_test: int):
 
 
 def uniformity_rows(db_path: Path):
-    from hairlut.scene import load_scene, resolve_scene
-    from hairlut.synth import prepare, render_view
     from hairlut.recipes import load_toml
+    from hairlut.scene import resolve_scene
+    from hairlut.synth import prepare, render_view
 
     scene_file = ROOT / "tables" / "scenes" / "two-clusters.toml"
     base = load_toml(scene_file)
@@ -165,6 +163,7 @@ def _scene_truth(prepared, db):
 def _truth_maps(prepared, sp, tx, alpha, re):
     """re (C, K, Lt, n_t, n_u) and α (C, K, n_t, n_u) of traced sector HRIRs by eq 7 (two per HSV)."""
     import jax.numpy as jnp
+
     from hairlut.synth import sweep_kernel
 
     top, bot = prepared.table.hsv_sectors.T

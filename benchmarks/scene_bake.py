@@ -1,8 +1,8 @@
 """The paper-scale scene table baked end to end on this machine (issue 12's "baked in ≤ 5 min on the CPU").
 
-    python benchmarks/scene_bake.py [--clusters 17] [--processes 2] [--baseline-rows 64] [--json OUT]
+    python -m benchmarks.scene_bake [--clusters 17] [--processes 2] [--baseline-rows 64] [--json OUT]
 
-Builds the paper model of ``online_frame.py`` (17 clusters × 3 layers, s_t = 64, s_u = 16: 53,040 sectors, 400
+Builds the paper model (``hairlut.bench.ring_model``: 17 clusters × 3 layers, s_t = 64, s_u = 16: 53,040 sectors, 400
 strands per cluster) as a scene whose ``render.method`` is ``scene``, and bakes its ``scene_maps`` table the way a
 user on this machine would: ``--processes`` shard processes (``hairlut.scenemaps.bake(..., shard="K/N")``, what
 ``hairlut bake scene_maps --shard K/N`` runs; each pinned to its own core unless ``--no-pin``), then
@@ -29,18 +29,17 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import emit, table  # noqa: E402
+from ._common import ROOT, emit, table
 
 TARGET_S = 300.0
 
 
 def _scene(clusters: int):
+    from hairlut.bench import ring_model
     from hairlut.scene import resolve_scene
     from hairlut.planner import scene_maps_recipe
-    from online_frame import model
 
-    base = model(clusters, 64, 16, 64, 400)
+    base = ring_model(clusters, 64, 16, 64, 400)
     sc = resolve_scene({**base, "render": {**base["render"], "method": "scene"}})
     return sc, scene_maps_recipe(sc)
 
@@ -116,10 +115,10 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         shards = [Path(tmp) / f"s{k}.h5" for k in range(args.processes)]
         t0 = time.perf_counter()
-        procs = [subprocess.Popen([sys.executable, __file__, "--worker", f"{k}/{args.processes}", "--out", str(s),
+        procs = [subprocess.Popen([sys.executable, "-m", "benchmarks.scene_bake", "--worker", f"{k}/{args.processes}", "--out", str(s),
                                    "--clusters", str(args.clusters)]
                                   + ([] if args.no_pin else ["--pin", str(cores[k % len(cores)])]),
-                                  stdout=subprocess.PIPE, text=True) for k, s in enumerate(shards)]
+                                  stdout=subprocess.PIPE, text=True, cwd=ROOT) for k, s in enumerate(shards)]
         reports = []
         for p in procs:
             out, _ = p.communicate()

@@ -1,15 +1,15 @@
 """Scene-table layouts (issue 12): accuracy, bytes and bake rate per layout, each groom traced once per light grid.
 
-    python benchmarks/scene_layouts.py --scene tables/scenes/sintel-groom.toml [--lights 16 9 5] [--json OUT]
-    python benchmarks/scene_layouts.py --paper-subset 64 [--fast 128 1 0] [--json OUT]  # bake CPU, paper-scale model
-    python benchmarks/scene_layouts.py --scene SCENE.toml --bake 0 0 0 --bake 128 1 0  # the bake's knobs' accuracy
+    python -m benchmarks.scene_layouts --scene tables/scenes/sintel-groom.toml [--lights 16 9 5] [--json OUT]
+    python -m benchmarks.scene_layouts --paper-subset 64 [--fast 128 1 0] [--json OUT]  # bake CPU, paper-scale model
+    python -m benchmarks.scene_layouts --scene SCENE.toml --bake 0 0 0 --bake 128 1 0  # the bake's knobs' accuracy
 
 A ``scene_maps`` table's α and re rows are functions of the traced grid alone; its layout (Fourier terms
 K, shading bins Q, storage dtype, the ratio's view step) only compresses them (``hairlut.scenemaps.compress``).  So per light
 grid L this traces the groom's non-empty sectors once (``hairlut.march.trace_view_grid`` on the scene's
 V views, what the bake runs), then, for each layout with 2K + 1 ≤ L, compresses, casts, writes the table
 (``hairlut.assets.write_table``: chunked gzip + shuffle, the bytes on disk) and fetches it with the
-scene method's own frame (``MapSource.frame``) against the converged truth of ``map_accuracy.py``.  The
+scene method's own frame (``MapSource.frame``) against the converged truth of ``hairlut.bench.map_truth`` (the maps part's).  The
 records carry map_accuracy's keys (``method``, ``re_rel_l2``, ``alpha_rel_l2``, ``coverage_rel_l2``,
 ``frame_ms``, ``bake_s``, ``bytes``) plus ``terms``, ``shading_pixels``, ``dtype``, ``lights``, the
 uncompressed ``raw_bytes``, ``sectors_per_s`` of the trace and the paper-scale projections of the size
@@ -20,23 +20,21 @@ of the bake time (a measured subset of the paper model's own sectors, its own tr
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import emit, table  # noqa: E402
-from map_accuracy import _angles, _scene, errors_of, truth  # noqa: E402
+from hairlut.bench import map_angles, map_errors, map_scene, map_truth, ring_model
 
-ROOT = Path(__file__).resolve().parents[1]
+from ._common import ROOT, emit, table
+
 #: (terms K, shading bins Q, dtype, ratio_step) measured for every light grid that resolves K.
 LAYOUTS = [(4, 16, "float16", 1), (4, 8, "float16", 1), (4, 8, "float32", 1), (3, 8, "float16", 1),
            (2, 16, "float16", 1), (2, 8, "float16", 1), (4, 4, "float16", 1), (2, 4, "float16", 1), (1, 16, "float16", 1),
            (1, 8, "float16", 1), (2, 16, "float16", 2), (2, 16, "float16", 4), (2, 8, "float16", 2)]
-#: Non-empty sectors of the paper-scale model (benchmarks/online_frame.py: 17 clusters × 3 layers, s_t = 64,
+#: Non-empty sectors of the paper-scale model (``hairlut.bench.ring_model``: 17 clusters × 3 layers, s_t = 64,
 #: s_u = 16: 53,040 sectors, 52,888 of them holding strands).
 PAPER_LIVE = 52888
 
@@ -70,15 +68,16 @@ def _frame(src, ix, sc, runs: int = 3):
 
 def layouts(args) -> list[dict]:
     import jax.numpy as jnp
+
     from hairlut.planner import scene_maps_recipe
     from hairlut.scenemaps import SceneMaps, compress, fetch_kernel, hrir_recipe, ratio_terms, scene_inputs
     from hairlut.synth import MapSource
     from hairlut.march import bake_view_grid, trace_view_grid
 
-    prep, t_rows, t_maps, truth_s = truth(args.scene, False, cache=args.truth_cache)
+    prep, t_rows, t_maps, truth_s = map_truth(args.scene, False, cache=args.truth_cache)
     ix = prep.index
-    own = _scene(args.scene).config["render"]  # --bake: the scene file's own layout (map_accuracy's first scene row)
-    sc = _scene(args.scene, method="scene", rays=2,
+    own = map_scene(args.scene).config["render"]  # --bake: the scene file's own layout (map_accuracy's first scene row)
+    sc = map_scene(args.scene, method="scene", rays=2,
                 **({k: own[k] for k in ("views", "terms", "shading_pixels", "precision")} if args.bake else {}))
     recipe = scene_maps_recipe(sc)
     V = recipe["table"]["views"]
@@ -87,7 +86,7 @@ def layouts(args) -> list[dict]:
     row = np.full(len(dens), -1, np.int32)
     row[live] = np.arange(live.size, dtype=np.int32)
     full = hrir_recipe(recipe)
-    tv, tl, _ = _angles(prep, prep.scene)
+    tv, tl, _ = map_angles(prep, prep.scene)
     records = []
     t = recipe["table"]
     # --bake: the scene's own layout only, computed by bake_view_grid at each (alpha_grid, shade_rays, shade_steps)
@@ -133,7 +132,7 @@ def layouts(args) -> list[dict]:
                                 "frame_ms": ms, "bake_s": trace_s + comp_s, "bytes": disk, "raw_bytes": raw,
                                 "sectors_per_s": live.size / trace_s, "paper_mb": disk / live.size * PAPER_LIVE / 1e6,
                                 "paper_raw_mb": (half.nbytes + coef.nbytes) / live.size * PAPER_LIVE / 1e6,
-                                **errors_of(maps_out, t_maps, (np.asarray(ra), np.asarray(rr)), t_rows)})
+                                **map_errors(maps_out, t_maps, (np.asarray(ra), np.asarray(rr)), t_rows)})
                 print(records[-1], flush=True)
     print(f"\n## Scene-table layouts of {args.scene.name} ({live.size} of {len(dens)} sectors live) against the "
           f"converged truth ({truth_s:.1f} s to trace)\n")
@@ -160,9 +159,8 @@ def paper_subset(args) -> list[dict]:
     from hairlut.planner import scene_maps_recipe
     from hairlut.scenemaps import compress, hrir_recipe, ratio_terms, scene_inputs
     from hairlut.march import bake_view_grid, trace_view_grid
-    from online_frame import model
 
-    base = model(17, 64, 16, 64, 400)
+    base = ring_model(17, 64, 16, 64, 400)
     sc = resolve_scene({**base, "render": {**base["render"], "method": "scene"}})
     recipe = scene_maps_recipe(sc)
     full = hrir_recipe(recipe)
@@ -225,7 +223,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", type=Path, default=ROOT / "tables" / "scenes" / "sintel-groom.toml")
     ap.add_argument("--lights", type=int, nargs="+", default=[16, 9, 5], help="light grids L of the bake")
-    ap.add_argument("--truth-cache", type=Path, help="as map_accuracy.py --truth-cache")
+    ap.add_argument("--truth-cache", type=Path, help="keep the traced truth in this .npz and reuse it while the scene and recipe are unchanged")
     ap.add_argument("--paper-subset", type=int, metavar="N", help="only the bake rate on N paper-model sectors")
     ap.add_argument("--fast", type=int, nargs=3, action="append", default=[], metavar=("ALPHA_GRID", "RAYS", "STEPS"),
                     help="with --paper-subset: also time bake_view_grid at these table.alpha_grid, shade_rays, shade_steps")

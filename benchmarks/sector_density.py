@@ -1,6 +1,6 @@
 """Sector densities and features at the paper's human-model scale (satf Table 1, Fig. 7(a)).
 
-    python benchmarks/sector_density.py [--clusters 17] [--layers 3] [--s-t 66] [--s-u 16]
+    python -m benchmarks.sector_density [--clusters 17] [--layers 3] [--s-t 66] [--s-u 16]
                                         [--strands 14000] [--grid 32] [--numpy-budget 30]
 
 Builds C = 17 clusters of 3 layers (51 layers), s_t = 66 and s_u = 16, i.e.
@@ -26,19 +26,15 @@ Prints a table and writes benchmarks/results/sector_density.json.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import jax
 import numpy as np
 from scipy.special import ndtr
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import best_of, save, table  # noqa: E402
+from hairlut.geometry import ClusterGeometry, ClusterSpec, build_sectors, generate_strands, sector_density, sector_features
 
-from hairlut.geometry import (ClusterGeometry, ClusterSpec, build_sectors, generate_strands,  # noqa: E402
-                              sector_density, sector_features)
+from ._common import best_of, save, table
 
 BASIC = ("rho_st", "rho_s", "rho_t")
 

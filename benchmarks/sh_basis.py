@@ -1,6 +1,6 @@
 """Real SH basis: hairlut's jitted kernel against the NumPy reference and SciPy.
 
-    python benchmarks/sh_basis.py [--n 1000000] [--lmax 15] [--n-scipy 100000]
+    python -m benchmarks.sh_basis [--n 1000000] [--lmax 15] [--n-scipy 100000]
 
 Times ``hairlut.sh.real_sh`` for N random unit directions at lmax = 15 (float64 and
 float32, warm: the jit compile is timed separately), the slow float64 NumPy reference
@@ -22,16 +22,13 @@ import argparse
 import os
 import sys
 import time
-from pathlib import Path
 
 import jax
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import best_of, save, table  # noqa: E402
+from hairlut.sh import check_dirs, n_coeffs, real_sh, real_sh_reference, real_sh_scipy
 
-from hairlut.sh import n_coeffs, real_sh, real_sh_reference, real_sh_scipy  # noqa: E402
-from hairlut.sh import check_dirs  # noqa: E402
+from ._common import best_of, save, table
 
 
 def max_abs_diff(a, b, rows: int = 65536) -> float:

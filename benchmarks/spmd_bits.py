@@ -7,7 +7,7 @@ per call (the same per-device shapes), ``shard_map`` with four sectors per devic
 ``NamedSharding`` inputs (XLA's SPMD partitioner), and the one-device executable on two sectors per
 call.  Reports values that differ, the largest difference in float32 ULPs and in absolute value.
 
-    JAX_NUM_CPU_DEVICES=2 .venv/bin/python benchmarks/spmd_bits.py [--json benchmarks/results/spmd_bits.json]
+    JAX_NUM_CPU_DEVICES=2 .venv/bin/python -m benchmarks.spmd_bits [--json benchmarks/results/spmd_bits.json]
 """
 
 from __future__ import annotations

@@ -3,36 +3,29 @@ the texels (``hairlut.synth.sweep_sectors`` on fixed random rows of 32 pixels: t
 trace's or the scene table's fetch, are the same for both reads), per model, both reads in the same run, best
 of ``--runs`` as process CPU time (every thread: the measure on a shared machine) and wall time.
 
-Models: the paper-scale procedural model (benchmarks/online_frame.py's: 17 clusters × 3 layers, s_t 64, s_u 16,
+Models: the paper-scale procedural model (``hairlut.bench.ring_model``: 17 clusters × 3 layers, s_t 64, s_u 16,
 64² texels) and the vendored grooms' scenes (their own layout and camera resolution).
 Writes benchmarks/results/track_cost.json.
 
-Usage: python benchmarks/track_cost.py [--models paper sintel-groom ratboy-groom] [--runs 20]
+Usage: python -m benchmarks.track_cost [--models paper sintel-groom ratboy-groom] [--runs 20]
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import save, table  # noqa: E402
-from layer_reads import _best  # noqa: E402
-from online_frame import model  # noqa: E402
-from render import with_config  # noqa: E402
+from hairlut.bench import ring_model, with_config
+from hairlut.scene import load_scene, resolve_scene
+from hairlut.synth import params_kernel, prepare, sweep_sectors
 
-from hairlut.scene import load_scene, resolve_scene  # noqa: E402
-from hairlut.synth import params_kernel, prepare, sweep_sectors  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[1]
+from ._common import ROOT, best_wall_cpu, save, table
 
 
 def _scene(name: str, reads: str):
     if name == "paper":
-        cfg = model(17, 64, 16, 64, 200)
+        cfg = ring_model(17, 64, 16, 64, 200)
         cfg["render"].update(method="direct", layer_reads=reads)
         return resolve_scene(cfg, "paper-scale model")
     sc = load_scene(ROOT / "tables" / "scenes" / f"{name}.toml")
@@ -52,7 +45,7 @@ def sweep_cost(name: str, runs: int) -> list[dict]:
         rng = np.random.default_rng(0)
         alpha = jnp.asarray(rng.uniform(0, 0.5, (S, 32)), jnp.float32)
         re = jnp.asarray(rng.uniform(0, 0.2, (S, Lt, 32)), jnp.float32)
-        wall, cpu = _best(lambda: sweep_sectors(ix, alpha, re, cs), runs)
+        wall, cpu = best_wall_cpu(lambda: sweep_sectors(ix, alpha, re, cs), runs, warm=True)
         rows.append({"model": name, "reads": reads, "sectors": S, "texels": int(np.prod(ix.offset.shape[2:])),
                      "sweep_ms": 1e3 * wall, "sweep_cpu_ms": 1e3 * cpu})
         print(rows[-1], flush=True)

@@ -40,8 +40,9 @@ def bench_cmd(quick: bool, only: str | None, out: str, as_json: bool, no_progres
     baseline as a ratio; the Pareto front and the papers' settings marked),
     OUT/results.json (every figure and the machine: CPU, cores, device and
     memory, library versions) and OUT/plots/*.png (time against error, log-log).
-    A part that cannot run here (scale needs two cores; maps and
-    render need the repository's benchmarks/ folder) is listed as skipped.
+    A part that cannot run here (scale needs two cores) is listed as skipped.
+    The report references its plots relatively and names no local path, so
+    `--out docs/bench` writes the documentation's bench page.
     """
     from hairlut.bench import PARTS, BenchInterrupted, run_bench, select
 

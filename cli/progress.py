@@ -1,7 +1,7 @@
 """Progress bars on stderr for bakes, drawn by ``rich.progress``: one per bake (:class:`Progress`), or one per named
 bake (:class:`Bars`).
 
-The library knows nothing of them: a bake calls ``progress(done, total)`` (``hairlut.baker``), first once with the
+The library knows nothing of them: a bake calls ``progress(done, total)`` (``hairlut.bake.protocol``), first once with the
 units already done (resumed from an earlier bake's parts) and then as it goes; the planner's bake calls
 ``progress(name, done, total)``.  A bar shows the units done of the total, the units resumed, the rate and ETA of
 the units baked in this run (resumed ones left out) and the time elapsed.  On a terminal the bars are live; when
@@ -15,8 +15,7 @@ import time
 from datetime import timedelta
 
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, ProgressColumn, TextColumn, TimeElapsedColumn
-from rich.progress import Progress as RichProgress
+from rich.progress import BarColumn, MofNCompleteColumn, ProgressColumn, TextColumn, TimeElapsedColumn, Progress as RichProgress
 from rich.table import Column
 from rich.text import Text
 
@@ -54,7 +53,8 @@ def _columns(tty: bool) -> list:
 
 def _unit_of(name: str) -> str:
     """What a planner step's bake counts: its kind's ``Baker.unit`` (the asset steps are named after their kind)."""
-    from hairlut import errors, registry
+    from hairlut import errors
+    from hairlut.bake import registry
 
     try:
         return registry.get(name).unit or "units"

@@ -61,6 +61,7 @@ def pytest_unconfigure(config):
 #: whole runs, so first), the hrir_*, kernels, light_oriented, sh_*, shadow*, stress*, synth_* (but track_reads),
 #: validate, view_grid, xarray files: a file listed here or not still runs, only perhaps later than it should.
 COSTLIEST_FIRST = (
+    "test_packaging.py",  # its slow test builds a wheel and runs `hairlut bench --quick` from it
     "test_synth_track_reads.py",
     "test_hostile_bitflips.py",
     "test_hostile_limits.py",

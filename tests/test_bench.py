@@ -68,6 +68,42 @@ def test_run_bench_writes_report_results_and_plots(tmp_path):
     assert f"]({res['plots']['fake/t']})" in md
 
 
+def test_the_report_names_no_local_path(tmp_path, monkeypatch):
+    """`hairlut bench --out docs/bench` writes the documentation's bench page: its plots are referenced relatively and
+    no absolute path of this machine is in it (the package's folder and the working folder are dropped, the
+    temporary folder reads $TMPDIR)."""
+    import tempfile
+    from pathlib import Path
+
+    import hairlut
+
+    monkeypatch.chdir(tmp_path)
+    here = Path(hairlut.__file__).resolve().parent / "bench" / "_run.py"
+    scratch = Path(tempfile.gettempdir()) / "hairlut-bench-x" / "db.h5"
+
+    def run(ctx):
+        ctx.note("fake", f"read {tmp_path / 'scenes' / 'a.toml'}, code {here}, scratch {scratch}")
+        return [_fig("base", 1.0, 1e-2, baseline=True), _fig("fast", 0.5, 2e-2)]
+
+    def boom(ctx):
+        raise FileNotFoundError(f"{tmp_path / 'missing.tfx'}")
+
+    run_bench(tmp_path / "docs" / "bench", registry={"fake": Part("fake", "made up", run), "gone": Part("gone", "x", boom)})
+    for name in ("report.md", "results.json"):
+        text = (tmp_path / "docs" / "bench" / name).read_text()
+        assert str(tmp_path) not in text and str(here.parents[2]) not in text, name
+        assert "scenes/a.toml" in text and "hairlut/bench/_run.py" in text and "$TMPDIR/hairlut-bench-x/db.h5" in text
+        assert "missing.tfx" in text
+    md = (tmp_path / "docs" / "bench" / "report.md").read_text()
+    assert "](plots/fake-t.png)" in md and (tmp_path / "docs" / "bench" / "plots" / "fake-t.png").is_file()
+
+
+def test_every_part_can_run_without_the_repository():
+    """Only the scale part may be unavailable (it needs two cores); no part needs the clone's benchmarks/ folder."""
+    assert set(PARTS) == {"sh", "hrir", "maps", "render", "shadows", "plan", "scale"}
+    assert all(p.unavailable() is None for n, p in PARTS.items() if n != "scale")
+
+
 def test_bad_only_names_are_refused(tmp_path):
     with pytest.raises(errors.ValidationError, match="nosuch"):
         run_bench(tmp_path, registry=PARTS, only=["sh", "nosuch"])

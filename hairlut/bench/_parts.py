@@ -1,8 +1,8 @@
-"""The benchmark parts: what each measures, whether it can run here, and the run context."""
+"""The benchmark parts: what each measures, whether it can run here, the run context, and the example
+inputs (recipes, scenes, grooms) the parts read."""
 
 from __future__ import annotations
 
-import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -10,6 +10,20 @@ from pathlib import Path
 
 from .. import errors
 from ._figure import Figure
+
+#: Where the example inputs are: the copy an installed wheel carries (pyproject.toml maps the repository's
+#: ``tables/`` recipes, scenes and grooms to the data package ``hairlut.examples``), else a clone's ``tables/``.
+EXAMPLES = (Path(__file__).resolve().parents[1] / "examples", Path(__file__).resolve().parents[2] / "tables")
+
+
+def example(name: str) -> Path:
+    """The example input ``name``, relative to the repository's ``tables/`` folder (``"hrir-default.toml"``,
+    ``"scenes/sintel-groom.toml"``, ``"grooms/sintel_lite.tfx"``): the installed wheel's copy, else the clone's.
+    The scenes name their grooms relative to themselves (``../grooms/``), which both copies keep."""
+    for root in EXAMPLES:
+        if (root / name).is_file():
+            return root / name
+    raise errors.AssetNotFoundError(f"example input {name!r}: not in {' nor '.join(str(r) for r in EXAMPLES)}")
 
 
 @dataclass
@@ -45,12 +59,6 @@ def timed(fn, repeat: int = 3):
         out = fn()
         best = min(best, time.perf_counter() - start)
     return best, out
-
-
-def scale_unavailable() -> str | None:
-    """The scale part pins one process (or device) per core: it needs two cores."""
-    cores = len(os.sched_getaffinity(0))
-    return None if cores >= 2 else f"one core here ({cores}): nothing to scale over"
 
 
 def select(registry: dict[str, Part], only: str | list[str] | None, field: str = "only") -> list[Part]:

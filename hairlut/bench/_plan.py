@@ -6,14 +6,11 @@ scene re-planned (nothing re-baked).  The full bake: the default HRIR database
 (tables/hrir-default.toml, the generic sector space), the paper's SH tables (tables/sh-paper.toml:
 dense grids) with the sky light and the voxel SH transmittance.  Coverage ("error"): the median
 distance from a scene sector's features to the nearest database record, in the scene features'
-standard deviations.  ``demo_runs`` times ``hairlut demo`` cold and warm (benchmarks/plan.py).
+standard deviations.
 """
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -22,10 +19,8 @@ import numpy as np
 from ..recipes import load_toml
 from ..planner import bake, plan
 from ._figure import Figure
-from ._parts import Context
+from ._parts import Context, example
 
-ROOT = Path(__file__).resolve().parents[2]
-SCENES = ROOT / "tables" / "scenes"
 PART = "plan"
 
 
@@ -59,7 +54,7 @@ def full_bake(folder: Path, quick: bool) -> dict:
     from hairlut.shadows import transmittance, voxelize
     from hairlut.shtables import bake_sh, write_sh_tables
 
-    hrir = load_toml(ROOT / "tables" / "hrir-default.toml")
+    hrir = load_toml(example("hrir-default.toml"))
     if quick:
         hrir["sectors"]["count"] = 128
     times = {}
@@ -67,7 +62,7 @@ def full_bake(folder: Path, quick: bool) -> dict:
     bake_hrir(hrir, folder / "hrir.h5")
     times["hrir_db"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    sh = load_toml(ROOT / "tables" / "sh-paper.toml")
+    sh = load_toml(example("sh-paper.toml"))
     res = bake_sh(sh, sky_light(sh["bands"]["light_specular"] - 1))
     write_sh_tables(folder / "sh.h5", res["tables"], res["info"], res["dense"], res["light"])
     times["sh_tables"] = time.perf_counter() - t0
@@ -97,19 +92,6 @@ def database_coverage(scene: Path, db_paths: dict) -> dict:
     return out
 
 
-def demo_runs(folder: Path) -> dict:
-    exe = Path(sys.executable).with_name("hairlut")
-    cmd = [str(exe), "demo", "--out", str(folder / "out"), "--cache", str(folder / "cache"), "--no-progress"]
-    env = {k: v for k, v in os.environ.items() if k != "JAX_COMPILATION_CACHE_DIR"}
-    env["XDG_CACHE_HOME"] = str(folder / "xdg")  # a fresh compilation cache: cold means cold
-    out = {}
-    for run in ("cold", "warm"):
-        t0 = time.perf_counter()
-        subprocess.run(cmd, check=True, capture_output=True, cwd=ROOT, env=env)
-        out[run] = time.perf_counter() - t0
-    return out
-
-
 def run(ctx: Context) -> list[Figure]:
     names = ["two-clusters.toml"] if ctx.quick else ["two-clusters.toml", "sky-clusters.toml", "sintel-groom.toml"]
     (ctx.workdir / "plan-full").mkdir(parents=True, exist_ok=True)
@@ -117,9 +99,10 @@ def run(ctx: Context) -> list[Figure]:
     full_s = sum(full["seconds"].values())
     figs = []
     for name in names:
-        r = needed_only_bake(SCENES / name, ctx.workdir / f"plan-cache-{name}")
+        scene = example(f"scenes/{name}")
+        r = needed_only_bake(scene, ctx.workdir / f"plan-cache-{name}")
         dbs = {"full": full["hrir_db"], **({"needed": r["hrir_db"]} if r["hrir_db"] else {})}
-        cov = database_coverage(SCENES / name, dbs)
+        cov = database_coverage(scene, dbs)
         table = f"{name}: needed-only bake against the full bake"
         err = "median NN feature distance (σ)"
         figs.append(Figure(PART, table, "full bake (no planner)", full_s, cov["full"][0], err, {"bytes": full["bytes"]},

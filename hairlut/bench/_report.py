@@ -4,9 +4,24 @@ same-run baseline as a ratio, the plot beside it, and a headline table across pa
 from __future__ import annotations
 
 import math
+import os
+import tempfile
+from pathlib import Path
 
 from ._figure import Figure, tables
 from ._machine import machine_line
+
+
+def portable(text: str) -> str:
+    """``text`` without this machine's absolute paths, so that a report kept in the documentation names none: the
+    folder hairlut is installed in (a clone's root, or site-packages) and the working folder are dropped (paths
+    below them read relative), the temporary folder reads ``$TMPDIR`` and the home folder ``~``."""
+    roots = {str(Path(__file__).resolve().parents[2]): "", os.getcwd(): "", tempfile.gettempdir(): "$TMPDIR/",
+             str(Path.home()): "~/"}
+    for root, short in sorted(roots.items(), key=lambda kv: -len(kv[0])):
+        if root.strip(os.sep):
+            text = text.replace(root.rstrip(os.sep) + os.sep, short)
+    return text
 
 
 def _num(x, fmt: str) -> str:
@@ -70,7 +85,8 @@ def headline_md(figures: list[Figure]) -> str:
 
 
 def report_md(results: dict, figures: list[Figure], plots: dict[tuple[str, str], str]) -> str:
-    """The whole report.md text."""
+    """The whole report.md text: plots referenced relative to it, no local path (:func:`portable`), so that it
+    can be a page of the documentation as it is (``hairlut bench --out docs/bench``)."""
     m = results["machine"]
     gpu = any(d.get("platform") == "gpu" for d in m.get("devices", []))
     lines = ["# hairlut bench", "",
@@ -101,4 +117,4 @@ def report_md(results: dict, figures: list[Figure], plots: dict[tuple[str, str],
             lines += [f"### {tname}", "", table_md(rows), ""]
             if (part, tname) in plots:
                 lines += [f"![{part}: {tname}]({plots[(part, tname)]})", ""]
-    return "\n".join(lines)
+    return portable("\n".join(lines))

@@ -14,7 +14,7 @@ from ._figure import Figure, derive, tables
 from ._machine import machine
 from ._parts import Context, Part, select
 from ._plot import plot_table, slug
-from ._report import report_md
+from ._report import portable, report_md
 
 
 def _json_safe(x):
@@ -109,5 +109,5 @@ def _write(out: Path, results: dict, figures: list[Figure]) -> None:
             plots[(part, name)] = path.relative_to(out).as_posix()
     results["figures"] = [f.to_json() for f in figures]
     results["plots"] = {f"{p}/{n}": v for (p, n), v in plots.items()}
-    atomic_write_bytes(out / "results.json", json.dumps(_json_safe(results), indent=2).encode())
+    atomic_write_bytes(out / "results.json", portable(json.dumps(_json_safe(results), indent=2)).encode())
     atomic_write_bytes(out / "report.md", report_md(results, figures, plots).encode())

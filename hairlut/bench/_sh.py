@@ -127,6 +127,7 @@ def radiance_figures(ctx: Context, tables) -> list[Figure]:
     n_vert = 20_000 if ctx.quick else 1_000_000
     t, tv, b, a = radiance_inputs(n_vert)
     c = tables.contract(a)
+    update, _ = timed(lambda: jax.block_until_ready(tables.contract(a + 0.01).hs), repeat=20)
     exact = np.asarray(c.radiance(b, t, tv, 0.6, 0.4))
     scale = float(np.abs(exact).max())
     table = "radiance: per-vertex I against the exact form"
@@ -149,8 +150,19 @@ def radiance_figures(ctx: Context, tables) -> list[Figure]:
         figs.append(Figure(PART, table, f"dense {n}²×6, {steps} θ′, interpolated", sec, _max_err(got, exact) / scale,
                            "max rel |ΔI|", {"t_resolution": n, "theta_v_steps": steps}, baseline=paper, paper=paper))
     ctx.note(PART, f"radiance: {n_vert:,} random (t, θ′), RGB, p = {P:g}, from one light's contracted tables; "
-                   f"error relative to max |I| = {scale:.3g}; dense tables in float64")
+                   f"error relative to max |I| = {scale:.3g}; dense tables in float64; a light update (new light "
+                   f"coefficients to contracted tables ready) takes {1e3 * update:.2f} ms")
     return figs
+
+
+def sh_radiance_figures(ctx: Context) -> list[Figure]:
+    """The sh part's radiance table alone (no bake reference): the compact tables baked at the paper's p and
+    light bands, then per-vertex I from dense tables against the exact form (what a GPU run is asked for)."""
+    from hairlut.shtables import bake_compact, resolve_recipe
+
+    with jax.enable_x64(True):
+        tables, _ = bake_compact(resolve_recipe({"kernel": {"p": P}, "bands": {"light_specular": 8}}))
+        return radiance_figures(ctx, tables)
 
 
 def run(ctx: Context) -> list[Figure]:

@@ -28,17 +28,16 @@ a view's α-maps, not strand positions; it is measured with the maps and render 
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 
 from ._figure import Figure
-from ._parts import Context, timed
+from ._parts import Context, example, timed
 
 PART = "shadows"
 TABLE = "transmittance at the strand vertices against the strand-level reference"
 TABLE_OWN = "transmittance at the strand vertices against the strand-level reference at each setting's own footprint"
-GROOM = Path(__file__).resolve().parents[2] / "tables" / "grooms" / "sintel_lite.tfx"
+GROOM = example("grooms/sintel_lite.tfx")
 LIGHT = np.array([0.3, 0.8, 0.5]) / np.linalg.norm([0.3, 0.8, 0.5])
 KAPPA = 0.05
 #: The reference's footprint σ is the hair's extent across the light over FOOTPRINT: half the cell of the

@@ -18,7 +18,7 @@ line integral of the sector's density, α = 1 − exp(−σ_t ∫ρ ds) (eq 5 in
   if one were missing, so a nearest neighbour by p alone prefers a sparse record and under-covers
   (Sintel, 128 records, k = 4: per-sector coverage rel-L2 0.34, mean α −31 %); the running sum's
   distance grows with the shift instead (a 1-D transport distance) and keeps the mass.  Measured on
-  the same database (``benchmarks/map_accuracy.py``; texel α rel-L2 / coverage rel-L2 / mean-α
+  the same database (``hairlut.bench.map_accuracy_study``; texel α rel-L2 / coverage rel-L2 / mean-α
   bias): w = 0: 0.566 / 0.336 / −31 %; 1: 0.552 / 0.312 / −28 %; 3: 0.551 / 0.206 / −20 %;
   6: 0.553 / 0.174 / −14 %; the running sum alone: 0.593 / 0.170 / −13 %.
 * **Features.**  The scores of the profiles on the first :data:`COMPONENTS` principal components

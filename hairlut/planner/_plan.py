@@ -32,8 +32,8 @@
 :func:`bake` carries a plan out through :mod:`hairlut.bake.registry` (and its cache) without
 naming a kind; :func:`find_assets` gives the cached assets of a scene to ``synthesize``
 without baking.  A bake's size and time are its kind's ``estimate`` (throughputs measured by
-``benchmarks/hrir_bake.py`` and ``benchmarks/plan.py`` on the 2-core development CPU;
-``benchmarks/plan.py`` reports them beside the real times).
+``benchmarks/hrir_bake.py`` and the plan part of ``hairlut bench`` on the 2-core development CPU;
+that part reports them beside the real times).
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ from ..assets import recipe_hash
 from ._lighting import environment_bands, environment_light, sh_recipe
 from ..scene import SceneSectors, as_scene, grid_coverage, restricted_space, scene_sectors
 
-#: Voxel SH transmittance: casts (voxel · direction · step) per second (benchmarks/plan.py).
+#: Voxel SH transmittance: casts (voxel · direction · step) per second (``hairlut bench --only plan``).
 CAST_RATE = 6.0e7
 
 

@@ -1,15 +1,15 @@
-"""The final asset's assembly, timed (``scaling.py``'s second table; its module docstring): virtual
+"""The final asset's assembly, timed (:func:`assembly`, the last term of ``benchmarks.production``): virtual
 datasets against a copy from the same parts, as the leader of a 2-process bake takes it.
 
 Run on its own (issue 16), it times the leader's step by part count, 256 to 16,384 parts, on copies of one
 baked part (:func:`synthetic_parts`), the printf mappings against the old one mapping per part in the same run,
 and what a reader pays on the new asset::
 
-    .venv/bin/python benchmarks/_assembly.py [--parts 256,1024,4096,16384] [--block 16] [--repeat 2]
+    .venv/bin/python -m benchmarks.assembly [--parts 256,1024,4096,16384] [--block 16] [--repeat 2]
 
 and, with ``--readers 256,1024``, what a reader pays on such an asset, the working tree against ``--base``::
 
-    .venv/bin/python benchmarks/_assembly.py --readers 256,1024 [--base a3c4b35] [--repeat 2]
+    .venv/bin/python -m benchmarks.assembly --readers 256,1024 [--base a3c4b35] [--repeat 2]
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import sys
 import time
 from pathlib import Path
 
-from _common import table
+from ._common import ROOT, table
 
 #: the assembly's parts: the production's density grid (the default 32 x 32) and float16, the cheapest trace
 ASSEMBLY = {"sectors": {"count": 1024}, "angles": {"views": 1, "lights": 1}, "trace": {"pixels": 2, "steps": 2},
@@ -205,8 +205,8 @@ def leader_times(recipe: dict, out: Path, block: int, index: dict, repeat: int, 
     from hairlut.assets import canonical_json, recipe_hash
     from hairlut.bake.devices import Process
     from hairlut.assets.parts import part_name, parts_dir, share_name, stamp, write_share
-    from hairlut.assets.virtual_write import check_virtual
     from hairlut.bake.sharding import blocks_of, finish
+    from hairlut.assets.virtual_write import check_virtual
 
     baker = registry.get("hrir_db")
     total = recipe["sectors"]["count"]
@@ -271,7 +271,8 @@ def print_part_counts(rows: list[dict]) -> None:
 # ----------------------------------------------------------------------------- readers, before and after
 
 
-#: Run in a fresh interpreter with the ``hairlut`` under test first on ``sys.path``: each step's CPU seconds (process
+#: Run in a fresh interpreter whose working folder is the tree under test (its ``hairlut`` first on the import path,
+#: before the installed one): each step's CPU seconds (process
 #: time, every thread) in order, and a digest of what ``load_hrir_db`` read (the same bytes before and after).
 _READER = """
 import hashlib, json, sys, time
@@ -296,9 +297,8 @@ def tree_at(rev: str, where: Path) -> Path:
     import subprocess
     import tarfile
 
-    root = Path(__file__).resolve().parents[1]
     where.mkdir(parents=True, exist_ok=True)
-    tar = subprocess.run(["git", "-C", str(root), "archive", rev, "hairlut"], check=True, capture_output=True).stdout
+    tar = subprocess.run(["git", "-C", str(ROOT), "archive", rev, "hairlut"], check=True, capture_output=True).stdout
     import io
 
     with tarfile.open(fileobj=io.BytesIO(tar)) as t:
@@ -307,13 +307,14 @@ def tree_at(rev: str, where: Path) -> Path:
 
 
 def reader_steps(tree: Path, out: Path, steps: str) -> dict:
-    """:data:`_READER`'s steps on ``out`` in a fresh interpreter that imports ``hairlut`` from ``tree``."""
+    """:data:`_READER`'s steps on ``out`` in a fresh interpreter that imports ``hairlut`` from ``tree`` (its working
+    folder, which ``python -c`` puts first on the import path; ``PYTHONPATH`` names it too)."""
     import json
     import subprocess
 
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tree), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)}
-    code = f"import sys; sys.path.insert(0, {str(tree)!r})\n" + _READER
-    res = subprocess.run([sys.executable, "-c", code, str(out), steps], env=env, capture_output=True, text=True, check=True)
+    res = subprocess.run([sys.executable, "-c", _READER, str(out), steps], env=env, cwd=tree, capture_output=True,
+                         text=True, check=True)
     return json.loads(res.stdout.strip().splitlines()[-1])
 
 
@@ -329,7 +330,7 @@ def readers(counts: list[int], block: int, tmp: Path, base: str, repeat: int = 1
     from hairlut.assets.parts import part_name, stamp
     from hairlut.bake.sharding import blocks_of, finish
 
-    trees = {"base": tree_at(base, tmp / "base-tree"), "new": Path(__file__).resolve().parents[1]}
+    trees = {"base": tree_at(base, tmp / "base-tree"), "new": ROOT}
     rows = []
     for n in counts:
         recipe, out, index = synthetic_parts(tmp, n, block)
@@ -378,7 +379,7 @@ def main(argv=None) -> list[dict]:
     import argparse
     import tempfile
 
-    from _common import save
+    from ._common import save
 
     ap = argparse.ArgumentParser(description="the virtual assembly's cost by part count (issue 16)")
     ap.add_argument("--parts", default="256,1024,4096,16384", help="part counts")

@@ -1,5 +1,19 @@
-"""The production database on 8 H200s, projected term by term (``scaling.py``'s last section; its module
-docstring): the device from the last H200 rate, the host measured on this CPU, the disk, and the assembly."""
+"""The production database on 8 H200s, projected term by term: the device from the last H200 rate, the host measured
+on this CPU, the disk, and the assembly (issue 16).
+
+The production database (65,536 sectors, 64 × 64 angles, 64 px, float16: 34.9 GB) on 8 H200s, labelled "projected,
+not measured on a GPU": the device time from the last H200 rate (issue 15, commit 937d29b: 94 default sectors/s,
+host-bound then), scaled by a production sector's tracing work; the host's work per sector measured now on this CPU
+with the production's shapes (:func:`host_terms`: serial inputs and HDF5/checks/index, and the chunk filters, which
+the chunk writer runs on every core, divided over the GPU machine's 16 cores); the disk (this machine's write
+bandwidth); and the virtual assembly (``benchmarks.assembly``) at ``--sizes`` sectors in parts of each of
+``--blocks`` (65,536 for the production's own).  A bake overlaps device, host and disk, so projected =
+max(device, host, write) + assembly.  With ``--repeat R`` (R > 0) the scale part's study
+(``hairlut.bench.scaling_study``: 1 and 2 devices, 1 and 2 processes, cores pinned) runs first, R rounds of
+``--sectors``, and the production database is also projected from its one-core CPU rate.
+
+    .venv/bin/python -m benchmarks.production [--sizes 1024] [--blocks 1,4,64] [--repeat 0] [--sectors 256]
+"""
 
 from __future__ import annotations
 
@@ -8,7 +22,9 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _assembly import cpu
+
+from ._common import save, table
+from .assembly import assembly, cpu, print_assembly
 
 PRODUCTION = {"sectors": {"count": 65_536}, "angles": {"views": 64, "lights": 64}, "trace": {"pixels": 64},
               "storage": {"dtype": "float16"}}
@@ -124,3 +140,47 @@ def work(recipe: dict) -> float:
     t = r["trace"]
     return float(r["sectors"]["count"] * r["angles"]["views"] * r["angles"]["lights"] * t["pixels"] * t["steps"]
                  * t["rays_per_pixel"])
+
+
+def main(argv=None) -> dict:
+    import argparse
+    import tempfile
+
+    from hairlut.bench import scaling_study
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", default="1024", help="database sizes (sectors) of the assembly timing")
+    ap.add_argument("--blocks", default="1,4,64", help="sectors per part of the assembly timing")
+    ap.add_argument("--copy-max", type=int, default=4096, help="time the copy only up to this many sectors")
+    ap.add_argument("--keep", type=Path, help="bake the assembly's parts here and keep them (a rerun resumes them)")
+    ap.add_argument("--no-projection", action="store_true", help="skip the host measurement and the projection")
+    ap.add_argument("--repeat", type=int, default=0, help="rounds of the scale part's study first (0: none)")
+    ap.add_argument("--sectors", type=int, default=256, help="sectors of the scaling rounds (256: compilation amortised)")
+    ap.add_argument("--name", default="production", help="results/<name>.json")
+    a = ap.parse_args(argv)
+    load_before = os.getloadavg()
+    scaling = scaling_study(a.sectors, a.repeat, progress=print) if a.repeat else None
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        asm = assembly([int(s) for s in a.sizes.split(",") if s], [int(g) for g in a.blocks.split(",") if g], tmp,
+                       repeat=2, copy_max=a.copy_max, keep=a.keep)
+        hosts = None if a.no_projection else {**host_terms(tmp), "write_bytes_per_s": write_bandwidth(tmp)}
+    print_assembly(asm)
+    out = projection(asm, hosts) if hosts else {}
+    if scaling:
+        print(table(scaling["rows"], [("config", "config", ""), ("cores", "cores", ""), ("rate_best", "sectors/s best", ".2f"),
+                                      ("x_base", "x 1 core", ".2f"), ("cores_got", "cores got", ".2f"),
+                                      ("x_base_full_cores", "x 1 core, full cores", ".2f"), ("bake_s", "bake s", ".1f"),
+                                      ("peak_rss_mib", "peak MiB", ".0f")]))
+        core_rate = scaling["rows"][0]["rate_best"] * work(scaling["recipe"]) / a.sectors  # work per second, one core
+        out.update(one_core_s=work(PRODUCTION) / core_rate, cpu_cores_8_s=work(PRODUCTION) / core_rate / GPUS)
+        print(f"\nproduction database from this run's one-core CPU rate: {out['one_core_s'] / 3600:.0f} core-hours; 8 "
+              f"such devices {out['cpu_cores_8_s'] / 3600:.1f} h (linear scaling assumed)")
+    doc = {"assembly": asm, "load_before": load_before, "load_after": os.getloadavg(), "projection": out or None,
+           "scaling": scaling}
+    save(a.name, doc)
+    return doc
+
+
+if __name__ == "__main__":
+    main()
