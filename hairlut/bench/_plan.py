@@ -34,6 +34,8 @@ def _bytes(paths) -> int:
 
 
 def needed_only_bake(scene: Path, cache: Path) -> dict:
+    """Plan and bake what ``scene`` needs into an empty ``cache``: times, estimates, bytes, what was baked and
+    skipped, and what a second plan would re-bake."""
     t0 = time.perf_counter()
     p = plan(scene, cache)
     t_plan = time.perf_counter() - t0
@@ -98,6 +100,7 @@ def database_coverage(scene: Path, db_paths: dict) -> dict:
 
 
 def demo_runs(folder: Path) -> dict:
+    """Wall seconds of a cold and a warm ``hairlut demo`` in ``folder`` (a fresh cache and compilation cache)."""
     exe = Path(sys.executable).with_name("hairlut")
     cmd = [str(exe), "demo", "--out", str(folder / "out"), "--cache", str(folder / "cache"), "--no-progress"]
     env = {k: v for k, v in os.environ.items() if k != "JAX_COMPILATION_CACHE_DIR"}

@@ -61,6 +61,8 @@ class ClusterResult:
 
 @dataclass(frozen=True, eq=False)
 class SynthResult:
+    """What ``synthesize`` returns: the scene, one :class:`ClusterResult` per cluster, and timing and lookup
+    statistics."""
     scene: Scene
     clusters: list
     stats: dict = field(default_factory=dict)
