@@ -11,7 +11,7 @@ chord sums (the strand reference's quantity: ``render_level`` equals it to 1e-4,
 where the per-texel Campbell law overshoots and the per-ray law does not.
 
 Measured, not tested (128², reference level 0, direct maps, track reads, shadows off; mean-α bias of the layered
-render against the strand reference; README, "oblique"):
+render against the strand reference; benchmarks/records.md, the camera-frame record):
 
 | groom, density grid | rays | strands | volume | off |
 |---|---|---|---|---|
