@@ -2,12 +2,15 @@
 """Set-up and run, with nothing but python3 on the machine.
 
     python3 run.py demo [ARGS...]   create .venv, install hairlut, run `hairlut demo ARGS`
-    python3 run.py test [ARGS...]   create .venv, install hairlut[test], run the whole test suite
-                                    (slow reference checks included) on 2 pytest-xdist workers:
-                                    HAIRLUT_TEST_WORKERS=1 runs it in one process; ARGS go to pytest
+    python3 run.py test [ARGS...]   create .venv, install hairlut, run the whole test suite
+                                    (slow reference checks included) on 2 pytest-xdist workers
+                                    (HAIRLUT_TEST_WORKERS=1 runs it in one process; ARGS go to pytest),
+                                    then, if it passed, build the documentation site into a temporary
+                                    folder with `mkdocs build --strict`: a warning fails the run
     python3 run.py hairlut ARGS...  any hairlut command inside the venv
 
-The venv is (re)installed only when pyproject.toml changes.
+All three share one venv, with hairlut[test,docs] installed (editable); it is (re)installed only when
+pyproject.toml changes.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import hashlib
 import os
 import subprocess
 import sys
+import tempfile
 import venv
 from pathlib import Path
 
@@ -50,16 +54,29 @@ def test_workers() -> list[str]:
     return ["-n", str(n), "--dist", "loadfile", "--no-loadscope-reorder"] if n > 1 else []
 
 
+def build_docs() -> int:
+    """``mkdocs build --strict`` (mkdocs.yml) into a temporary folder: a broken link, a broken docstring or a
+    public name without one fails it.  Its exit status."""
+    env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}  # mkdocs-material's notice about MkDocs 2.0, not a finding
+    with tempfile.TemporaryDirectory(prefix="hairlut-site-") as site:
+        print("run.py: building the documentation site (mkdocs build --strict)", file=sys.stderr)
+        # not --quiet: it hides the warnings from the count that --strict fails on
+        return subprocess.run([str(BIN / "python"), "-m", "mkdocs", "build", "--strict", "--site-dir", site],
+                              cwd=ROOT, env=env).returncode
+
+
 def main(argv: list[str]) -> int:
     if not argv or argv[0] not in {"demo", "test", "hairlut"}:
         print(__doc__, file=sys.stderr)
         return 2
     task, rest = argv[0], argv[1:]
-    # Both tasks share one environment, with the test extras, so switching never reinstalls.
-    ensure_venv("test")
+    # Every task shares one environment, with the test and docs extras, so switching never reinstalls.
+    ensure_venv("test,docs")
     if task == "test":
         cmd = [str(BIN / "python"), "-m", "pytest", *test_workers(), *rest]  # options in ARGS come later: they win
-    elif task == "demo":
+        code = subprocess.run(cmd, cwd=ROOT).returncode
+        return code if code != 0 else build_docs()
+    if task == "demo":
         cmd = [str(BIN / "hairlut"), "demo", *rest]
     else:
         cmd = [str(BIN / "hairlut"), *rest]

@@ -1,11 +1,13 @@
 """Every code block of the documentation runs (issue 29 m18), so that the README cannot drift from the code again.
 
-README.md, DESIGN.md and docs/**/*.md are read for fenced ``python`` and ``sh`` blocks.  Each runs, in the order of
-its document, in one scratch folder per document that holds a copy of the repository's ``tables/`` recipes, scenes
-and grooms and a ``.venv`` link to this interpreter's environment, with ``$HAIRLUT_CACHE`` at the scratch
-``tables/`` (the README's default cache) and this venv's ``hairlut`` first on ``PATH``: a python block in this
-process (its traceback names the document's lines), an sh block in ``bash -e -o pipefail``.  So a block may use
-what the blocks before it wrote, as a reader following the document would.
+README.md, DESIGN.md, docs/**/*.md (the documentation site's pages, and the files they include, such as the
+generated docs/bench/report.md) and benchmarks/records.md are read for fenced ``python`` and ``sh`` blocks.  Each
+runs, in the order of its document, in one scratch folder per document that holds a copy of the repository's
+``tables/`` recipes, scenes and grooms and a ``.venv`` link to this interpreter's environment, with
+``$HAIRLUT_CACHE`` at the scratch ``tables/`` (the README's default cache) and this venv's ``hairlut`` first on
+``PATH``: a python block in this process (its traceback names the document's lines), an sh block in
+``bash -e -o pipefail``.  So a block may use what the blocks before it wrote, as a reader following the document
+would.
 
 An HTML comment on the line before a block says how it runs, with a reason:
 ``<!-- slow: reason -->`` (a bake or a render of minutes: runs with the slow tests, and so do the blocks that use
@@ -27,7 +29,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-DOCS = [ROOT / "README.md", ROOT / "DESIGN.md", *sorted((ROOT / "docs").rglob("*.md"))]
+DOCS = [ROOT / "README.md", ROOT / "DESIGN.md", *sorted((ROOT / "docs").rglob("*.md")), ROOT / "benchmarks" / "records.md"]
 LANGUAGES = {"python": "python", "sh": "sh", "bash": "sh"}
 FENCE = re.compile(r"^(\s*)```(\S*)\s*$")
 MARKER = re.compile(r"^\s*<!--\s*(no-test|slow)\s*:(.*?)-->\s*$")
@@ -71,7 +73,8 @@ TESTED = [b for b in ALL if b.language in LANGUAGES]
 
 
 def test_every_marker_states_its_reason_and_stands_before_a_tested_block():
-    assert len(TESTED) >= 20, "the README's blocks were not found"
+    assert len(TESTED) >= 20, "the documentation's blocks were not found"
+    assert any(b.doc.parent.name == "guide" for b in TESTED), "the docs/guide pages' blocks were not found"
     for b in ALL:
         if b.mark:
             assert b.language in LANGUAGES, f"{b.id}: a {b.mark} marker before a {b.language or 'plain'} block"
@@ -124,3 +127,13 @@ def test_the_block_runs(block: Block, scratch, monkeypatch):
     r = subprocess.run(["bash", "-e", "-o", "pipefail", "-c", block.code], cwd=folder, env=env, capture_output=True,
                        text=True, timeout=3600)
     assert r.returncode == 0, f"{block.id} exited {r.returncode}:\n{block.code}\n--- output ---\n{(r.stdout + r.stderr)[-4000:]}"
+
+
+def test_readme_is_a_front_door():
+    """The README stays a front door (issue 27: at most 250 lines; the rest is the documentation site) and names
+    run.py's two set-up commands as they are."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 250, f"README.md has {len(text.splitlines())} lines; move detail into docs/"
+    run_py = (ROOT / "run.py").read_text(encoding="utf-8")
+    for task in ("demo", "test"):
+        assert f"python3 run.py {task}" in text and f"python3 run.py {task}" in run_py, task

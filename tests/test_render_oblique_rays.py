@@ -11,7 +11,7 @@ chord sums (the strand render's quantity: ``render_level`` equals it to 1e-4, te
 where the per-texel Campbell law overshoots and the per-ray law does not.
 
 Measured, not tested (128², strand render level 0, direct maps, track reads, shadows off; mean-α bias of the layered
-render against the strand render; README, "oblique"):
+render against the strand render; benchmarks/records.md, the camera-frame record):
 
 | groom, density grid | rays | strands | volume | off |
 |---|---|---|---|---|

@@ -75,6 +75,8 @@ class ExrImage:
     attributes: dict = field(default_factory=dict)  # the further hairlut:<name> string attributes
 
     def part(self, name: str | None = None) -> ExrPart:
+        """The part called ``name`` (the first part when None); a missing part is a
+        :class:`hairlut.errors.MissingDatasetError`."""
         if name is None:
             return self.parts[0]
         for p in self.parts:
@@ -98,6 +100,7 @@ class ExrImage:
                                             f"({', '.join(repr(p.name) for p in found)}): which one is meant is ambiguous")
 
     def channel(self, name: str, part: str | None = None) -> np.ndarray:
+        """The pixels of channel ``name`` (e.g. ``layer0.A``) of a part, as a (height, width) array."""
         p = self.part(part)
         if name not in p.channels:
             raise errors.MissingDatasetError(self.path, f"no channel {name!r} in part {p.name!r} (channels: {sorted(p.channels)})")

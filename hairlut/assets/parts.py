@@ -37,6 +37,7 @@ SHARE_GLOB = "share-*-of-*.npz"
 
 
 def parts_dir(out) -> Path:
+    """The parts folder of an output file: ``OUT.parts/`` beside ``OUT``."""
     out = Path(out)
     return out.with_name(out.name + ".parts")
 

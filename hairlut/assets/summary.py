@@ -61,6 +61,8 @@ class _Stats:
 
 
 def array_stats(data: np.ndarray) -> dict:
+    """The statistics ``hairlut inspect`` prints for one array: the element count, min, max and mean of the finite
+    values, and the NaN and infinity counts."""
     s = _Stats()
     s.add(data)
     return s.as_dict()

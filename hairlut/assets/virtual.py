@@ -5,8 +5,8 @@ the part files of ``<asset>.parts/``.  HDF5 reading such a table looks for every
 and each read (its printf expansion); :func:`read_virtual` instead plans each table's row blocks (:func:`_plan`)
 from the parts that :func:`~.sources.check_sources` accepted and reads every table's block of a part while that
 part is open once (:func:`_read_part`).  ``read_table`` (:mod:`.h5`) calls it for every asset it reads; a table of
-another layout is left to HDF5.  The speed it buys on a many-part asset is measured in README.md ("Baking on many
-machines": ``load_hrir_db`` of a 1,024-part asset, 1.9x less CPU time than through HDF5's mappings).
+another layout is left to HDF5.  The speed it buys on a many-part asset is measured in benchmarks/records.md (the scaling
+record: ``load_hrir_db`` of a 1,024-part asset, 1.9x less CPU time than through HDF5's mappings).
 """
 
 from __future__ import annotations

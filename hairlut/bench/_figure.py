@@ -35,6 +35,7 @@ class Figure:
     pareto: bool = False
 
     def to_json(self) -> dict:
+        """The figure as a JSON object (its dataclass fields)."""
         return asdict(self)
 
 

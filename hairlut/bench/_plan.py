@@ -29,6 +29,8 @@ def _bytes(paths) -> int:
 
 
 def needed_only_bake(scene: Path, cache: Path) -> dict:
+    """Plan and bake what ``scene`` needs into an empty ``cache``: times, estimates, bytes, what was baked and
+    skipped, and what a second plan would re-bake."""
     t0 = time.perf_counter()
     p = plan(scene, cache)
     t_plan = time.perf_counter() - t0

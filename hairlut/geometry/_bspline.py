@@ -78,6 +78,8 @@ class BSpline:
     @classmethod
     def make(cls, control, knots=None, degree: int | None = None, *, field: str = "spline",
              dim: int | None = None) -> BSpline:
+        """The checked constructor (see the class docstring): finite control points, a clamped uniform knot vector
+        on [0, 1] when ``knots`` is None."""
         ctrl = _finite_array(field, control, dim)
         n = ctrl.shape[0]
         if degree is None:

@@ -188,6 +188,7 @@ class ClusterBatch:
 
     @classmethod
     def stack(cls, specs: Sequence[ClusterSpec]) -> ClusterBatch:
+        """A batch of the given cluster specs, in order."""
         return cls(tuple(specs))
 
     def __len__(self) -> int:
@@ -248,7 +249,9 @@ class MacroCluster:
         object.__setattr__(self, "translations", ds)
 
     def members(self) -> list[ClusterSpec]:
+        """The macro cluster's member clusters: its spec under each rigid transform (rotation, translation)."""
         return [self.spec.transformed(r, d) for r, d in zip(self.rotations, self.translations)]
 
     def batch(self) -> ClusterBatch:
+        """The members as one :class:`ClusterBatch`."""
         return ClusterBatch.stack(self.members())

@@ -152,6 +152,7 @@ class PCABasis:
 
     @classmethod
     def fit(cls, density, n_components: int = 4) -> PCABasis:
+        """Fit ``n_components`` principal components to (N ≥ 2, n_s, n_r) density grids."""
         rho = np.asarray(density, dtype=np.float64)
         if rho.ndim != 3 or len(rho) < 2:
             raise ValidationError("density", rho.shape, "need (N ≥ 2, n_s, n_r) grids to fit components")
@@ -166,6 +167,7 @@ class PCABasis:
         return cls(rho.shape[1:], mean, comps)
 
     def transform(self, density) -> np.ndarray:
+        """Scores (N, k) of (N, n_s, n_r) density grids on the fitted components."""
         rho = np.asarray(density, dtype=np.float64)
         if rho.shape[1:] != tuple(self.grid):
             raise ValidationError("density", rho.shape, f"the basis was fitted on {self.grid} grids")
@@ -182,6 +184,7 @@ class FeatureStats:
 
     @classmethod
     def fit(cls, features, names: Sequence[str]) -> FeatureStats:
+        """Mean and standard deviation of (N ≥ 2, F) feature rows, one column per name."""
         x = np.asarray(features, dtype=np.float64)
         names = tuple(names)
         if x.ndim != 2 or x.shape[1] != len(names) or len(x) < 2:
@@ -191,14 +194,18 @@ class FeatureStats:
         return cls(names, x.mean(axis=0), np.maximum(std, floor))
 
     def normalize(self, features) -> np.ndarray:
+        """(x − mean) / std, per feature."""
         return (np.asarray(features, dtype=np.float64) - self.mean) / self.std
 
     def denormalize(self, z) -> np.ndarray:
+        """The inverse of :meth:`normalize`: z · std + mean."""
         return np.asarray(z, dtype=np.float64) * self.std + self.mean
 
     def to_dict(self) -> dict:
+        """Names, means and standard deviations as JSON-ready lists."""
         return {"names": list(self.names), "mean": self.mean.tolist(), "std": self.std.tolist()}
 
     @classmethod
     def from_dict(cls, d: dict) -> FeatureStats:
+        """The inverse of :meth:`to_dict`."""
         return cls(tuple(d["names"]), np.asarray(d["mean"], dtype=np.float64), np.asarray(d["std"], dtype=np.float64))

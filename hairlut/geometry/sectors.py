@@ -83,6 +83,7 @@ class SectorTable:
         return len(self.hsv_sectors)
 
     def sector_id(self, cluster, t_index, track, u_index) -> np.ndarray:
+        """The flat sector index of (cluster, segment along t, track, sector along u), as in the table's arrays."""
         _, n_i, n_g, n_k = self.shape
         return ((np.asarray(cluster) * n_i + t_index) * n_g + track) * n_k + u_index
 

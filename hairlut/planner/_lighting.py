@@ -80,6 +80,8 @@ def environment_light(scene):
 
 
 def sh_bands(scene) -> int:
+    """The light bands the scene's SH tables need (``environment.bands``, or the fewest within
+    ``environment.tolerance`` when "auto"); 0 without an environment light."""
     b = environment_bands(scene)
     return b["bands"] if b is not None else 0
 

@@ -85,9 +85,12 @@ class Plan:
     cache_dir: str
 
     def step(self, name: str) -> Step:
+        """The step called ``name`` (``hrir_db``, ``sh_tables``, ``map_method``, …)."""
         return next(s for s in self.steps if s.name == name)
 
     def to_json(self) -> dict:
+        """The plan as ``hairlut plan --json`` prints it: the steps (without their bake inputs) and the bake/reuse
+        totals."""
         return {"scene": self.scene.source, "cache": self.cache_dir,
                 "steps": [{k: v for k, v in asdict(s).items() if k != "inputs"} for s in self.steps],
                 "totals": {"bake_seconds": sum(s.seconds for s in self.steps if s.action == "bake"),

@@ -43,6 +43,8 @@ def segment_lighting(scene, tangent, view, lights, colors) -> np.ndarray:
 
 
 def scene_strands(scene) -> list:
+    """The scene's strands, one :class:`hairlut.geometry.Strands` per cluster (the groom's or the procedural
+    ones)."""
     from ..scene import scene_clusters
 
     return [s for _, s in scene_clusters(scene)]

@@ -52,9 +52,12 @@ class Segments:
         return len(self.length)
 
     def device(self) -> tuple:
+        """The five arrays as float32 device arrays, in field order."""
         return tuple(jnp.asarray(a, jnp.float32) for a in (self.p0, self.tangent, self.length, self.radius, self.sigma_t))
 
     def bounds(self, pad: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """The box (low, high corners) that holds every segment's Gaussian tube to its cut-off, widened by
+        ``pad``."""
         p1 = self.p0 + self.tangent * self.length[:, None]
         reach = Z_CUT * self.radius.max() + pad
         return np.minimum(self.p0, p1).min(0) - reach, np.maximum(self.p0, p1).max(0) + reach

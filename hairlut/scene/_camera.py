@@ -226,6 +226,7 @@ class Camera:
         return (ndc[..., 0] + 1) / 2 * self.width, (1 - ndc[..., 1]) / 2 * self.height, self.depth(p)
 
     def depth(self, points) -> np.ndarray:
+        """Distance of ``points`` (…, 3) in front of the eye, along the viewing direction."""
         return (self.eye - np.asarray(points, np.float64)) @ self.back
 
     def rays(self, x, y) -> tuple[np.ndarray, np.ndarray]:
@@ -242,6 +243,8 @@ class Camera:
         return o, np.broadcast_to(-self.back, o.shape).copy()
 
     def to_json(self) -> dict:
+        """The camera as a JSON object (projection, resolution, ``world_to_clip`` and the frame): what a render's
+        EXR stores as ``hairlut:camera``."""
         return {"projection": self.projection, "resolution": [self.width, self.height],
                 "world_to_clip": self.matrix.tolist(), "eye": self.eye.tolist(), "right": self.right.tolist(),
                 "up": self.up.tolist(), "view": self.back.tolist(), "extent": self.extent, "fov": self.fov,

@@ -234,18 +234,18 @@ def real_sh(lmax: int, dirs, *, normalize: bool = False):
     """Real orthonormal SH Y_i(dirs) for all i < (lmax+1)² (xing §4, basis of L ≈ Σ a_i Y_i).
 
     Args:
-        lmax: band limit, an int in [0, 64] (static: one compiled kernel per lmax).
-        dirs: directions, shape (..., 3). Must be unit length (to 1e-6 in float64, 1e-3 in
+        lmax (int): band limit, an int in [0, 64] (static: one compiled kernel per lmax).
+        dirs (array_like): directions, shape (..., 3). Must be unit length (to 1e-6 in float64, 1e-3 in
             float32) unless ``normalize=True``; the kernel always renormalises, so the
             result is exactly the SH of ``dirs/|dirs|``.
-        normalize: accept any finite nonzero vectors.
+        normalize (bool): accept any finite nonzero vectors.
 
     Returns:
-        jax.Array of shape (..., (lmax+1)²). float32 input → float32; float64 input →
-        float64 (computed under ``jax.enable_x64``); integers → float64; float16 → float32.
+        jax.Array: shape (..., (lmax+1)²). float32 input → float32; float64 input →
+            float64 (computed under ``jax.enable_x64``); integers → float64; float16 → float32.
 
     Raises:
-        hairlut.errors.ValidationError naming ``lmax`` or ``dirs``.
+        hairlut.errors.ValidationError: naming ``lmax`` or ``dirs``.
     """
     lmax = check_lmax(lmax)
     dirs = check_dirs(dirs, normalize=normalize)

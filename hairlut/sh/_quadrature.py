@@ -121,12 +121,12 @@ def project(values, grid: GaussLegendreGrid, lmax: int):
     """SH coefficients c_i = Σ_q w_q f(d_q) Y_i(d_q) ≈ ∫ f Y_i dω (xing §4, a_i and b_j).
 
     Args:
-        values: samples f(grid.dirs), shape (..., N) — the grid axis is last.
-        grid: a :class:`GaussLegendreGrid`; exact when f is band-limited to lmax ≤ grid.L.
-        lmax: band limit of the result.
+        values (array_like): samples f(grid.dirs), shape (..., N) — the grid axis is last.
+        grid (GaussLegendreGrid): the quadrature grid; exact when f is band-limited to lmax ≤ grid.L.
+        lmax (int): band limit of the result.
 
     Returns:
-        jax.Array (..., (lmax+1)²); float32 for float32 values, else float64.
+        jax.Array: (..., (lmax+1)²); float32 for float32 values, else float64.
     """
     lmax = check_lmax(lmax)
     if not isinstance(grid, GaussLegendreGrid):
@@ -174,12 +174,13 @@ def evaluate(coeffs, dirs, *, normalize: bool = False):
     """f(d) = Σ_i c_i Y_i(d), e.g. L(ω) ≈ Σ a_i Y_i(ω) (xing §4).
 
     Args:
-        coeffs: (..., (lmax+1)²); its batch shape broadcasts against that of ``dirs``
+        coeffs (array_like): (..., (lmax+1)²); its batch shape broadcasts against that of ``dirs``
             (use ``coeffs[:, None, :]`` with dirs (M, 3) for every-set-at-every-direction).
-        dirs: (..., 3) unit vectors (see :func:`real_sh` for ``normalize``).
+        dirs (array_like): (..., 3) unit vectors (see :func:`real_sh` for ``normalize``).
+        normalize (bool): accept any finite nonzero vectors.
 
     Returns:
-        jax.Array of the broadcast batch shape; float32 only if both inputs are float32.
+        jax.Array: the broadcast batch shape; float32 only if both inputs are float32.
     """
     dirs = check_dirs(dirs, normalize=normalize)
     if not isinstance(coeffs, jax.core.Tracer):

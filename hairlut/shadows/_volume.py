@@ -38,6 +38,7 @@ class Volume:
         return (np.asarray(points, np.float64) - self.origin) / self.size - 0.5
 
     def centres(self, index) -> np.ndarray:
+        """World positions of the centres of the voxels at integer ``index`` (…, 3)."""
         return self.origin + (np.asarray(index, np.float64) + 0.5) * self.size
 
 

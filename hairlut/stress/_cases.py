@@ -26,6 +26,7 @@ CASES: tuple[Case, ...] = (*SH, *DENSITY, *SHADOWS, *STORAGE, *GPU)
 
 
 def case_names() -> list[str]:
+    """Every case's name, in table order."""
     return [c.name for c in CASES]
 
 

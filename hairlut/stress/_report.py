@@ -79,5 +79,6 @@ class Report:
         return "\n".join(f"- {r.name}: {_num(r.tolerance)}: {r.reason}" for r in self.results)
 
     def as_dict(self) -> dict:
+        """The run as ``hairlut stress --json`` prints it: mode, counts, time, machine and every case."""
         return {"quick": self.quick, "passed": self.passed, "failed": self.failed, "seconds": self.seconds,
                 "machine": self.machine, "cases": [r.as_dict() for r in self.results]}

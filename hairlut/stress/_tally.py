@@ -44,6 +44,7 @@ class Result:
         return self.status != "fail"
 
     def as_dict(self) -> dict:
+        """The case's result as a JSON object."""
         return {"name": self.name, "area": self.area, "status": self.status, "worst_error": self.worst,
                 "tolerance": self.tolerance, "tolerance_reason": self.reason, "non_finite": self.non_finite,
                 "out_of_bounds": self.out_of_bounds, "counted": dict(self.counted), "faults": list(self.faults),
@@ -165,9 +166,11 @@ class Tally:
         self.counted[what] = max(float(value), self.counted.get(what, float(value)))
 
     def fault(self, message: str) -> None:
+        """Record a fault: the case fails, and the message says why."""
         self.faults.append(message)
 
     def note(self, message: str) -> None:
+        """Record a note for the report (a count or a measured gap that does not fail the case)."""
         self.notes.append(message)
 
     def skip(self, reason: str) -> None:
@@ -175,6 +178,8 @@ class Tally:
         self.skipped = reason
 
     def result(self, case: Case, seconds: float) -> Result:
+        """The case's :class:`Result`: skip, or fail on any fault, non-finite value, bound broken or error over the
+        tolerance; else pass."""
         if self.skipped is not None:
             status = "skip"
             notes = (self.skipped, *self.notes)

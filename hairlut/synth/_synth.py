@@ -61,7 +61,7 @@ class ClusterResult:
 
 @dataclass(frozen=True, eq=False)
 class SynthResult:
-    """One synthesised frame (:func:`synthesize`, :func:`render`): the ``scene``, one :class:`ClusterResult` per
+    """The maps and shaded layers of one view (:func:`synthesize`, :func:`render_view`): the ``scene``, one :class:`ClusterResult` per
     cluster in the scene's order, and ``stats`` (cluster, layer and HSV counts, the texture size, each
     cluster's uniform fraction, the seconds per stage and the map method that ran)."""
 
