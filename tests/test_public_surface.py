@@ -153,3 +153,21 @@ def test_the_docstring_check_can_fail():
 
     assert undocumented(Bare) and undocumented(bare)
     assert not undocumented(Documented) and not undocumented(3) and not undocumented(hairlut)
+
+
+def test_the_api_pages_are_hairlut_all():
+    """The docs' API reference has one page per package in ``hairlut.__all__`` (a ``::: hairlut.NAME`` block), in
+    the site's navigation, and no page for anything else."""
+    import types
+
+    import hairlut
+
+    root = Path(__file__).resolve().parents[1]
+    packages = {n for n in hairlut.__all__ if isinstance(getattr(hairlut, n), types.ModuleType)}
+    pages = {}
+    for page in (root / "docs" / "reference").glob("*.md"):
+        for name in re.findall(r"^::: (hairlut(?:\.\w+)?)\s*$", page.read_text(), re.M):
+            pages[name] = page.name
+    assert set(pages) == {"hairlut"} | {f"hairlut.{n}" for n in packages}
+    nav = (root / "mkdocs.yml").read_text()
+    assert all(f"reference/{page}" in nav for page in pages.values())
