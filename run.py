@@ -2,8 +2,9 @@
 """Set-up and run, with nothing but python3 on the machine.
 
     python3 run.py demo [ARGS...]   create .venv, install hairlut, run `hairlut demo ARGS`
-    python3 run.py test [ARGS...]   create .venv, install hairlut, run the whole test suite
-                                    (slow reference checks included) on 2 pytest-xdist workers
+    python3 run.py test [ARGS...]   create .venv, install hairlut, check the code with `ruff check` and
+                                    `ruff format --check` (the rules: pyproject.toml [tool.ruff]), run the
+                                    whole test suite (slow reference checks included) on 2 pytest-xdist workers
                                     (HAIRLUT_TEST_WORKERS=1 runs it in one process; ARGS go to pytest),
                                     then, if it passed, build the documentation site into a temporary
                                     folder with `mkdocs build --strict`: a warning fails the run
@@ -38,8 +39,9 @@ def ensure_venv(extras: str) -> None:
         venv.EnvBuilder(with_pip=True).create(VENV)
     spec = f".[{extras}]" if extras else "."
     print(f"run.py: installing hairlut{('[' + extras + ']') if extras else ''} (editable)", file=sys.stderr)
-    subprocess.run([str(BIN / "python"), "-m", "pip", "install", "-q", "--disable-pip-version-check", "-e", spec],
-                   cwd=ROOT, check=True)
+    subprocess.run(
+        [str(BIN / "python"), "-m", "pip", "install", "-q", "--disable-pip-version-check", "-e", spec], cwd=ROOT, check=True
+    )
     stamp.write_text(want)
 
 
@@ -61,8 +63,9 @@ def build_docs() -> int:
     with tempfile.TemporaryDirectory(prefix="hairlut-site-") as site:
         print("run.py: building the documentation site (mkdocs build --strict)", file=sys.stderr)
         # not --quiet: it hides the warnings from the count that --strict fails on
-        return subprocess.run([str(BIN / "python"), "-m", "mkdocs", "build", "--strict", "--site-dir", site],
-                              cwd=ROOT, env=env).returncode
+        return subprocess.run(
+            [str(BIN / "python"), "-m", "mkdocs", "build", "--strict", "--site-dir", site], cwd=ROOT, env=env
+        ).returncode
 
 
 def main(argv: list[str]) -> int:
@@ -73,6 +76,10 @@ def main(argv: list[str]) -> int:
     # Every task shares one environment, with the test and docs extras, so switching never reinstalls.
     ensure_venv("test,docs")
     if task == "test":
+        for check in (["check", "."], ["format", "--check", "."]):  # the lint before the suite: seconds, not minutes
+            code = subprocess.run([str(BIN / "ruff"), *check], cwd=ROOT).returncode
+            if code != 0:
+                return code
         cmd = [str(BIN / "python"), "-m", "pytest", *test_workers(), *rest]  # options in ARGS come later: they win
         code = subprocess.run(cmd, cwd=ROOT).returncode
         return code if code != 0 else build_docs()

@@ -13,7 +13,7 @@ import json
 import time
 from pathlib import Path
 
-from hairlut.bench import machine, machine_line  # noqa: F401  (re-exported for the scripts)
+from hairlut.bench import machine, machine_line
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -36,7 +36,10 @@ def best_of(fn, repeat: int = 5, min_time: float = 0.0):
 def best_wall_cpu(fn, n: int, *, warm: bool = False) -> tuple[float, float]:
     """(best wall seconds, best process CPU seconds: every thread) of ``n`` calls of ``fn``; with ``warm``, after
     one untimed call, each call's result waited for (``jax.block_until_ready``)."""
-    ready = (lambda x: x)
+
+    def ready(x):
+        return x
+
     if warm:
         import jax
 

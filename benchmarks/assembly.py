@@ -23,8 +23,12 @@ from pathlib import Path
 from ._common import ROOT, table
 
 #: the assembly's parts: the production's density grid (the default 32 x 32) and float16, the cheapest trace
-ASSEMBLY = {"sectors": {"count": 1024}, "angles": {"views": 1, "lights": 1}, "trace": {"pixels": 2, "steps": 2},
-            "storage": {"dtype": "float16"}}
+ASSEMBLY = {
+    "sectors": {"count": 1024},
+    "angles": {"views": 1, "lights": 1},
+    "trace": {"pixels": 2, "steps": 2},
+    "storage": {"dtype": "float16"},
+}
 
 
 def timed(fn):
@@ -41,16 +45,15 @@ def cpu(fn):
     return out, time.process_time() - c0
 
 
-def assemble_times(recipe: dict, paths: list[Path], scratch: Path, repeat: int, processes: int = 2,
-                    copy: bool = True) -> dict:
+def assemble_times(recipe: dict, paths: list[Path], scratch: Path, repeat: int, processes: int = 2, copy: bool = True) -> dict:
     """Seconds (wall and CPU, best of ``repeat``) of the leader's last step of a ``processes``-process bake, as
     ``hairlut.bake.sharding.run`` takes it: virtual datasets over the parts (the index from the leader's own parts
     and the other processes' share files) and a copy; and what indexing costs each process per part (paid
     before the barrier, while it bakes)."""
-    from hairlut.bake import registry
     from hairlut.assets import canonical_json, recipe_hash
-    from hairlut.bake.devices import Process
     from hairlut.assets.parts import share_name, stamp, write_share
+    from hairlut.bake import registry
+    from hairlut.bake.devices import Process
     from hairlut.bake.sharding import blocks_of, finish, header
 
     baker = registry.get("hrir_db")
@@ -58,21 +61,25 @@ def assemble_times(recipe: dict, paths: list[Path], scratch: Path, repeat: int, 
     spans = [header(p, baker)[:2] for p in paths]
     total, block = spans[-1][1], spans[0][1] - spans[0][0]
     folder = paths[0].parent
-    out = folder.with_name(folder.name[:-len(".parts")])
+    out = folder.with_name(folder.name[: -len(".parts")])
     digest = recipe_hash(canonical_json(recipe))
     t0, c0 = time.perf_counter(), time.process_time()
     own = {}
     for k in range(processes):  # what each process does after its blocks: index them, write its share file
-        mine = {b: (stamp(folder / Path(paths[spans.index(b)]).name), baker.units.index(recipe, paths[spans.index(b)]))
-                for b in blocks_of(total, block, (k, processes))}
+        mine = {
+            b: (stamp(folder / Path(paths[spans.index(b)]).name), baker.units.index(recipe, paths[spans.index(b)]))
+            for b in blocks_of(total, block, (k, processes))
+        }
         if k == 0:
             own = mine
         else:
             write_share(folder / share_name(k, processes), digest, total, mine)
-    index = {"index_cpu_s_per_part": (time.process_time() - c0) / len(paths),
-             "index_s_per_part": (time.perf_counter() - t0) / len(paths)}
+    index = {
+        "index_cpu_s_per_part": (time.process_time() - c0) / len(paths),
+        "index_s_per_part": (time.perf_counter() - t0) / len(paths),
+    }
     times = {m: [] for m in (("virtual", "copy") if copy else ("virtual",))}
-    for i in range(repeat):
+    for _ in range(repeat):
         for merge in times:
             t0, c0 = time.perf_counter(), time.process_time()
             finish(baker, recipe, out, total, block, merge, Process(0, processes), own if merge == "virtual" else None)
@@ -80,8 +87,11 @@ def assemble_times(recipe: dict, paths: list[Path], scratch: Path, repeat: int, 
             size = out.stat().st_size
             index[f"{merge}_bytes"] = size
             out.unlink()
-    return {**index, **{f"{m}_s": min(t[0] for t in v) for m, v in times.items()},
-            **{f"{m}_cpu_s": min(t[1] for t in v) for m, v in times.items()}}
+    return {
+        **index,
+        **{f"{m}_s": min(t[0] for t in v) for m, v in times.items()},
+        **{f"{m}_cpu_s": min(t[1] for t in v) for m, v in times.items()},
+    }
 
 
 def assembly(sizes: list[int], blocks: list[int], tmp: Path, repeat: int, copy_max: int, keep: Path | None) -> list[dict]:
@@ -89,8 +99,8 @@ def assembly(sizes: list[int], blocks: list[int], tmp: Path, repeat: int, copy_m
     ASSEMBLY recipe (the production's density grid and float16, one view and light, 2 px, 2 steps), as one
     ``--merge virtual`` process (no copy at the end); the copy is timed up to ``copy_max`` sectors.  ``keep``: bake
     there and keep the parts (a rerun resumes them)."""
-    from hairlut.hrir import bake, resolve_recipe
     from hairlut.assets.parts import parts_dir
+    from hairlut.hrir import bake, resolve_recipe
 
     rows = []
     where = keep or tmp
@@ -102,9 +112,18 @@ def assembly(sizes: list[int], blocks: list[int], tmp: Path, repeat: int, copy_m
             out.unlink()
             parts = sorted(parts_dir(out).glob("part-*.h5"))
             t = assemble_times(resolve_recipe(given), parts, tmp, repeat, copy=n <= copy_max)
-            rows.append({"sectors": n, "parts": len(parts), "part_bytes": sum(p.stat().st_size for p in parts), **t,
-                         "bake_s": wall, "bake_cpu_s": cpu, "resumed": rep["resumed"],
-                         "copy_x_virtual": t["copy_cpu_s"] / t["virtual_cpu_s"] if "copy_cpu_s" in t else None})
+            rows.append(
+                {
+                    "sectors": n,
+                    "parts": len(parts),
+                    "part_bytes": sum(p.stat().st_size for p in parts),
+                    **t,
+                    "bake_s": wall,
+                    "bake_cpu_s": cpu,
+                    "resumed": rep["resumed"],
+                    "copy_x_virtual": t["copy_cpu_s"] / t["virtual_cpu_s"] if "copy_cpu_s" in t else None,
+                }
+            )
             if keep is None:
                 shutil.rmtree(parts_dir(out))
     return rows
@@ -113,19 +132,34 @@ def assembly(sizes: list[int], blocks: list[int], tmp: Path, repeat: int, copy_m
 def print_assembly(asm: list[dict]) -> None:
     if not asm:
         return
-    print(f"assembling the final asset from the same parts, the leader's step of a 2-process bake (best of 2, "
-          f"in-process; load average {os.getloadavg()[0]:.1f}; copy timed up to --copy-max sectors):\n")
+    print(
+        f"assembling the final asset from the same parts, the leader's step of a 2-process bake (best of 2, "
+        f"in-process; load average {os.getloadavg()[0]:.1f}; copy timed up to --copy-max sectors):\n"
+    )
     for r in asm:
         r["index_ms_per_part"] = 1e3 * r["index_cpu_s_per_part"]
         r["virtual_cpu_ms_per_part"] = 1e3 * r["virtual_cpu_s"] / r["parts"]
         r["virtual_cpu_us_per_sector"] = 1e6 * r["virtual_cpu_s"] / r["sectors"]
-    print(table(asm, [("sectors", "sectors", ""), ("parts", "parts", ""), ("part_bytes", "part bytes", ",.0f"),
-                      ("index_ms_per_part", "index CPU-ms/part", ".1f"),
-                      ("virtual_s", "virtual s", ".3f"), ("virtual_cpu_s", "virtual CPU-s", ".3f"),
-                      ("virtual_cpu_ms_per_part", "CPU-ms/part", ".2f"), ("virtual_cpu_us_per_sector", "CPU-us/sector", ".2f"),
-                      ("virtual_bytes", "virtual bytes", ",.0f"), ("copy_s", "copy s", ".3f"),
-                      ("copy_cpu_s", "copy CPU-s", ".3f"), ("copy_bytes", "copy bytes", ",.0f"),
-                      ("copy_x_virtual", "copy/virtual CPU", ".1f")]))
+    print(
+        table(
+            asm,
+            [
+                ("sectors", "sectors", ""),
+                ("parts", "parts", ""),
+                ("part_bytes", "part bytes", ",.0f"),
+                ("index_ms_per_part", "index CPU-ms/part", ".1f"),
+                ("virtual_s", "virtual s", ".3f"),
+                ("virtual_cpu_s", "virtual CPU-s", ".3f"),
+                ("virtual_cpu_ms_per_part", "CPU-ms/part", ".2f"),
+                ("virtual_cpu_us_per_sector", "CPU-us/sector", ".2f"),
+                ("virtual_bytes", "virtual bytes", ",.0f"),
+                ("copy_s", "copy s", ".3f"),
+                ("copy_cpu_s", "copy CPU-s", ".3f"),
+                ("copy_bytes", "copy bytes", ",.0f"),
+                ("copy_x_virtual", "copy/virtual CPU", ".1f"),
+            ],
+        )
+    )
     print()
 
 
@@ -164,15 +198,21 @@ def synthetic_parts(where: Path, parts: int, block: int) -> tuple[dict, Path, di
     index (what the leader joins) is that part's, the same for every copy."""
     import h5py
 
-    from hairlut.bake import registry
     from hairlut.assets import canonical_json, recipe_hash
-    from hairlut.hrir import bake, resolve_recipe
     from hairlut.assets.parts import open_folder, part_name, parts_dir
+    from hairlut.bake import registry
+    from hairlut.hrir import bake, resolve_recipe
 
     seed = where / f"seed-{block}.h5"
     if not parts_dir(seed).exists():
-        bake({**ASSEMBLY, "sectors": {**ASSEMBLY["sectors"], "count": 2 * block}}, seed, block=block, keep_parts=True,
-             distributed=True, merge="virtual")
+        bake(
+            {**ASSEMBLY, "sectors": {**ASSEMBLY["sectors"], "count": 2 * block}},
+            seed,
+            block=block,
+            keep_parts=True,
+            distributed=True,
+            merge="virtual",
+        )
     template = parts_dir(seed) / part_name(0, block, 2 * block, block)
     total = parts * block
     recipe = resolve_recipe({**ASSEMBLY, "sectors": {**ASSEMBLY["sectors"], "count": total}})
@@ -184,15 +224,21 @@ def synthetic_parts(where: Path, parts: int, block: int) -> tuple[dict, Path, di
         path = folder / part_name(s, s + block, total, block)
         path.write_bytes(raw)
         with h5py.File(path, "r+") as f:
-            f.attrs.update({"sector_start": s, "sector_stop": s + block, "sector_total": total, "recipe": text,
-                            "recipe_hash": recipe_hash(text)})
+            f.attrs.update(
+                {
+                    "sector_start": s,
+                    "sector_stop": s + block,
+                    "sector_total": total,
+                    "recipe": text,
+                    "recipe_hash": recipe_hash(text),
+                }
+            )
     index = registry.get("hrir_db").units.index(recipe, template)
     index["features"] = index["features"][:block]
     return recipe, out, index
 
 
-def leader_times(recipe: dict, out: Path, block: int, index: dict, repeat: int, old: bool = True,
-                 readers: bool = True) -> dict:
+def leader_times(recipe: dict, out: Path, block: int, index: dict, repeat: int, old: bool = True, readers: bool = True) -> dict:
     """Wall and CPU seconds (best of ``repeat``) of the leader's step of a 2-process bake over ``out``'s parts
     (``hairlut.bake.sharding.finish``: process 0's indexes in memory, process 1's share file), with the printf
     mappings (``new``) and, in the same run, with :func:`old_mappings` (``old``); then what a reader pays on the
@@ -201,12 +247,12 @@ def leader_times(recipe: dict, out: Path, block: int, index: dict, repeat: int, 
     import h5py
 
     import hairlut.assets.virtual_write as virtual_mod
-    from hairlut.bake import registry
     from hairlut.assets import canonical_json, recipe_hash
-    from hairlut.bake.devices import Process
     from hairlut.assets.parts import part_name, parts_dir, share_name, stamp, write_share
-    from hairlut.bake.sharding import blocks_of, finish
     from hairlut.assets.virtual_write import check_virtual
+    from hairlut.bake import registry
+    from hairlut.bake.devices import Process
+    from hairlut.bake.sharding import blocks_of, finish
 
     baker = registry.get("hrir_db")
     total = recipe["sectors"]["count"]
@@ -250,21 +296,45 @@ def part_counts(counts: list[int], block: int, tmp: Path, repeat: int, readers_m
         recipe, out, index = synthetic_parts(tmp, n, block)
         made = time.process_time() - c0
         t = leader_times(recipe, out, block, index, repeat, readers=n <= readers_max)
-        rows.append({"parts": n, "sectors": n * block, "make_cpu_s": made, **t,
-                     "old_x_new": t["old_cpu_s"] / t["new_cpu_s"], "load": os.getloadavg()[0]})
+        rows.append(
+            {
+                "parts": n,
+                "sectors": n * block,
+                "make_cpu_s": made,
+                **t,
+                "old_x_new": t["old_cpu_s"] / t["new_cpu_s"],
+                "load": os.getloadavg()[0],
+            }
+        )
         shutil.rmtree(out.with_name(out.name + ".parts"))
         print(f"{n} parts: new {t['new_cpu_s']:.3f} CPU-s, old {t['old_cpu_s']:.3f} CPU-s", file=sys.stderr)
     return rows
 
 
 def print_part_counts(rows: list[dict]) -> None:
-    print(f"the leader's step of a 2-process bake by part count, printf mappings (new) against one mapping per part "
-          f"(old), same run, same synthetic parts (best CPU time of --repeat; load average {os.getloadavg()[0]:.1f}):\n")
-    print(table(rows, [("parts", "parts", ",d"), ("sectors", "sectors", ",d"), ("new_s", "new s", ".3f"),
-                       ("new_cpu_s", "new CPU-s", ".3f"), ("old_s", "old s", ".3f"), ("old_cpu_s", "old CPU-s", ".3f"),
-                       ("old_x_new", "old/new CPU", ".1f"), ("new_bytes", "new bytes", ",.0f"),
-                       ("old_bytes", "old bytes", ",.0f"), ("open_cpu_s", "reader open CPU-s", ".3f"),
-                       ("check_cpu_s", "check_virtual CPU-s", ".3f"), ("load", "load", ".1f")]))
+    print(
+        f"the leader's step of a 2-process bake by part count, printf mappings (new) against one mapping per part "
+        f"(old), same run, same synthetic parts (best CPU time of --repeat; load average {os.getloadavg()[0]:.1f}):\n"
+    )
+    print(
+        table(
+            rows,
+            [
+                ("parts", "parts", ",d"),
+                ("sectors", "sectors", ",d"),
+                ("new_s", "new s", ".3f"),
+                ("new_cpu_s", "new CPU-s", ".3f"),
+                ("old_s", "old s", ".3f"),
+                ("old_cpu_s", "old CPU-s", ".3f"),
+                ("old_x_new", "old/new CPU", ".1f"),
+                ("new_bytes", "new bytes", ",.0f"),
+                ("old_bytes", "old bytes", ",.0f"),
+                ("open_cpu_s", "reader open CPU-s", ".3f"),
+                ("check_cpu_s", "check_virtual CPU-s", ".3f"),
+                ("load", "load", ".1f"),
+            ],
+        )
+    )
     print()
 
 
@@ -313,8 +383,9 @@ def reader_steps(tree: Path, out: Path, steps: str) -> dict:
     import subprocess
 
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tree), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)}
-    res = subprocess.run([sys.executable, "-c", _READER, str(out), steps], env=env, cwd=tree, capture_output=True,
-                         text=True, check=True)
+    res = subprocess.run(
+        [sys.executable, "-c", _READER, str(out), steps], env=env, cwd=tree, capture_output=True, text=True, check=True
+    )
     return json.loads(res.stdout.strip().splitlines()[-1])
 
 
@@ -325,9 +396,9 @@ def readers(counts: list[int], block: int, tmp: Path, base: str, repeat: int = 1
     unchanged), ``check_virtual`` after them, and ``check_virtual`` alone in a new process (``check_cold``).  With
     ``repeat`` > 1 the two trees take turns that many times and each step keeps its least CPU time (the shared
     machine's load moves the CPU seconds of one run by up to 1.4×)."""
+    from hairlut.assets.parts import part_name, stamp
     from hairlut.bake import registry
     from hairlut.bake.devices import Process
-    from hairlut.assets.parts import part_name, stamp
     from hairlut.bake.sharding import blocks_of, finish
 
     trees = {"base": tree_at(base, tmp / "base-tree"), "new": ROOT}
@@ -350,8 +421,9 @@ def readers(counts: list[int], block: int, tmp: Path, base: str, repeat: int = 1
                         assert row.setdefault(key, v) == v, f"{label} read other bytes on turn {turn + 1}"
                     else:
                         row[key] = min(row.get(key, v), v)
-                print(f"{n} parts, {label}: " + ", ".join(f"{k} {v:.3f}" for k, v in got.items() if k != "digest"),
-                      file=sys.stderr)
+                print(
+                    f"{n} parts, {label}: " + ", ".join(f"{k} {v:.3f}" for k, v in got.items() if k != "digest"), file=sys.stderr
+                )
         row["same_data"] = row.pop("base_digest") == row.pop("new_digest")
         row["load_base_x_new"] = row["base_load_cold"] / row["new_load_cold"]
         row["load"] = os.getloadavg()[0]
@@ -362,16 +434,24 @@ def readers(counts: list[int], block: int, tmp: Path, base: str, repeat: int = 1
 
 
 def print_readers(rows: list[dict], base: str, repeat: int = 1) -> None:
-    print(f"a reader of a virtual hrir_db by part count, revision {base} (base) against the working tree (new), same "
-          f"run, same asset, CPU seconds in fresh interpreters, least of {repeat} turns each "
-          f"(load average {os.getloadavg()[0]:.1f}):\n")
+    print(
+        f"a reader of a virtual hrir_db by part count, revision {base} (base) against the working tree (new), same "
+        f"run, same asset, CPU seconds in fresh interpreters, least of {repeat} turns each "
+        f"(load average {os.getloadavg()[0]:.1f}):\n"
+    )
     cols = [("parts", "parts", ",d")]
     for label in ("base", "new"):
-        cols += [(f"{label}_load_cold", f"{label} load_hrir_db", ".2f"), (f"{label}_load_warm", f"{label} again", ".2f"),
-                 (f"{label}_check_cold", f"{label} check_virtual", ".3f"),
-                 (f"{label}_check_warm", f"{label} check again", ".3f")]
-    print(table(rows, cols + [("load_base_x_new", "load base/new", ".1f"), ("same_data", "same bytes", ""),
-                              ("load", "load", ".1f")]))
+        cols += [
+            (f"{label}_load_cold", f"{label} load_hrir_db", ".2f"),
+            (f"{label}_load_warm", f"{label} again", ".2f"),
+            (f"{label}_check_cold", f"{label} check_virtual", ".3f"),
+            (f"{label}_check_warm", f"{label} check again", ".3f"),
+        ]
+    print(
+        table(
+            rows, cols + [("load_base_x_new", "load base/new", ".1f"), ("same_data", "same bytes", ""), ("load", "load", ".1f")]
+        )
+    )
     print()
 
 
@@ -387,8 +467,11 @@ def main(argv=None) -> list[dict]:
     ap.add_argument("--repeat", type=int, default=2, help="best of this many assemblies (--readers: turns per tree)")
     ap.add_argument("--readers-max", type=int, default=4096, help="time the readers' open and check up to this many parts")
     ap.add_argument("--name", default="assembly", help="results/<name>.json")
-    ap.add_argument("--readers", default="", help="part counts (e.g. 256,1024): only a reader's cost, --base against "
-                    "the working tree (results/<name>-readers.json)")
+    ap.add_argument(
+        "--readers",
+        default="",
+        help="part counts (e.g. 256,1024): only a reader's cost, --base against the working tree (results/<name>-readers.json)",
+    )
     ap.add_argument("--base", default="a3c4b35", help="the revision the readers are timed against")
     a = ap.parse_args(argv)
     if a.readers:

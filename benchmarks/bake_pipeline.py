@@ -54,20 +54,28 @@ class Clock:
 def prepare(r: dict, start: int, stop: int):
     splats, params = sample_block(r, start, stop)
     rho = sector_density(splats, tuple(r["sectors"]["grid"]), density_scale=r["sectors"]["density_scale"], chunk=1)
-    g = sector_geometry(params, kappa=r["trace"]["extinction"], n_pix=r["trace"]["pixels"],
-                        smooth_ratio=r["trace"]["smooth_ratio"])
+    g = sector_geometry(
+        params, kappa=r["trace"]["extinction"], n_pix=r["trace"]["pixels"], smooth_ratio=r["trace"]["smooth_ratio"]
+    )
     return rho, g
 
 
 def write_block(path: Path, rho, alpha, refl) -> None:
     """The block's tables with the chunks a part file uses (α by 16 sectors, reflectance by sector)."""
     n, V, L, P = refl.shape
-    axes = [Axis("sector", np.arange(n), "1", "sector"), Axis("theta_v", np.arange(V, dtype=float), "rad", "view"),
-            Axis("theta_l", np.arange(L, dtype=float), "rad", "light"), Axis("pixel", np.arange(P, dtype=float), "1", "px"),
-            Axis("s", np.arange(rho.shape[1], dtype=float), "1", "s"), Axis("r", np.arange(rho.shape[2], dtype=float), "1", "r")]
-    variables = [Variable("alpha", alpha, ("sector", "theta_v", "pixel"), "1", "alpha", chunks=(min(n, 16), V, P)),
-                 Variable("reflectance", refl, ("sector", "theta_v", "theta_l", "pixel"), "1", "re", chunks=(1, V, L, P)),
-                 Variable("density", rho, ("sector", "s", "r"), "1", "density", chunks=(min(n, 64), *rho.shape[1:]))]
+    axes = [
+        Axis("sector", np.arange(n), "1", "sector"),
+        Axis("theta_v", np.arange(V, dtype=float), "rad", "view"),
+        Axis("theta_l", np.arange(L, dtype=float), "rad", "light"),
+        Axis("pixel", np.arange(P, dtype=float), "1", "px"),
+        Axis("s", np.arange(rho.shape[1], dtype=float), "1", "s"),
+        Axis("r", np.arange(rho.shape[2], dtype=float), "1", "r"),
+    ]
+    variables = [
+        Variable("alpha", alpha, ("sector", "theta_v", "pixel"), "1", "alpha", chunks=(min(n, 16), V, P)),
+        Variable("reflectance", refl, ("sector", "theta_v", "theta_l", "pixel"), "1", "re", chunks=(1, V, L, P)),
+        Variable("density", rho, ("sector", "s", "r"), "1", "density", chunks=(min(n, 64), *rho.shape[1:])),
+    ]
     write_table(path, "bench_block", {"bench": "bake_pipeline"}, axes, variables)
 
 
@@ -101,24 +109,40 @@ def main(argv=None) -> None:
         bake_wall, bake_cpu = time.perf_counter() - w, time.process_time() - c
     serial = prep.wall + trace.wall + every.wall
     rows = [
-        {"what": f"host preparation: sampling, density grids, geometry ({len(blocks)} blocks)", "wall": prep.wall,
-         "cpu": prep.cpu},
+        {
+            "what": f"host preparation: sampling, density grids, geometry ({len(blocks)} blocks)",
+            "wall": prep.wall,
+            "cpu": prep.cpu,
+        },
         {"what": "tracing, each block waited for", "wall": trace.wall, "cpu": trace.cpu},
         {"what": "writing the blocks' tables, 1 thread", "wall": one.wall, "cpu": one.cpu},
-        {"what": f"writing the blocks' tables, {threads} threads", "wall": every.wall, "cpu": every.cpu,
-         "ratio": one.wall / every.wall},
+        {
+            "what": f"writing the blocks' tables, {threads} threads",
+            "wall": every.wall,
+            "cpu": every.cpu,
+            "ratio": one.wall / every.wall,
+        },
         {"what": "serial sum: preparation + tracing + writing (all threads)", "wall": serial},
         {"what": "bake(): parts, tracing overlapped with writing", "wall": rep["blocks_s"]},
         {"what": "bake(): assembling the final file from the parts", "wall": rep.get("assemble_s")},
         {"what": "bake(): whole", "wall": bake_wall, "cpu": bake_cpu, "ratio": serial / rep["blocks_s"]},
     ]
-    print(f"## Where a bake's time goes: {n} sectors, {r['angles']['views']} x {r['angles']['lights']} angles, "
-          f"{r['trace']['pixels']} px, {r['trace']['steps']} steps; blocks of {BLOCK}; {threads} write threads\n")
-    print(table(rows, [("what", "", "s"), ("wall", "wall s", ".2f"), ("cpu", "CPU s (this process)", ".2f"),
-                       ("ratio", "speed-up", ".2f")]))
+    print(
+        f"## Where a bake's time goes: {n} sectors, {r['angles']['views']} x {r['angles']['lights']} angles, "
+        f"{r['trace']['pixels']} px, {r['trace']['steps']} steps; blocks of {BLOCK}; {threads} write threads\n"
+    )
+    print(
+        table(
+            rows,
+            [("what", "", "s"), ("wall", "wall s", ".2f"), ("cpu", "CPU s (this process)", ".2f"), ("ratio", "speed-up", ".2f")],
+        )
+    )
     print("\nspeed-up: writing, 1 thread over all threads; bake, the serial sum over the overlapped parts loop")
-    emit("bake_pipeline", {"recipe": r, "block": BLOCK, "threads": threads, "rows": rows,
-                           "block_seconds": rep.get("block_seconds")}, a.json)
+    emit(
+        "bake_pipeline",
+        {"recipe": r, "block": BLOCK, "threads": threads, "rows": rows, "block_seconds": rep.get("block_seconds")},
+        a.json,
+    )
 
 
 if __name__ == "__main__":

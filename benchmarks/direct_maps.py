@@ -73,10 +73,14 @@ def rel(x, ref) -> float:
 def errors(a, r, a_ref, r_ref) -> dict:
     """α, re and coverage errors; re's are None when ``r`` holds no lights (α only)."""
     shaded = r.size > 0
-    r_ref = r_ref[:, :r.shape[1]]
-    return {"alpha_rel_l2": rel(a, a_ref), "re_rel_l2": rel(r, r_ref) if shaded else None,
-            "coverage_rel_l2": rel(a.mean(-1), a_ref.mean(-1)), "alpha_max_abs": float(np.abs(a - a_ref).max()),
-            "re_max_abs": float(np.abs(r - r_ref).max()) if shaded else None}
+    r_ref = r_ref[:, : r.shape[1]]
+    return {
+        "alpha_rel_l2": rel(a, a_ref),
+        "re_rel_l2": rel(r, r_ref) if shaded else None,
+        "coverage_rel_l2": rel(a.mean(-1), a_ref.mean(-1)),
+        "alpha_max_abs": float(np.abs(a - a_ref).max()),
+        "re_max_abs": float(np.abs(r - r_ref).max()) if shaded else None,
+    }
 
 
 def baseline(inp, rec):
@@ -89,7 +93,7 @@ def baseline(inp, rec):
     trace_sectors(d[live[:1]], g[live[:1]], rec, views=tv[live[:1]], lights=tl[live[0]])  # compile
     start = time.perf_counter()
     for i in live:
-        a, r = trace_sectors(d[i:i + 1], g[i:i + 1], rec, views=tv[i:i + 1], lights=tl[i])
+        a, r = trace_sectors(d[i : i + 1], g[i : i + 1], rec, views=tv[i : i + 1], lights=tl[i])
         alpha[i], re[i] = a[0, 0], r[0, 0]
     return alpha, re, time.perf_counter() - start
 
@@ -117,40 +121,85 @@ def main(argv=None):
     N = len(inp["density"])
     live = int((inp["density"].reshape(N, -1).max(1) > 0).sum())
     a_base, r_base, base_s = baseline(inp, rec)
-    rows = [{"method": "trace_sectors loop (baseline)", "rays": 1, "steps": 48, "seconds": base_s, "speedup": 1.0,
-             **errors(a_base, r_base, a_base, r_base)}]
+    rows = [
+        {
+            "method": "trace_sectors loop (baseline)",
+            "rays": 1,
+            "steps": 48,
+            "seconds": base_s,
+            "speedup": 1.0,
+            **errors(a_base, r_base, a_base, r_base),
+        }
+    ]
     conv = None
     if not args.quick:
         cin = scene_inputs(args.scene, rec, grid=64)
-        _, _, conv = timed(lambda: direct_sector_maps(cin["density"], cin["geometry"], cin["theta_v"], cin["theta_l"],
-                                                      rec, rays=4, n_steps=96, block=args.block), repeat=1)
+        _, _, conv = timed(
+            lambda: direct_sector_maps(
+                cin["density"], cin["geometry"], cin["theta_v"], cin["theta_l"], rec, rays=4, n_steps=96, block=args.block
+            ),
+            repeat=1,
+        )
     settings = [("direct, tracer's shadow grid", 1, 48, False, "grid"), ("direct", 1, 48, False, "march")]
     if not args.quick:
         settings += [("direct", 2, 48, False, "march"), ("direct", 2, 96, False, "march")]
     settings.append(("direct α only", 1, 48, True, "march"))
     for name, rays, steps, alpha_only, lookup in settings:
         tl = inp["theta_l"][:, :0] if alpha_only else inp["theta_l"]
-        first, sec, (a, r) = timed(lambda: direct_sector_maps(inp["density"], inp["geometry"], inp["theta_v"], tl, rec,
-                                                              rays=rays, n_steps=steps, block=args.block,
-                                                              shadow_lookup=lookup))
-        row = {"method": name, "rays": rays, "steps": steps, "seconds": sec, "first_call_s": first,
-               "speedup": base_s / sec, **errors(a, r, a_base, r_base)}
+        first, sec, (a, r) = timed(
+            lambda: direct_sector_maps(
+                inp["density"],
+                inp["geometry"],
+                inp["theta_v"],
+                tl,
+                rec,
+                rays=rays,
+                n_steps=steps,
+                block=args.block,
+                shadow_lookup=lookup,
+            )
+        )
+        row = {
+            "method": name,
+            "rays": rays,
+            "steps": steps,
+            "seconds": sec,
+            "first_call_s": first,
+            "speedup": base_s / sec,
+            **errors(a, r, a_base, r_base),
+        }
         if conv is not None:
             row.update({f"conv_{k}": v for k, v in errors(a, r, *conv).items()})
         rows.append(row)
     if conv is not None:
         rows[0].update({f"conv_{k}": v for k, v in errors(a_base, r_base, *conv).items()})
-    print(f"\n## Direct maps of {args.scene.name}: {N} sectors ({live} non-empty), "
-          f"{inp['theta_l'].shape[1]} lights, 32 px\n")
-    cols = [("method", "method", "s"), ("rays", "rays/px", "d"), ("steps", "steps", "d"), ("seconds", "s", ".3f"),
-            ("speedup", "× baseline", ".1f"), ("alpha_rel_l2", "α rel vs baseline", ".2e"),
-            ("re_rel_l2", "re rel vs baseline", ".2e"), ("coverage_rel_l2", "coverage rel", ".2e")]
+    print(f"\n## Direct maps of {args.scene.name}: {N} sectors ({live} non-empty), {inp['theta_l'].shape[1]} lights, 32 px\n")
+    cols = [
+        ("method", "method", "s"),
+        ("rays", "rays/px", "d"),
+        ("steps", "steps", "d"),
+        ("seconds", "s", ".3f"),
+        ("speedup", "× baseline", ".1f"),
+        ("alpha_rel_l2", "α rel vs baseline", ".2e"),
+        ("re_rel_l2", "re rel vs baseline", ".2e"),
+        ("coverage_rel_l2", "coverage rel", ".2e"),
+    ]
     if conv is not None:
-        cols += [("conv_alpha_rel_l2", "α rel vs converged", ".3f"), ("conv_re_rel_l2", "re rel vs converged", ".3f"),
-                 ("conv_coverage_rel_l2", "coverage vs converged", ".3f")]
+        cols += [
+            ("conv_alpha_rel_l2", "α rel vs converged", ".3f"),
+            ("conv_re_rel_l2", "re rel vs converged", ".3f"),
+            ("conv_coverage_rel_l2", "coverage vs converged", ".3f"),
+        ]
     print(table(rows, cols))
-    payload = {"scene": str(args.scene), "sectors": N, "live": live, "lights": int(inp["theta_l"].shape[1]),
-               "pixels": 32, "block": args.block, "rows": rows}
+    payload = {
+        "scene": str(args.scene),
+        "sectors": N,
+        "live": live,
+        "lights": int(inp["theta_l"].shape[1]),
+        "pixels": 32,
+        "block": args.block,
+        "rows": rows,
+    }
     emit("direct_maps", payload, args.json)
 
 

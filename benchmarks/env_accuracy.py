@@ -36,7 +36,7 @@ WINDOWS = ("none", "hanning", "lanczos")
 
 
 def _rms(e, ref) -> float:
-    return float(np.sqrt(np.mean((e - ref) ** 2)) / max(np.sqrt(np.mean(ref ** 2)), 1e-300))
+    return float(np.sqrt(np.mean((e - ref) ** 2)) / max(np.sqrt(np.mean(ref**2)), 1e-300))
 
 
 def _clamped(e) -> float:
@@ -57,8 +57,9 @@ def scene_env(path: Path, cache: Path):
     p = plan(path, cache)
     assets = bake(p)
     sc = p.scene
-    env = prepare(sc, assets.get("hrir_db", {}).get("path"), sh=assets["sh_tables"]["path"],
-                  maps=assets.get("scene_maps", {}).get("path")).environment
+    env = prepare(
+        sc, assets.get("hrir_db", {}).get("path"), sh=assets["sh_tables"]["path"], maps=assets.get("scene_maps", {}).get("path")
+    ).environment
     return sc, env, environment_bands(sc), reference_light(sc)
 
 
@@ -76,15 +77,35 @@ def default_row(name, sc, env, eb, light30, height) -> list[dict]:
     ref = env.reference(light30.coeffs, sc.view, height)
     own = environment_light(sc).coeffs
     raw = env.diffuse + env.ks * np.einsum("...j,...jc->...c", env.b * env.sigma, env._cs(sc.view))
-    nd = env.light_diffuse ** 2
-    same = (replace(env, ks=0.0, b=env.b * env.sigma).reference(own[:nd], sc.view, height)
-            + replace(env, kd_rgb=np.zeros(3), b=env.b * env.sigma).reference(own, sc.view, height))
+    nd = env.light_diffuse**2
+    same = replace(env, ks=0.0, b=env.b * env.sigma).reference(own[:nd], sc.view, height) + replace(
+        env, kd_rgb=np.zeros(3), b=env.b * env.sigma
+    ).reference(own, sc.view, height)
     window = sc.environment["window"]
-    return [{"scene": name, "bands": eb["bands"], "window": window, "on": "both" if window != "none" else "-",
-             "rms_vs_30": _rms(e, ref), "clamped_fraction": clamped, "ms": ms, "path": "tables (default)",
-             "reference_negative": _clamped(ref)},
-            {"scene": name, "bands": eb["bands"], "window": window, "on": "-", "rms_vs_30": _rms(raw, same),
-             "clamped_fraction": _clamped(raw), "ms": None, "path": "render-vs-quadrature", "reference_negative": None}]
+    return [
+        {
+            "scene": name,
+            "bands": eb["bands"],
+            "window": window,
+            "on": "both" if window != "none" else "-",
+            "rms_vs_30": _rms(e, ref),
+            "clamped_fraction": clamped,
+            "ms": ms,
+            "path": "tables (default)",
+            "reference_negative": _clamped(ref),
+        },
+        {
+            "scene": name,
+            "bands": eb["bands"],
+            "window": window,
+            "on": "-",
+            "rms_vs_30": _rms(raw, same),
+            "clamped_fraction": _clamped(raw),
+            "ms": None,
+            "path": "render-vs-quadrature",
+            "reference_negative": None,
+        },
+    ]
 
 
 def sweep(name, sc, env, light30, bands, stride, height) -> list[dict]:
@@ -104,35 +125,48 @@ def sweep(name, sc, env, light30, bands, stride, height) -> list[dict]:
         # light's bands too (at least 3: hairlut.planner.sh_recipe)
         cols = [(bb, w) for bb in bands for w in WINDOWS]
         n30 = light30.coeffs.shape[0]
-        dif = np.concatenate([np.pad(_windowed(light30.coeffs, max(3, bb), w), ((0, n30 - max(3, bb) ** 2), (0, 0)))
-                              for bb, w in cols], axis=1)
-        spec = np.concatenate([np.pad(_windowed(light30.coeffs, bb, w), ((0, n30 - bb * bb), (0, 0)))
-                               for bb, w in cols], axis=1)
+        dif = np.concatenate(
+            [np.pad(_windowed(light30.coeffs, max(3, bb), w), ((0, n30 - max(3, bb) ** 2), (0, 0))) for bb, w in cols], axis=1
+        )
+        spec = np.concatenate([np.pad(_windowed(light30.coeffs, bb, w), ((0, n30 - bb * bb), (0, 0))) for bb, w in cols], axis=1)
         k = len(cols) * 3
         if bands and min(bands) >= 3:  # Rd and Rs read the same light: one set of columns
             e = replace(sub, b=b, kd_rgb=np.tile(env.kd_rgb, len(cols))).reference(spec, sc.view, height)
         else:
-            e = replace(sub, b=b, kd_rgb=np.concatenate([np.tile(env.kd_rgb, len(cols)), np.zeros(k)]),
-                        ks=np.concatenate([np.zeros(k), np.full(k, env.ks)])).reference(np.concatenate([dif, spec], 1),
-                                                                                        sc.view, height)
+            e = replace(
+                sub,
+                b=b,
+                kd_rgb=np.concatenate([np.tile(env.kd_rgb, len(cols)), np.zeros(k)]),
+                ks=np.concatenate([np.zeros(k), np.full(k, env.ks)]),
+            ).reference(np.concatenate([dif, spec], 1), sc.view, height)
             e = e[:, :k] + e[:, k:]
         e = e.reshape(len(e), len(cols), 3)
         for i, (bb, w) in enumerate(cols):
             if t_window != "none" and w not in ("none", t_window):
                 continue
-            on = {(False, False): "-", (True, False): "light", (False, True): "transmittance",
-                  (True, True): "both"}[(w != "none", t_window != "none")]
-            rows.append({"scene": name, "bands": bb, "window": w if w != "none" else t_window, "on": on,
-                         "rms_vs_30": _rms(np.maximum(e[:, i], 0.0), ref), "clamped_fraction": _clamped(e[:, i]),
-                         "ms": None, "path": f"quadrature, 1/{stride} texels", "reference_negative": _clamped(ref)})
+            on = {(False, False): "-", (True, False): "light", (False, True): "transmittance", (True, True): "both"}[
+                (w != "none", t_window != "none")
+            ]
+            rows.append(
+                {
+                    "scene": name,
+                    "bands": bb,
+                    "window": w if w != "none" else t_window,
+                    "on": on,
+                    "rms_vs_30": _rms(np.maximum(e[:, i], 0.0), ref),
+                    "clamped_fraction": _clamped(e[:, i]),
+                    "ms": None,
+                    "path": f"quadrature, 1/{stride} texels",
+                    "reference_negative": _clamped(ref),
+                }
+            )
     return rows
 
 
 def example_scenes() -> list[Path]:
     from hairlut.recipes import load_toml
 
-    return [p for p in sorted((ROOT / "tables" / "scenes").glob("*.toml"))
-            if load_toml(p).get("environment", {}).get("map")]
+    return [p for p in sorted((ROOT / "tables" / "scenes").glob("*.toml")) if load_toml(p).get("environment", {}).get("map")]
 
 
 def main(argv=None):
@@ -152,9 +186,21 @@ def main(argv=None):
             rows += sweep(path.name, sc, env, light30, args.bands, args.stride, args.height)
             print(f"{path.name}: {time.process_time() - t0:.0f} CPU s", file=sys.stderr)
     print("\n## Environment radiance against 30 light bands (no window), same transmittance\n")
-    print(table(rows, [("scene", "scene", "s"), ("path", "path", "s"), ("bands", "bands", "d"),
-                       ("window", "window", "s"), ("on", "on", "s"), ("rms_vs_30", "RMS vs 30", ".4f"),
-                       ("clamped_fraction", "clamped", ".4f"), ("ms", "CPU ms", ".1f")]))
+    print(
+        table(
+            rows,
+            [
+                ("scene", "scene", "s"),
+                ("path", "path", "s"),
+                ("bands", "bands", "d"),
+                ("window", "window", "s"),
+                ("on", "on", "s"),
+                ("rms_vs_30", "RMS vs 30", ".4f"),
+                ("clamped_fraction", "clamped", ".4f"),
+                ("ms", "CPU ms", ".1f"),
+            ],
+        )
+    )
     emit("env_accuracy", {"records": rows, "height": args.height, "stride": args.stride}, args.json)
 
 

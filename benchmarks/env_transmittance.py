@@ -67,8 +67,9 @@ def main(argv=None):
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
     given = load_toml(args.scene)
-    sc = resolve_scene({**given, "render": {**given.get("render", {}), "method": "direct"}}, args.scene.parent,
-                       source=str(args.scene))
+    sc = resolve_scene(
+        {**given, "render": {**given.get("render", {}), "method": "direct"}}, args.scene.parent, source=str(args.scene)
+    )
     if sc.environment is None or not sc.environment["self_shadow"]:
         raise SystemExit(f"{args.scene}: needs an environment light with self_shadow = true")
     with tempfile.TemporaryDirectory() as tmp:
@@ -79,16 +80,37 @@ def main(argv=None):
     for b, r in runs.items():
         raw = r["e0"] + r["rest"]
         der, s = dering(r["e0"], r["rest"])
-        for mode, e, clamped in (("clamp", np.maximum(raw, 0.0), np.mean(np.any(raw < 0, -1))),
-                                 ("de-ring", np.maximum(der, 0.0), np.mean(np.any(der < 0, -1)))):
-            rows.append({"transmittance_bands": b, "mode": mode, "clamped": float(clamped),
-                         "rms_vs_ref": float(np.linalg.norm(e - ref_clamped) / np.linalg.norm(ref_clamped)),
-                         "scaled_share": float(np.mean(s < 1)) if mode == "de-ring" else 0.0, "sh_bake_s": r["bake_s"]})
-    print(f"\n## Environment term of {args.scene.name}: clamped texels and error against "
-          f"{args.bands[-1]} transmittance bands (clamped)\n")
-    print(table(rows, [("transmittance_bands", "transmittance bands", "d"), ("mode", "mode", "s"),
-                       ("clamped", "clamped share", ".4f"), ("rms_vs_ref", "rel RMS vs reference", ".4f"),
-                       ("scaled_share", "texels de-ringed", ".4f"), ("sh_bake_s", "SH bake s", ".1f")]))
+        for mode, e, clamped in (
+            ("clamp", np.maximum(raw, 0.0), np.mean(np.any(raw < 0, -1))),
+            ("de-ring", np.maximum(der, 0.0), np.mean(np.any(der < 0, -1))),
+        ):
+            rows.append(
+                {
+                    "transmittance_bands": b,
+                    "mode": mode,
+                    "clamped": float(clamped),
+                    "rms_vs_ref": float(np.linalg.norm(e - ref_clamped) / np.linalg.norm(ref_clamped)),
+                    "scaled_share": float(np.mean(s < 1)) if mode == "de-ring" else 0.0,
+                    "sh_bake_s": r["bake_s"],
+                }
+            )
+    print(
+        f"\n## Environment term of {args.scene.name}: clamped texels and error against "
+        f"{args.bands[-1]} transmittance bands (clamped)\n"
+    )
+    print(
+        table(
+            rows,
+            [
+                ("transmittance_bands", "transmittance bands", "d"),
+                ("mode", "mode", "s"),
+                ("clamped", "clamped share", ".4f"),
+                ("rms_vs_ref", "rel RMS vs reference", ".4f"),
+                ("scaled_share", "texels de-ringed", ".4f"),
+                ("sh_bake_s", "SH bake s", ".1f"),
+            ],
+        )
+    )
     payload = {"scene": str(args.scene), "records": rows}
     emit("env_transmittance", payload, args.json)
 

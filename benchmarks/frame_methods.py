@@ -36,22 +36,30 @@ def _synthetic_maps(sc, live):
     """A scene table of ``sc``'s real shape (rows for ``live`` sectors; every sector when None) with random
     contents, and its recipe."""
     from hairlut.geometry import ClusterGeometry, build_sectors
-    from hairlut.scene import scene_clusters
     from hairlut.planner import scene_maps_recipe
+    from hairlut.scene import scene_clusters
     from hairlut.scenemaps import SceneMaps
 
     recipe = scene_maps_recipe(sc)
     t, P = recipe["table"], recipe["hrir"]["trace"]["pixels"]
     rng = np.random.default_rng(0)
     if live is None:  # direct not run: every sector live (an upper bound of the fetch's work)
-        live = np.ones(sum(build_sectors(ClusterGeometry(spec), st, np.zeros(st.n_strands, np.int64)).n_sectors
-                           for spec, st in scene_clusters(sc)), bool)
+        live = np.ones(
+            sum(
+                build_sectors(ClusterGeometry(spec), st, np.zeros(st.n_strands, np.int64)).n_sectors
+                for spec, st in scene_clusters(sc)
+            ),
+            bool,
+        )
     n = int(live.sum())
     row = np.full(live.size, -1, np.int32)
     row[live] = np.arange(n, dtype=np.int32)
-    maps = SceneMaps(rng.random((n, t["views"] // 2, P)).astype(t["dtype"]),
-                     (0.1 * rng.random((n, t["views"] // t["ratio_step"], t["shading_pixels"],
-                                       2 * t["terms"] + 1))).astype(t["dtype"]), row, recipe)
+    maps = SceneMaps(
+        rng.random((n, t["views"] // 2, P)).astype(t["dtype"]),
+        (0.1 * rng.random((n, t["views"] // t["ratio_step"], t["shading_pixels"], 2 * t["terms"] + 1))).astype(t["dtype"]),
+        row,
+        recipe,
+    )
     return maps, recipe, live
 
 
@@ -65,8 +73,9 @@ def map_methods(args, runs: int = 10) -> list[dict]:
     rows, live = [], None
     knobs = {"shading_pixels": args.shading_pixels} if args.shading_pixels else {}
     for method, reads in ((m, r) for m in args.methods for r in args.reads):
-        sc = resolve_scene({**base, "render": {**base["render"], "method": method, "layer_reads": reads,
-                                               **(knobs if method == "scene" else {})}})
+        sc = resolve_scene(
+            {**base, "render": {**base["render"], "method": method, "layer_reads": reads, **(knobs if method == "scene" else {})}}
+        )
         maps = None
         if method == "scene":
             maps, recipe, live = _synthetic_maps(sc, live)
@@ -83,14 +92,25 @@ def map_methods(args, runs: int = 10) -> list[dict]:
         extra = {}
         if method == "scene":  # the maps stage alone (params, fetch, sweep), CPU time, best of the runs
             view, lights = prep.scene.view, prep.scene.lights
-            stage = [cpu_timed(lambda: jax.block_until_ready(prep.maps.view(prep.index, view, lights)[:2]))[1]
-                     for _ in range(runs)]
+            stage = [
+                cpu_timed(lambda: jax.block_until_ready(prep.maps.view(prep.index, view, lights)[:2]))[1] for _ in range(runs)
+            ]
             extra["maps_cpu"] = 1e3 * min(stage)
             nbytes, secs = BAKER.estimate(recipe, sectors=live.size, live=int(live.sum()))
             extra.update(table_bytes_estimate=nbytes, bake_s_estimate=secs)
-        rows.append({"method": method, "reads": reads, "sectors": int(live.size), "live": int(live.sum()),
-                     "prepare_s": t_prep, "ms": 1e3 * sec.min(), "cpu_ms": 1e3 * cpu.min(),
-                     "maps": 1e3 * best.stats["seconds"]["maps"], **extra})
+        rows.append(
+            {
+                "method": method,
+                "reads": reads,
+                "sectors": int(live.size),
+                "live": int(live.sum()),
+                "prepare_s": t_prep,
+                "ms": 1e3 * sec.min(),
+                "cpu_ms": 1e3 * cpu.min(),
+                "maps": 1e3 * best.stats["seconds"]["maps"],
+                **extra,
+            }
+        )
         print(rows[-1], flush=True)
     return rows
 
@@ -103,19 +123,39 @@ def main(argv=None) -> None:
     ap.add_argument("--res", type=int, default=64, help="texels per layer side")
     ap.add_argument("--strands", type=int, default=400, help="strands per cluster")
     ap.add_argument("--quick", action="store_true", help="2 clusters, s_t = 16 (a smoke run)")
-    ap.add_argument("--methods", nargs="+", default=["direct", "scene"], choices=["direct", "scene"],
-                    help="which (scene alone counts every sector live)")
-    ap.add_argument("--reads", nargs="+", default=["pair"], choices=["pair", "track"],
-                    help="[render] layer_reads, each timed in the same run")
-    ap.add_argument("--shading-pixels", type=int, default=0,
-                    help="the scene table's re/α pixel bins (default: the scene default)")
+    ap.add_argument(
+        "--methods",
+        nargs="+",
+        default=["direct", "scene"],
+        choices=["direct", "scene"],
+        help="which (scene alone counts every sector live)",
+    )
+    ap.add_argument(
+        "--reads", nargs="+", default=["pair"], choices=["pair", "track"], help="[render] layer_reads, each timed in the same run"
+    )
+    ap.add_argument(
+        "--shading-pixels", type=int, default=0, help="the scene table's re/α pixel bins (default: the scene default)"
+    )
     args = ap.parse_args(argv)
     if args.quick:
         args.clusters, args.s_t, args.res, args.strands = 2, 16, 32, 100
     rows = map_methods(args)
-    print(table(rows, [("method", "[render] method", "s"), ("reads", "layer_reads", "s"), ("sectors", "sectors", "d"),
-                       ("live", "live", "d"), ("prepare_s", "prepare s", ".1f"), ("ms", "frame ms", ".1f"),
-                       ("cpu_ms", "frame CPU ms", ".1f"), ("maps", "maps ms", ".1f"), ("maps_cpu", "maps CPU ms", ".1f")]))
+    print(
+        table(
+            rows,
+            [
+                ("method", "[render] method", "s"),
+                ("reads", "layer_reads", "s"),
+                ("sectors", "sectors", "d"),
+                ("live", "live", "d"),
+                ("prepare_s", "prepare s", ".1f"),
+                ("ms", "frame ms", ".1f"),
+                ("cpu_ms", "frame CPU ms", ".1f"),
+                ("maps", "maps ms", ".1f"),
+                ("maps_cpu", "maps CPU ms", ".1f"),
+            ],
+        )
+    )
     print("(best of the timed frames; CPU ms: process CPU time, every thread; maps CPU ms: the maps stage alone)")
     save("online_frame_map_methods", {"device": str(jax.devices()[0]), "args": vars(args), "rows": rows})
 

@@ -34,26 +34,66 @@ def main(argv=None) -> None:
     payload = hrir_bake_study(quick=args.quick)
     r, thr = payload["recipe"], payload["throughput"]
     V, L = r["angles"]["views"], r["angles"]["lights"]
-    print(f"## HRIRs per second, default recipe ({V} views x {L} lights x {r['trace']['pixels']} px, "
-          f"{r['trace']['steps']} steps, grid {r['sectors']['grid']}; {payload['device']}); "
-          "NumPy rows and errors without self-shadowing\n")
-    print(table(thr["rows"], [("what", "", "s"), ("rate", "HRIRs/s", ",.0f"), ("sectors", "sectors/s", ".3f"),
-                              ("ratio", "tracer speed-up", ".0f"),
-                              ("err", "mean |err| vs 4x ref", ".2e"), ("errmax", "max |err| vs 4x ref", ".2e")]))
-    print(f"\nequal error: same discretisation; float32 tracer vs float64 loop max |diff| = {thr['float32_vs_float64']:.1e}, "
-          f"literal vs shared loop {thr['literal_vs_shared']:.1e}")
-    print(f"default DB ({thr['default_db_sectors']} sectors) baked end to end in {thr['default_db_seconds']:.1f} s "
-          "(target <= 120 s)\n")
+    print(
+        f"## HRIRs per second, default recipe ({V} views x {L} lights x {r['trace']['pixels']} px, "
+        f"{r['trace']['steps']} steps, grid {r['sectors']['grid']}; {payload['device']}); "
+        "NumPy rows and errors without self-shadowing\n"
+    )
+    print(
+        table(
+            thr["rows"],
+            [
+                ("what", "", "s"),
+                ("rate", "HRIRs/s", ",.0f"),
+                ("sectors", "sectors/s", ".3f"),
+                ("ratio", "tracer speed-up", ".0f"),
+                ("err", "mean |err| vs 4x ref", ".2e"),
+                ("errmax", "max |err| vs 4x ref", ".2e"),
+            ],
+        )
+    )
+    print(
+        f"\nequal error: same discretisation; float32 tracer vs float64 loop max |diff| = {thr['float32_vs_float64']:.1e}, "
+        f"literal vs shared loop {thr['literal_vs_shared']:.1e}"
+    )
+    print(
+        f"default DB ({thr['default_db_sectors']} sectors) baked end to end in {thr['default_db_seconds']:.1f} s "
+        "(target <= 120 s)\n"
+    )
     print(f"## Run time against error ({payload['n_err']} sectors; reference: grid x4, steps x4, 4 rays/pixel)\n")
-    print(table(payload["error_table"], [("grid", "grid", "d"), ("steps", "steps", "d"), ("rays", "rays/px", "d"),
-                                         ("ms", "ms/sector", ".1f"), ("mean", "mean |err|", ".2e"),
-                                         ("p99", "p99 |err|", ".2e"), ("max", "max |err|", ".2e"), ("default", "", "s")]))
+    print(
+        table(
+            payload["error_table"],
+            [
+                ("grid", "grid", "d"),
+                ("steps", "steps", "d"),
+                ("rays", "rays/px", "d"),
+                ("ms", "ms/sector", ".1f"),
+                ("mean", "mean |err|", ".2e"),
+                ("p99", "p99 |err|", ".2e"),
+                ("max", "max |err|", ".2e"),
+                ("default", "", "s"),
+            ],
+        )
+    )
     print(f"\n## In-plane self-shadowing ({payload['n_err']} sectors)\n")
-    print(table(payload["shadow"], [("mode", "", "s"), ("ms", "ms/sector", ".1f"), ("db", "s per 512 sectors", ".1f"),
-                                    ("mean", "mean |change| of re", ".2e"), ("max", "max |change| of re", ".2e")]))
+    print(
+        table(
+            payload["shadow"],
+            [
+                ("mode", "", "s"),
+                ("ms", "ms/sector", ".1f"),
+                ("db", "s per 512 sectors", ".1f"),
+                ("mean", "mean |change| of re", ".2e"),
+                ("max", "max |change| of re", ".2e"),
+            ],
+        )
+    )
     f16 = payload["float16_error"]
-    print(f"\nfloat16 storage adds max |err|: alpha {f16['alpha']:.1e}, reflectance {f16['reflectance']:.1e} "
-          f"(float32 storage adds 0)")
+    print(
+        f"\nfloat16 storage adds max |err|: alpha {f16['alpha']:.1e}, reflectance {f16['reflectance']:.1e} "
+        f"(float32 storage adds 0)"
+    )
     print(f"\nwrote {save('hrir_bake', payload)}")
 
 

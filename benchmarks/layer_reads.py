@@ -94,8 +94,14 @@ def paper_cost(frames: int = 5) -> list[dict]:
         alpha = jnp.asarray(rng.uniform(0, 0.5, (S, 32)), jnp.float32)
         re = jnp.asarray(rng.uniform(0, 0.2, (S, Lt, 32)), jnp.float32)
         wall, cpu = best_wall_cpu(lambda: sweep_sectors(ix, alpha, re, cs), frames, warm=True)
-        row = {"scene": "paper-scale", "reads": reads, "sweep_ms": 1e3 * wall, "sweep_cpu_ms": 1e3 * cpu,
-               "texels": int(np.prod(ix.offset.shape[2:])), "sectors": S}
+        row = {
+            "scene": "paper-scale",
+            "reads": reads,
+            "sweep_ms": 1e3 * wall,
+            "sweep_cpu_ms": 1e3 * cpu,
+            "texels": int(np.prod(ix.offset.shape[2:])),
+            "sectors": S,
+        }
         rows.append(row)
         print(row, flush=True)
     return rows
@@ -112,8 +118,17 @@ def main():
     args = ap.parse_args()
     if args.paper:
         rows = paper_cost()
-        print(table(rows, [("scene", "model", "s"), ("reads", "reads", "s"), ("sweep_ms", "sweep ms", ".1f"),
-                           ("sweep_cpu_ms", "sweep CPU ms", ".1f")]))
+        print(
+            table(
+                rows,
+                [
+                    ("scene", "model", "s"),
+                    ("reads", "reads", "s"),
+                    ("sweep_ms", "sweep ms", ".1f"),
+                    ("sweep_cpu_ms", "sweep CPU ms", ".1f"),
+                ],
+            )
+        )
         save("layer_reads_paper", {"rows": rows})
         return
     sc = load_scene(args.scene)
@@ -128,8 +143,13 @@ def main():
     for s_u in args.su:
         geo = {"geometric_tau_0.5": geometric_bias(s_u, radii, 0.5), "geometric_tau_2": geometric_bias(s_u, radii, 2.0)}
         for reads in args.reads:
-            row = {"scene": Path(args.scene).stem, "s_u": s_u, "reads": reads, "layer_radii": list(radii),
-                   **(geo if reads == "pair" else {})}
+            row = {
+                "scene": Path(args.scene).stem,
+                "s_u": s_u,
+                "reads": reads,
+                "layer_radii": list(radii),
+                **(geo if reads == "pair" else {}),
+            }
             if truth is not None:
                 t0 = time.perf_counter()
                 layered = with_config(sc, groom={"s_u": s_u}, render={"method": "direct", "layer_reads": reads})
@@ -138,17 +158,35 @@ def main():
                 figs = compare(f, truth, flip=True)[0]
                 w0, c0 = time.perf_counter(), time.process_time()
                 timing = render_view(prep).stats["seconds"]  # one more (warm) frame: its maps stage
-                row.update(alpha_bias=figs["alpha_bias_relative"], alpha_rmse_8x8=figs["alpha_rmse_8x8"],
-                           rgb_rmse_8x8=figs["rgb_rmse_8x8"], flip_mean=figs["flip_mean"],
-                           maps_s=timing["maps"], frame_cpu_s=time.process_time() - c0,
-                           frame_wall_s=time.perf_counter() - w0, seconds=time.perf_counter() - t0)
+                row.update(
+                    alpha_bias=figs["alpha_bias_relative"],
+                    alpha_rmse_8x8=figs["alpha_rmse_8x8"],
+                    rgb_rmse_8x8=figs["rgb_rmse_8x8"],
+                    flip_mean=figs["flip_mean"],
+                    maps_s=timing["maps"],
+                    frame_cpu_s=time.process_time() - c0,
+                    frame_wall_s=time.perf_counter() - w0,
+                    seconds=time.perf_counter() - t0,
+                )
             rows.append(row)
             print(row, flush=True)
-    print(table(rows, [("scene", "scene", "s"), ("s_u", "s_u", "d"), ("reads", "reads", "s"),
-                       ("alpha_bias", "measured mean-α bias", "+.1%"), ("alpha_rmse_8x8", "8×8 α RMSE", ".3f"),
-                       ("rgb_rmse_8x8", "8×8 RGB RMSE", ".4f"), ("flip_mean", "FLIP", ".3f"),
-                       ("maps_s", "maps s (warm)", ".2f"), ("geometric_tau_0.5", "geometric (τ 0.5)", "+.1%"),
-                       ("geometric_tau_2", "geometric (τ 2)", "+.1%")]))
+    print(
+        table(
+            rows,
+            [
+                ("scene", "scene", "s"),
+                ("s_u", "s_u", "d"),
+                ("reads", "reads", "s"),
+                ("alpha_bias", "measured mean-α bias", "+.1%"),
+                ("alpha_rmse_8x8", "8×8 α RMSE", ".3f"),
+                ("rgb_rmse_8x8", "8×8 RGB RMSE", ".4f"),
+                ("flip_mean", "FLIP", ".3f"),
+                ("maps_s", "maps s (warm)", ".2f"),
+                ("geometric_tau_0.5", "geometric (τ 0.5)", "+.1%"),
+                ("geometric_tau_2", "geometric (τ 2)", "+.1%"),
+            ],
+        )
+    )
     save(f"layer_reads_{Path(args.scene).stem}_{args.resolution}", {"resolution": args.resolution, "rows": rows})
 
 

@@ -32,14 +32,23 @@ from ._common import save, table
 
 def footprints(divisors) -> None:
     d = footprint_study(divisors)
-    print(f"{d['groom']}: {d['points']} vertices (every second), κ = {d['kappa']}; RMS |ΔT| (mean signed ΔT) "
-          f"against the strand-level reference at σ = extent / d, extent {d['extent']:.3g}\n")
-    rows = [{"map": k, "cell": f"extent/{d['extent'] / r['cell']:.0f}",
-             **{f"d{x}": f"{e:.4f} ({b:+.3f})" for x, e, b in zip(d["divisors"], r["rms"], r["bias"])}}
-            for k, r in d["maps"].items()]
+    print(
+        f"{d['groom']}: {d['points']} vertices (every second), κ = {d['kappa']}; RMS |ΔT| (mean signed ΔT) "
+        f"against the strand-level reference at σ = extent / d, extent {d['extent']:.3g}\n"
+    )
+    rows = [
+        {
+            "map": k,
+            "cell": f"extent/{d['extent'] / r['cell']:.0f}",
+            **{f"d{x}": f"{e:.4f} ({b:+.3f})" for x, e, b in zip(d["divisors"], r["rms"], r["bias"])},
+        }
+        for k, r in d["maps"].items()
+    ]
     print(table(rows, [("map", "map", "s"), ("cell", "cell", "s"), *[(f"d{x}", f"σ = 1/{x}", "s") for x in d["divisors"]]]))
-    print("\nreference mean τ = −ln T, own strand / other strands: "
-          + "; ".join(f"1/{x}: {o:.3f} / {r:.3f}" for x, o, r in zip(d["divisors"], d["tau_own"], d["tau_others"])))
+    print(
+        "\nreference mean τ = −ln T, own strand / other strands: "
+        + "; ".join(f"1/{x}: {o:.3f} / {r:.3f}" for x, o, r in zip(d["divisors"], d["tau_own"], d["tau_others"]))
+    )
     print(f"\nwrote {save('light_footprints', d)}")
 
 
@@ -49,8 +58,13 @@ def main(argv=None) -> None:
     ap.add_argument("--reference", type=int, default=256)
     ap.add_argument("--kappa", type=float, default=0.05, help="fibre blocking width (scene units)")
     ap.add_argument("--quick", action="store_true", help="resolutions 32 64, reference 128")
-    ap.add_argument("--footprints", type=int, nargs="*", metavar="D",
-                    help="the shadows part's maps against the strand reference at σ = extent / D (default 64 … 1024)")
+    ap.add_argument(
+        "--footprints",
+        type=int,
+        nargs="*",
+        metavar="D",
+        help="the shadows part's maps against the strand reference at σ = extent / D (default 64 … 1024)",
+    )
     args = ap.parse_args(argv)
     if args.footprints is not None:
         return footprints(args.footprints or [64, 128, 256, 512, 1024])
@@ -58,22 +72,47 @@ def main(argv=None) -> None:
         args.resolutions, args.reference = [32, 64], 128
     d = light_oriented_study(args.resolutions, args.reference, args.kappa)
     out, ref = d["results"], d["reference"]
-    print(f"groom: {d['groom']}: {d['strands']} strands, {d['vertices']} vertices, length {d['length']:.1f}; "
-          f"light {[round(x, 3) for x in d['light']]}, κ = {d['kappa']}")
-    print(f"reference: NumPy ray march at {ref['resolution']} cells, quarter-cell steps ({ref['time_s']:.1f} s); "
-          f"T at vertices: min {ref['min_T']:.3f}, mean {ref['mean_T']:.3f}")
+    print(
+        f"groom: {d['groom']}: {d['strands']} strands, {d['vertices']} vertices, length {d['length']:.1f}; "
+        f"light {[round(x, 3) for x in d['light']]}, κ = {d['kappa']}"
+    )
+    print(
+        f"reference: NumPy ray march at {ref['resolution']} cells, quarter-cell steps ({ref['time_s']:.1f} s); "
+        f"T at vertices: min {ref['min_T']:.3f}, mean {ref['mean_T']:.3f}"
+    )
     rows = [{**r, "hairlut_ms": r["hairlut_s"] * 1e3, "numpy_ms": r["numpy_s"] * 1e3} for r in out]
     print()
-    print(table(rows, [("resolution", "N", "d"), ("grid", "light grid", "s"), ("hairlut_ms", "hairlut (ms)", ".1f"),
-                       ("numpy_ms", "NumPy (ms)", ".0f"), ("speedup", "speed-up", ".0f"),
-                       ("max", "max ΔT", ".3f"), ("rms", "RMS ΔT", ".4f"), ("numpy_max", "NumPy max ΔT", ".3f"),
-                       ("numpy_rms", "NumPy RMS ΔT", ".4f"), ("vs_numpy_rms", "RMS vs NumPy", ".4f")]))
-    print(f"\nΔT against the NumPy ray march at {ref['resolution']} cells; hairlut time = map + query at "
-          f"{d['vertices']} vertices (map alone: "
-          + ", ".join(f"{r['hairlut_map_s'] * 1e3:.1f} ms" for r in out) + "; first call: "
-          + ", ".join(f"{r['hairlut_first_s']:.2f} s" for r in out) + ")")
-    print("storage error of the transmittance grid (max |ΔT| at vertices): float32 "
-          + ", ".join(f"{r['float32_max']:.1e}" for r in out) + "; float16 " + ", ".join(f"{r['float16_max']:.1e}" for r in out))
+    print(
+        table(
+            rows,
+            [
+                ("resolution", "N", "d"),
+                ("grid", "light grid", "s"),
+                ("hairlut_ms", "hairlut (ms)", ".1f"),
+                ("numpy_ms", "NumPy (ms)", ".0f"),
+                ("speedup", "speed-up", ".0f"),
+                ("max", "max ΔT", ".3f"),
+                ("rms", "RMS ΔT", ".4f"),
+                ("numpy_max", "NumPy max ΔT", ".3f"),
+                ("numpy_rms", "NumPy RMS ΔT", ".4f"),
+                ("vs_numpy_rms", "RMS vs NumPy", ".4f"),
+            ],
+        )
+    )
+    print(
+        f"\nΔT against the NumPy ray march at {ref['resolution']} cells; hairlut time = map + query at "
+        f"{d['vertices']} vertices (map alone: "
+        + ", ".join(f"{r['hairlut_map_s'] * 1e3:.1f} ms" for r in out)
+        + "; first call: "
+        + ", ".join(f"{r['hairlut_first_s']:.2f} s" for r in out)
+        + ")"
+    )
+    print(
+        "storage error of the transmittance grid (max |ΔT| at vertices): float32 "
+        + ", ".join(f"{r['float32_max']:.1e}" for r in out)
+        + "; float16 "
+        + ", ".join(f"{r['float16_max']:.1e}" for r in out)
+    )
     print(f"\nwrote {save('light_oriented', d)}")
 
 

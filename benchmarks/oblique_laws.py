@@ -51,10 +51,17 @@ def run_scene(path, resolution: int, laws, grid, steps, repeat: int) -> list[dic
     for law in laws:
         f = render_layered(layered, camera=truth.camera, prepared=prep, oblique=law, repeat=0)
         figs = compare(f, truth, flip=False)[0]
-        row = {"scene": Path(path).stem, "resolution": resolution, "grid": grid or "scene", "law": f.info["oblique"],
-               "reads": layered.config["render"]["layer_reads"], "alpha_bias": figs["alpha_bias_relative"],
-               "alpha_rmse_8x8": figs["alpha_rmse_8x8"], "rgb_rmse_8x8": figs["rgb_rmse_8x8"],
-               "frame_cpu_s": frame_cpu(prep, truth.camera, law, repeat) if repeat else None}
+        row = {
+            "scene": Path(path).stem,
+            "resolution": resolution,
+            "grid": grid or "scene",
+            "law": f.info["oblique"],
+            "reads": layered.config["render"]["layer_reads"],
+            "alpha_bias": figs["alpha_bias_relative"],
+            "alpha_rmse_8x8": figs["alpha_rmse_8x8"],
+            "rgb_rmse_8x8": figs["rgb_rmse_8x8"],
+            "frame_cpu_s": frame_cpu(prep, truth.camera, law, repeat) if repeat else None,
+        }
         rows.append(row)
         print(row, flush=True)
     return rows
@@ -70,9 +77,20 @@ def main():
     ap.add_argument("--repeat", type=int, default=2, help="warm frames timed for the maps stage (0: none)")
     a = ap.parse_args()
     rows = [r for s in a.scene for r in run_scene(s, a.resolution, a.laws, a.grid, a.steps, a.repeat)]
-    print(table(rows, [("scene", "scene", "s"), ("grid", "grid", "s"), ("law", "law", "s"),
-                       ("alpha_bias", "mean-α bias", "+.1%"), ("alpha_rmse_8x8", "8×8 α RMSE", ".4f"),
-                       ("rgb_rmse_8x8", "8×8 RGB RMSE", ".4f"), ("frame_cpu_s", "frame CPU s", ".2f")]))
+    print(
+        table(
+            rows,
+            [
+                ("scene", "scene", "s"),
+                ("grid", "grid", "s"),
+                ("law", "law", "s"),
+                ("alpha_bias", "mean-α bias", "+.1%"),
+                ("alpha_rmse_8x8", "8×8 α RMSE", ".4f"),
+                ("rgb_rmse_8x8", "8×8 RGB RMSE", ".4f"),
+                ("frame_cpu_s", "frame CPU s", ".2f"),
+            ],
+        )
+    )
     save(f"oblique_laws_{a.resolution}" + (f"_grid{a.grid}" if a.grid else ""), {"rows": rows})
 
 

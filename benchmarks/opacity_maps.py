@@ -32,20 +32,38 @@ def main(argv=None) -> None:
     args = ap.parse_args(argv)
     d = opacity_maps_study(args.kappa, quick=args.quick)
     ref = d["reference"]
-    print(f"{d['groom']}: {d['strands']} strands, {d['vertices']} vertices; light {d['light']}, "
-          f"κ = {d['kappa']}; reference {ref['n_slices']} slices × {ref['resolution']} texels")
+    print(
+        f"{d['groom']}: {d['strands']} strands, {d['vertices']} vertices; light {d['light']}, "
+        f"κ = {d['kappa']}; reference {ref['n_slices']} slices × {ref['resolution']} texels"
+    )
     print()
-    print(table(d["rows"], [("setting", "slices × res", "s"), ("maps", "Ω maps", "s"), ("t_jax", "hairlut (ms)", ".2f"),
-                            ("t_first", "first call (ms)", ".0f"), ("t_np", "NumPy (ms)", ".2f"),
-                            ("speedup", "NumPy / hairlut", ".1f"), ("max_jax", "max |Δτ| ref", ".3f"),
-                            ("rms_jax", "RMS |Δτ| ref", ".4f"), ("max_np", "NumPy max |Δτ| ref", ".3f"),
-                            ("rms_np", "NumPy RMS |Δτ| ref", ".4f"), ("max_depth", "max |Δτ| slices only", ".3f"),
-                            ("rms_depth", "RMS |Δτ| slices only", ".4f"),
-                            ("max_cross", "max |τ_hairlut − τ_NumPy|", ".1e"), ("mean_tau", "mean τ", ".3f")]))
-    print(f"\ntimes: maps + τ at every vertex, best of {d['repeat']} runs after a warm-up. The reference shares the "
-          "method, so 'ref' errors are discretisation differences (slices, texel filter width, pieces); finer texels "
-          "resolve single strands (a strand shadows its own vertices more), so they do not converge to zero with "
-          "resolution.")
+    print(
+        table(
+            d["rows"],
+            [
+                ("setting", "slices × res", "s"),
+                ("maps", "Ω maps", "s"),
+                ("t_jax", "hairlut (ms)", ".2f"),
+                ("t_first", "first call (ms)", ".0f"),
+                ("t_np", "NumPy (ms)", ".2f"),
+                ("speedup", "NumPy / hairlut", ".1f"),
+                ("max_jax", "max |Δτ| ref", ".3f"),
+                ("rms_jax", "RMS |Δτ| ref", ".4f"),
+                ("max_np", "NumPy max |Δτ| ref", ".3f"),
+                ("rms_np", "NumPy RMS |Δτ| ref", ".4f"),
+                ("max_depth", "max |Δτ| slices only", ".3f"),
+                ("rms_depth", "RMS |Δτ| slices only", ".4f"),
+                ("max_cross", "max |τ_hairlut − τ_NumPy|", ".1e"),
+                ("mean_tau", "mean τ", ".3f"),
+            ],
+        )
+    )
+    print(
+        f"\ntimes: maps + τ at every vertex, best of {d['repeat']} runs after a warm-up. The reference shares the "
+        "method, so 'ref' errors are discretisation differences (slices, texel filter width, pieces); finer texels "
+        "resolve single strands (a strand shadows its own vertices more), so they do not converge to zero with "
+        "resolution."
+    )
     print(f"\nwrote {save('opacity_maps', d)}")
 
 

@@ -41,26 +41,44 @@ def paper_model(resolution: int, texels: int = 64, frames: int = 5) -> dict:
     maps, _ = best_wall_cpu(lambda: render_view(prep), 1)
     cam = scene_camera(prep.scene)
     meshes, tile, origins, _ = layout(cam, ClusterGeometry([pc.spec for pc in prep.clusters]))
-    tex = lengthen(layer_textures(result), oblique_path(cam, np.stack([pc.tangent for pc in prep.clusters]),
-                                                        np.stack([pc.position for pc in prep.clusters])))
+    tex = lengthen(
+        layer_textures(result),
+        oblique_path(cam, np.stack([pc.tangent for pc in prep.clusters]), np.stack([pc.position for pc in prep.clusters])),
+    )
     args = (cam, meshes.vertices, meshes.triangles, meshes.uv)
     rgba, _, sec, plan = draw_layers(*args, tex, tile=tile, origins=origins)
     plan_s, plan_cpu = best_wall_cpu(lambda: draw_layers(*args, tex, tile=tile, origins=origins), 1)  # warm camera pass
     frame, frame_cpu = best_wall_cpu(lambda: draw_plan(plan, tex), frames)
     old_rgba, _, old_sec, _ = rasterise(*args, tex, tile=tile, origins=origins, repeat=2)
     _, old_cpu = best_wall_cpu(lambda: rasterise(*args, tex, tile=tile, origins=origins), 1)
-    print(f"  paper-scale {resolution}²: {plan.info['fragments']:,} fragments in {plan.info['slabs']} slabs over "
-          f"{plan.info['pixels']:,} pixels; frame {1e3 * frame:.0f} ms (cpu {1e3 * frame_cpu:.0f} ms), one-pass "
-          f"{1e3 * old_sec['raster']:.0f} ms, camera pass {plan_s:.1f} s, maps {maps:.1f} s")
-    return {"scene": "paper-scale", "method": "layered direct", "resolution": resolution, "texels": texels,
-            "frame_ms": 1e3 * frame, "cpu_ms": 1e3 * frame_cpu, "compile_s": sec["raster_first"] - frame,
-            "camera_pass_ms": 1e3 * plan_s, "camera_pass_cpu_ms": 1e3 * plan_cpu,
-            "one_pass_ms": 1e3 * old_sec["raster"], "one_pass_compile_s": old_sec["raster_first"] - old_sec["raster"],
-            "one_pass_ratio": old_sec["raster"] / frame, "one_pass_cpu_ms": 1e3 * old_cpu,
-            "one_pass_cpu_ratio": old_cpu / frame_cpu, "max_abs_diff_one_pass": float(np.abs(rgba - old_rgba).max()),
-            "maps_ms": 1e3 * maps, "maps_first_ms": 1e3 * maps_first, "fragments": plan.info["fragments"],
-            "triangles": int(meshes.triangles.shape[0] * tex.shape[0] * tex.shape[1]), "target_ms": 100.0,
-            "ratio_to_target": frame / 0.1}
+    print(
+        f"  paper-scale {resolution}²: {plan.info['fragments']:,} fragments in {plan.info['slabs']} slabs over "
+        f"{plan.info['pixels']:,} pixels; frame {1e3 * frame:.0f} ms (cpu {1e3 * frame_cpu:.0f} ms), one-pass "
+        f"{1e3 * old_sec['raster']:.0f} ms, camera pass {plan_s:.1f} s, maps {maps:.1f} s"
+    )
+    return {
+        "scene": "paper-scale",
+        "method": "layered direct",
+        "resolution": resolution,
+        "texels": texels,
+        "frame_ms": 1e3 * frame,
+        "cpu_ms": 1e3 * frame_cpu,
+        "compile_s": sec["raster_first"] - frame,
+        "camera_pass_ms": 1e3 * plan_s,
+        "camera_pass_cpu_ms": 1e3 * plan_cpu,
+        "one_pass_ms": 1e3 * old_sec["raster"],
+        "one_pass_compile_s": old_sec["raster_first"] - old_sec["raster"],
+        "one_pass_ratio": old_sec["raster"] / frame,
+        "one_pass_cpu_ms": 1e3 * old_cpu,
+        "one_pass_cpu_ratio": old_cpu / frame_cpu,
+        "max_abs_diff_one_pass": float(np.abs(rgba - old_rgba).max()),
+        "maps_ms": 1e3 * maps,
+        "maps_first_ms": 1e3 * maps_first,
+        "fragments": plan.info["fragments"],
+        "triangles": int(meshes.triangles.shape[0] * tex.shape[0] * tex.shape[1]),
+        "target_ms": 100.0,
+        "ratio_to_target": frame / 0.1,
+    }
 
 
 def main(argv=None) -> dict:
@@ -71,12 +89,26 @@ def main(argv=None) -> dict:
     a = ap.parse_args(argv)
     row = paper_model(a.resolution, a.texels, a.frames)
     print("\nPaper-scale layered render (frame: texturing and composite for a planned camera; maps separate):")
-    print(table([row], [("resolution", "px", ""), ("texels", "texels", ""), ("fragments", "fragments", ","),
-                        ("frame_ms", "frame ms", ".0f"), ("cpu_ms", "frame cpu ms", ".0f"),
-                        ("compile_s", "compile s", ".1f"), ("one_pass_ms", "one-pass ms", ".0f"),
-                        ("one_pass_ratio", "one-pass / frame", ".1f"), ("one_pass_cpu_ms", "one-pass cpu ms", ".0f"),
-                        ("one_pass_cpu_ratio", "cpu ratio", ".1f"), ("camera_pass_ms", "camera pass ms", ".0f"),
-                        ("maps_ms", "maps ms", ".0f"), ("max_abs_diff_one_pass", "max |Δ| vs one-pass", ".1e")]))
+    print(
+        table(
+            [row],
+            [
+                ("resolution", "px", ""),
+                ("texels", "texels", ""),
+                ("fragments", "fragments", ","),
+                ("frame_ms", "frame ms", ".0f"),
+                ("cpu_ms", "frame cpu ms", ".0f"),
+                ("compile_s", "compile s", ".1f"),
+                ("one_pass_ms", "one-pass ms", ".0f"),
+                ("one_pass_ratio", "one-pass / frame", ".1f"),
+                ("one_pass_cpu_ms", "one-pass cpu ms", ".0f"),
+                ("one_pass_cpu_ratio", "cpu ratio", ".1f"),
+                ("camera_pass_ms", "camera pass ms", ".0f"),
+                ("maps_ms", "maps ms", ".0f"),
+                ("max_abs_diff_one_pass", "max |Δ| vs one-pass", ".1e"),
+            ],
+        )
+    )
     save("paper_render", {"rows": [row], "resolution": a.resolution, "texels": a.texels})
     return row
 

@@ -26,8 +26,12 @@ import numpy as np
 from ._common import save, table
 from .assembly import assembly, cpu, print_assembly
 
-PRODUCTION = {"sectors": {"count": 65_536}, "angles": {"views": 64, "lights": 64}, "trace": {"pixels": 64},
-              "storage": {"dtype": "float16"}}
+PRODUCTION = {
+    "sectors": {"count": 65_536},
+    "angles": {"views": 64, "lights": 64},
+    "trace": {"pixels": 64},
+    "storage": {"dtype": "float16"},
+}
 DEFAULT = {"sectors": {"count": 512}, "angles": {"views": 32, "lights": 32}, "trace": {"pixels": 64, "steps": 64}}
 #: The last H200 measurement (issue 15): `hairlut bake hrir` of DEFAULT on one H200 traced 94 sectors/s at commit 937d29b
 #: (JAX 0.11.2, CUDA 13).  The bake was host-bound there, so the device's own rate was at least this; none since.
@@ -63,21 +67,34 @@ def host_terms(tmp: Path, block: int = 32) -> dict:
     dtype = r["storage"]["dtype"]
     for s in range(0, n, block):
         (splats, params), c1 = cpu(lambda: sample_block(r, s, min(s + block, n)))
-        dens, c2 = cpu(lambda: sector_density(splats, tuple(r["sectors"]["grid"]),
-                                               density_scale=r["sectors"]["density_scale"], chunk=1))
-        geom, c3 = cpu(lambda: sector_geometry(params, kappa=r["trace"]["extinction"], n_pix=r["trace"]["pixels"],
-                                                smooth_ratio=r["trace"]["smooth_ratio"]))
+        dens, c2 = cpu(
+            lambda: sector_density(splats, tuple(r["sectors"]["grid"]), density_scale=r["sectors"]["density_scale"], chunk=1)
+        )
+        geom, c3 = cpu(
+            lambda: sector_geometry(
+                params, kappa=r["trace"]["extinction"], n_pix=r["trace"]["pixels"], smooth_ratio=r["trace"]["smooth_ratio"]
+            )
+        )
         (alpha, refl), c4 = cpu(lambda: trace_sectors(dens, geom, r))
         prep += c1 + c2 + c3
         trace += c4
         a16, r16 = np.asarray(alpha, dtype), np.asarray(refl, dtype)  # the stored chunks: α 16 sectors, reflectance 1
-        _, c5 = cpu(lambda: [filter_chunk(a16[i:i + 16], 4) for i in range(0, len(a16), 16)]
-                     + [filter_chunk(r16[i:i + 1], 4) for i in range(len(r16))])
+        _, c5 = cpu(
+            lambda: (
+                [filter_chunk(a16[i : i + 16], 4) for i in range(0, len(a16), 16)]
+                + [filter_chunk(r16[i : i + 1], 4) for i in range(len(r16))]
+            )
+        )
         filters += c5
     terms = {"prep": prep / n, "filters": filters / n, "trace_cpu": trace / n}
     terms["rest"] = max(bake_cpu / n - terms["prep"] - terms["filters"] - terms["trace_cpu"], 0.0)
-    return {**terms, "bake_cpu": bake_cpu / n, "recipe": HOST, "block": block,
-            "bytes_per_sector": sum(p.stat().st_size for p in (tmp / "host.h5.parts").glob("part-*.h5")) / n}
+    return {
+        **terms,
+        "bake_cpu": bake_cpu / n,
+        "recipe": HOST,
+        "block": block,
+        "bytes_per_sector": sum(p.stat().st_size for p in (tmp / "host.h5.parts").glob("part-*.h5")) / n,
+    }
 
 
 def write_bandwidth(tmp: Path, mib: int = 256) -> float:
@@ -110,24 +127,48 @@ def projection(asm: list[dict], host: dict) -> dict:
     write_s = prod_bytes / host["write_bytes_per_s"]
     at_size = [r for r in asm if r["sectors"] == n]
     assembly_s = min((r["virtual_s"] for r in at_size), default=None)
-    out = {"bytes": prod_bytes, "sectors_per_gpu": each, "work_ratio_default": ratio, "device_rate": device_rate,
-           "device_s": each / device_rate, "host_serial_s_per_sector": serial, "host_parallel_cpu_s_per_sector": parallel,
-           "host_s": host_s, "write_s": write_s, "assembly_s": assembly_s, "host": host}
+    out = {
+        "bytes": prod_bytes,
+        "sectors_per_gpu": each,
+        "work_ratio_default": ratio,
+        "device_rate": device_rate,
+        "device_s": each / device_rate,
+        "host_serial_s_per_sector": serial,
+        "host_parallel_cpu_s_per_sector": parallel,
+        "host_s": host_s,
+        "write_s": write_s,
+        "assembly_s": assembly_s,
+        "host": host,
+    }
     out["projected_s"] = max(out["device_s"], host_s, write_s) + (assembly_s or 0.0)
-    print(f"\nproduction database (65,536 sectors, 64 x 64 angles, 64 px, 64 steps, float16: {prod_bytes / 1e9:.1f} GB) on "
-          f"{GPUS} H200s: projected, not measured on a GPU; {each:,.0f} sectors per GPU")
-    print(f"  device:   {out['device_s']:7.1f} s  the last H200 rate, {H200['rate']:.0f} default sectors/s at {H200['commit']} "
-          f"(host-bound then: the device's rate was at least this), / {ratio:.0f} (a production sector's tracing work)")
-    print(f"  host:     {host_s:7.1f} s  this CPU, per sector {1e3 * serial:.2f} CPU-ms serial (inputs {1e3 * host['prep']:.2f},"
-          f" HDF5/checks/index {1e3 * host['rest']:.2f}) + {1e3 * parallel:.2f} CPU-ms of chunk filters over "
-          f"{GPU_HOST_CORES} cores (HOST recipe: production shapes, 2-step trace; same per-core speed assumed)")
+    print(
+        f"\nproduction database (65,536 sectors, 64 x 64 angles, 64 px, 64 steps, float16: {prod_bytes / 1e9:.1f} GB) on "
+        f"{GPUS} H200s: projected, not measured on a GPU; {each:,.0f} sectors per GPU"
+    )
+    print(
+        f"  device:   {out['device_s']:7.1f} s  the last H200 rate, {H200['rate']:.0f} default sectors/s at {H200['commit']} "
+        f"(host-bound then: the device's rate was at least this), / {ratio:.0f} (a production sector's tracing work)"
+    )
+    print(
+        f"  host:     {host_s:7.1f} s  this CPU, per sector {1e3 * serial:.2f} CPU-ms serial (inputs {1e3 * host['prep']:.2f},"
+        f" HDF5/checks/index {1e3 * host['rest']:.2f}) + {1e3 * parallel:.2f} CPU-ms of chunk filters over "
+        f"{GPU_HOST_CORES} cores (HOST recipe: production shapes, 2-step trace; same per-core speed assumed)"
+    )
     need = prod_bytes / max(out["device_s"], host_s)
     out["write_bytes_per_s_needed"] = need
-    print(f"  write:    {write_s:7.1f} s  {prod_bytes / 1e9:.1f} GB at this machine's disk, "
-          f"{host['write_bytes_per_s'] / 1e6:.0f} MB/s (a VM disk shared with other jobs; the GPU node's storage decides: "
-          f"{need / 1e6:.0f} MB/s keeps the disk off the critical path)")
-    print("  assembly: " + (f"{assembly_s:7.3f} s  virtual, measured here at {n:,} sectors (best part count's wall)"
-                            if assembly_s is not None else "   not measured in this run (--sizes 65536)"))
+    print(
+        f"  write:    {write_s:7.1f} s  {prod_bytes / 1e9:.1f} GB at this machine's disk, "
+        f"{host['write_bytes_per_s'] / 1e6:.0f} MB/s (a VM disk shared with other jobs; the GPU node's storage decides: "
+        f"{need / 1e6:.0f} MB/s keeps the disk off the critical path)"
+    )
+    print(
+        "  assembly: "
+        + (
+            f"{assembly_s:7.3f} s  virtual, measured here at {n:,} sectors (best part count's wall)"
+            if assembly_s is not None
+            else "   not measured in this run (--sizes 65536)"
+        )
+    )
     print(f"  projected = max(device, host, write) + assembly = {out['projected_s'] / 60:.1f} min")
     return out
 
@@ -138,8 +179,9 @@ def work(recipe: dict) -> float:
 
     r = resolve_recipe(recipe, budget=False)
     t = r["trace"]
-    return float(r["sectors"]["count"] * r["angles"]["views"] * r["angles"]["lights"] * t["pixels"] * t["steps"]
-                 * t["rays_per_pixel"])
+    return float(
+        r["sectors"]["count"] * r["angles"]["views"] * r["angles"]["lights"] * t["pixels"] * t["steps"] * t["rays_per_pixel"]
+    )
 
 
 def main(argv=None) -> dict:
@@ -162,22 +204,46 @@ def main(argv=None) -> dict:
     scaling = scaling_study(a.sectors, a.repeat, progress=print) if a.repeat else None
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        asm = assembly([int(s) for s in a.sizes.split(",") if s], [int(g) for g in a.blocks.split(",") if g], tmp,
-                       repeat=2, copy_max=a.copy_max, keep=a.keep)
+        asm = assembly(
+            [int(s) for s in a.sizes.split(",") if s],
+            [int(g) for g in a.blocks.split(",") if g],
+            tmp,
+            repeat=2,
+            copy_max=a.copy_max,
+            keep=a.keep,
+        )
         hosts = None if a.no_projection else {**host_terms(tmp), "write_bytes_per_s": write_bandwidth(tmp)}
     print_assembly(asm)
     out = projection(asm, hosts) if hosts else {}
     if scaling:
-        print(table(scaling["rows"], [("config", "config", ""), ("cores", "cores", ""), ("rate_best", "sectors/s best", ".2f"),
-                                      ("x_base", "x 1 core", ".2f"), ("cores_got", "cores got", ".2f"),
-                                      ("x_base_full_cores", "x 1 core, full cores", ".2f"), ("bake_s", "bake s", ".1f"),
-                                      ("peak_rss_mib", "peak MiB", ".0f")]))
+        print(
+            table(
+                scaling["rows"],
+                [
+                    ("config", "config", ""),
+                    ("cores", "cores", ""),
+                    ("rate_best", "sectors/s best", ".2f"),
+                    ("x_base", "x 1 core", ".2f"),
+                    ("cores_got", "cores got", ".2f"),
+                    ("x_base_full_cores", "x 1 core, full cores", ".2f"),
+                    ("bake_s", "bake s", ".1f"),
+                    ("peak_rss_mib", "peak MiB", ".0f"),
+                ],
+            )
+        )
         core_rate = scaling["rows"][0]["rate_best"] * work(scaling["recipe"]) / a.sectors  # work per second, one core
         out.update(one_core_s=work(PRODUCTION) / core_rate, cpu_cores_8_s=work(PRODUCTION) / core_rate / GPUS)
-        print(f"\nproduction database from this run's one-core CPU rate: {out['one_core_s'] / 3600:.0f} core-hours; 8 "
-              f"such devices {out['cpu_cores_8_s'] / 3600:.1f} h (linear scaling assumed)")
-    doc = {"assembly": asm, "load_before": load_before, "load_after": os.getloadavg(), "projection": out or None,
-           "scaling": scaling}
+        print(
+            f"\nproduction database from this run's one-core CPU rate: {out['one_core_s'] / 3600:.0f} core-hours; 8 "
+            f"such devices {out['cpu_cores_8_s'] / 3600:.1f} h (linear scaling assumed)"
+        )
+    doc = {
+        "assembly": asm,
+        "load_before": load_before,
+        "load_after": os.getloadavg(),
+        "projection": out or None,
+        "scaling": scaling,
+    }
     save(a.name, doc)
     return doc
 

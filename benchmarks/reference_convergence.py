@@ -39,20 +39,23 @@ KEY = ("scene", "resolution", "crop", "pattern", "samples_per_pixel", "steps_per
 
 def change(a, b) -> dict:
     """RMSE of premultiplied RGB and of α between two (h, w, 4) frames (``render_strands``'s convergence test)."""
-    return {"rgb_rmse": float(np.sqrt(np.mean((a[..., :3] - b[..., :3]) ** 2))),
-            "alpha_rmse": float(np.sqrt(np.mean((a[..., 3] - b[..., 3]) ** 2)))}
+    return {
+        "rgb_rmse": float(np.sqrt(np.mean((a[..., :3] - b[..., :3]) ** 2))),
+        "alpha_rmse": float(np.sqrt(np.mean((a[..., 3] - b[..., 3]) ** 2))),
+    }
 
 
 def crop_camera(cam, segs, lit, lights, size: int):
     """The ``size`` × ``size`` window of orthographic ``cam`` with the most partial coverage at level 0."""
     a = render_level(segs, cam, lit, lights, level=0, shadows=False)[..., 3]
     h, w = cam.height // size, cam.width // size
-    blk = a[:h * size, :w * size].reshape(h, size, w, size)
+    blk = a[: h * size, : w * size].reshape(h, size, w, size)
     by, bx = np.unravel_index(np.argmax((blk * (1 - blk)).sum((1, 3))), (h, w))
     per = cam.height / cam.extent  # pixels per world unit
     cx, cy = (bx * size + size / 2 - cam.width / 2) / per, (cam.height / 2 - by * size - size / 2) / per
-    return dataclasses.replace(cam, eye=cam.eye + cx * cam.right + cy * cam.up, width=size, height=size,
-                               extent=cam.extent * size / cam.height)
+    return dataclasses.replace(
+        cam, eye=cam.eye + cx * cam.right + cy * cam.up, width=size, height=size, extent=cam.extent * size / cam.height
+    )
 
 
 def save_row(row: dict) -> None:
@@ -94,12 +97,20 @@ def main(argv=None):
             for ss, steps in runs:
                 st = {}
                 t0, c0 = time.perf_counter(), time.process_time()
-                img = render_level(segs, cam, lit, sc.lights, level=lv, shadows=shadows, stats=st, samples=ss, steps=steps,
-                                   lattice=lattice)[..., :4]
+                img = render_level(
+                    segs, cam, lit, sc.lights, level=lv, shadows=shadows, stats=st, samples=ss, steps=steps, lattice=lattice
+                )[..., :4]
                 cpu, wall = time.process_time() - c0, time.perf_counter() - t0
-                row = {"scene": path.stem, "resolution": args.resolution, "crop": args.crop,
-                       "level": lv, "cpu_s": cpu, "wall_s": wall, "alpha_mean": float(img[..., 3].mean()),
-                       **{k: v for k, v in st.items() if not isinstance(v, (list, dict))}}
+                row = {
+                    "scene": path.stem,
+                    "resolution": args.resolution,
+                    "crop": args.crop,
+                    "level": lv,
+                    "cpu_s": cpu,
+                    "wall_s": wall,
+                    "alpha_mean": float(img[..., 3].mean()),
+                    **{k: v for k, v in st.items() if not isinstance(v, (list, dict))},
+                }
                 if folder:
                     folder.mkdir(parents=True, exist_ok=True)
                     np.save(folder / f"{tag}_s{ss}_t{steps}.npy", img)

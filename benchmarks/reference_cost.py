@@ -30,8 +30,9 @@ from .reference_convergence import crop_camera
 
 def load_at(rev: str):
     """``hairlut.render._strand_march`` as it was at ``rev`` (relative imports resolve in today's package)."""
-    src = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:hairlut/render/_strand_march.py"], check=True,
-                         capture_output=True, text=True).stdout
+    src = subprocess.run(
+        ["git", "-C", str(ROOT), "show", f"{rev}:hairlut/render/_strand_march.py"], check=True, capture_output=True, text=True
+    ).stdout
     path = Path(tempfile.mkdtemp()) / "_reference_base.py"
     path.write_text(src)
     spec = importlib.util.spec_from_file_location("hairlut.render._reference_base", path)
@@ -59,10 +60,12 @@ def main(argv=None):
     cam = crop_camera(cam, segs, lit, sc.lights, a.crop) if a.crop else cam
     base = load_at(a.base)
     extra = {"lattice": False} if "lattice" in inspect.signature(render_level).parameters else {}
-    fns = {"base": lambda st: base.render_level(segs, cam, lit, sc.lights, level=a.level, shadows=True, stats=st),
-           "new": lambda st: render_level(segs, cam, lit, sc.lights, level=a.level, shadows=True, stats=st, **extra)}
+    fns = {
+        "base": lambda st: base.render_level(segs, cam, lit, sc.lights, level=a.level, shadows=True, stats=st),
+        "new": lambda st: render_level(segs, cam, lit, sc.lights, level=a.level, shadows=True, stats=st, **extra),
+    }
     cpu, imgs, stats = {k: [] for k in fns}, {}, {}
-    for k, f in fns.items():  # warm: compile both first
+    for f in fns.values():  # warm: compile both first
         f({})
     for _ in range(a.repeats):
         for k, f in fns.items():
@@ -71,9 +74,17 @@ def main(argv=None):
             imgs[k] = f(st)
             cpu[k].append(time.process_time() - c0)
             stats[k] = {s: round(v, 3) for s, v in st.items() if s.endswith("seconds")}
-    out = {"scene": path.stem, "level": a.level, "resolution": a.resolution, "crop": a.crop, "base": a.base,
-           "cpu_s": {k: min(v) for k, v in cpu.items()}, "ratio_new_over_base": min(cpu["new"]) / min(cpu["base"]),
-           "max_abs_diff_rgba": float(np.abs(imgs["new"][..., :4] - imgs["base"][..., :4]).max()), "wall_stats": stats}
+    out = {
+        "scene": path.stem,
+        "level": a.level,
+        "resolution": a.resolution,
+        "crop": a.crop,
+        "base": a.base,
+        "cpu_s": {k: min(v) for k, v in cpu.items()},
+        "ratio_new_over_base": min(cpu["new"]) / min(cpu["base"]),
+        "max_abs_diff_rgba": float(np.abs(imgs["new"][..., :4] - imgs["base"][..., :4]).max()),
+        "wall_stats": stats,
+    }
     print(json.dumps(out, indent=1))
 
 

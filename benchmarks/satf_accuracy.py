@@ -60,8 +60,7 @@ def scene_space() -> dict:
 
 
 def recipe(count, seed, features, space=None):
-    return {"sectors": {"count": count, "seed": seed, "features": features, **({"space": space} if space else {})},
-            **TRACE}
+    return {"sectors": {"count": count, "seed": seed, "features": features, **({"space": space} if space else {})}, **TRACE}
 
 
 def lookup_rows(tmp: Path, sizes, n_test: int):
@@ -83,15 +82,21 @@ def lookup_rows(tmp: Path, sizes, n_test: int):
             for k in (1, 4):
                 re, a, _, _ = db.query(truth.features, truth.theta_v[v], truth.theta_l[l], k=k)
                 sec, _ = best_of(lambda: db.query(truth.features, truth.theta_v[v], truth.theta_l[l], k=k), repeat=3)
-                rows.append({
-                    "features": features, "n": n, "k": k, "bake_s": bake_s, "query_ms": sec * 1e3,
-                    "re_rms": float(np.sqrt(np.mean((re - ref_re) ** 2))),
-                    "re_rel": float(np.linalg.norm(re - ref_re) / np.linalg.norm(ref_re)),
-                    "a_rms": float(np.sqrt(np.mean((a - ref_a) ** 2))),
-                    "a_rel": float(np.linalg.norm(a - ref_a) / np.linalg.norm(ref_a)),
-                    # coverage level: each sector's pixel-mean opacity, which the features summarise
-                    "a_mean_rel": float(np.linalg.norm(a.mean(-1) - ref_a.mean(-1)) / np.linalg.norm(ref_a.mean(-1))),
-                })
+                rows.append(
+                    {
+                        "features": features,
+                        "n": n,
+                        "k": k,
+                        "bake_s": bake_s,
+                        "query_ms": sec * 1e3,
+                        "re_rms": float(np.sqrt(np.mean((re - ref_re) ** 2))),
+                        "re_rel": float(np.linalg.norm(re - ref_re) / np.linalg.norm(ref_re)),
+                        "a_rms": float(np.sqrt(np.mean((a - ref_a) ** 2))),
+                        "a_rel": float(np.linalg.norm(a - ref_a) / np.linalg.norm(ref_a)),
+                        # coverage level: each sector's pixel-mean opacity, which the features summarise
+                        "a_mean_rel": float(np.linalg.norm(a.mean(-1) - ref_a.mean(-1)) / np.linalg.norm(ref_a.mean(-1))),
+                    }
+                )
     return rows
 
 
@@ -103,8 +108,11 @@ def uniformity_rows(db_path: Path):
     scene_file = ROOT / "tables" / "scenes" / "two-clusters.toml"
     base = load_toml(scene_file)
     results = {}
-    for name, thr in (("always two fetches (k_threshold = 0)", 0.0), ("eq 6 shortcut (k_threshold = 1)", 1.0),
-                      ("always one fetch (k_threshold = ∞)", float("inf"))):
+    for name, thr in (
+        ("always two fetches (k_threshold = 0)", 0.0),
+        ("eq 6 shortcut (k_threshold = 1)", 1.0),
+        ("always one fetch (k_threshold = ∞)", float("inf")),
+    ):
         given = {**base, "material": {**base.get("material", {}), "k_threshold": thr}}
         prepared = prepare(resolve_scene(given, scene_file.parent, source=str(scene_file)), str(db_path))
         render_view(prepared)
@@ -115,8 +123,15 @@ def uniformity_rows(db_path: Path):
     for name, (sec, res) in results.items():
         d = np.concatenate([(c.re - r.re).ravel() for c, r in zip(res.clusters, ref.clusters)])
         uni = float(np.mean([c.uniform_fraction for c in res.clusters]))
-        rows.append({"mode": name, "ms": sec * 1e3, "uniform": uni, "re_rms": float(np.sqrt(np.mean(d**2))),
-                     "re_max": float(np.abs(d).max())})
+        rows.append(
+            {
+                "mode": name,
+                "ms": sec * 1e3,
+                "uniform": uni,
+                "re_rms": float(np.sqrt(np.mean(d**2))),
+                "re_max": float(np.abs(d).max()),
+            }
+        )
     return rows
 
 
@@ -136,16 +151,21 @@ def _scene_truth(prepared, db):
     for pc in prepared.clusters:
         tb = pc.table
         splats = tb.splats()
-        dens.append(sector_density(splats, tuple(rec["sectors"]["grid"]),
-                                   density_scale=rec["sectors"]["density_scale"]))
+        dens.append(sector_density(splats, tuple(rec["sectors"]["grid"]), density_scale=rec["sectors"]["density_scale"]))
         (a, b), du = tb.half_axes.T, tb.u_range[:, 1] - tb.u_range[:, 0]
         m = splats.mask
         r = np.where(m.any(1), (splats.radius * m).sum(1) / np.maximum(m.sum(1), 1), np.median(tb.crossing_radius))
         # metric (A x, B y) ellipse scaled by 1/A: the tracer's (1, B/A) ellipse, same angles
-        params = {"phase": tb.twist + tb.u_range[:, 0], "s_u": 2 * np.pi / du, "v_range": tb.v_range,
-                  "aspect": b / a, "radius_rel": r / np.sqrt(splats.sector_areas())}
-        g = sector_geometry(params, kappa=rec["trace"]["extinction"], n_pix=rec["trace"]["pixels"],
-                            smooth_ratio=rec["trace"]["smooth_ratio"])
+        params = {
+            "phase": tb.twist + tb.u_range[:, 0],
+            "s_u": 2 * np.pi / du,
+            "v_range": tb.v_range,
+            "aspect": b / a,
+            "radius_rel": r / np.sqrt(splats.sector_areas()),
+        }
+        g = sector_geometry(
+            params, kappa=rec["trace"]["extinction"], n_pix=rec["trace"]["pixels"], smooth_ratio=rec["trace"]["smooth_ratio"]
+        )
         ext = pc.frames.extent / a  # the extent the texels' pixel coordinates use
         g[:, GEOM.index("sigma_px")] *= g[:, GEOM.index("extent")] / ext
         g[:, GEOM.index("extent")] = ext
@@ -155,7 +175,7 @@ def _scene_truth(prepared, db):
     alpha, re = np.zeros((N, P), np.float32), np.zeros((N, Lt, P), np.float32)
     live = np.flatnonzero(dens.reshape(N, -1).max(1) > 0)
     for i in live:
-        a, r = trace_sectors(dens[i:i + 1], geom[i:i + 1], rec, views=sp.theta_v[i:i + 1], lights=sp.theta_l[i])
+        a, r = trace_sectors(dens[i : i + 1], geom[i : i + 1], rec, views=sp.theta_v[i : i + 1], lights=sp.theta_l[i])
         alpha[i], re[i] = a[0, 0], r[0, 0]
     return alpha, re, time.perf_counter() - start, live.size
 
@@ -167,19 +187,22 @@ def _truth_maps(prepared, sp, tx, alpha, re):
     from hairlut.synth import sweep_kernel
 
     top, bot = prepared.table.hsv_sectors.T
-    args = (re[top], re[bot], alpha[top], alpha[bot], tx.hsv.ravel(), tx.gamma.ravel(), tx.pix_top.ravel(),
-            tx.pix_bot.ravel())
+    args = (re[top], re[bot], alpha[top], alpha[bot], tx.hsv.ravel(), tx.gamma.ravel(), tx.pix_top.ravel(), tx.pix_bot.ravel())
     r, a = sweep_kernel(*(jnp.asarray(x, jnp.int32 if x.dtype.kind == "i" else jnp.float32) for x in args))
     return np.moveaxis(np.asarray(r).reshape(tx.hsv.shape + (-1,)), -1, 2), np.asarray(a).reshape(tx.hsv.shape)
 
 
 def _map_errors(re, a, re_t, a_t) -> dict:
     dr, da = re - re_t, a - a_t
-    return {"re_rms": float(np.sqrt(np.mean(dr**2))), "re_max": float(np.abs(dr).max()),
-            "re_rel": float(np.linalg.norm(dr) / np.linalg.norm(re_t)),
-            "a_rms": float(np.sqrt(np.mean(da**2))), "a_max": float(np.abs(da).max()),
-            "a_rel": float(np.linalg.norm(da) / np.linalg.norm(a_t)),
-            "a_mean_rel": float((a.mean() - a_t.mean()) / a_t.mean())}
+    return {
+        "re_rms": float(np.sqrt(np.mean(dr**2))),
+        "re_max": float(np.abs(dr).max()),
+        "re_rel": float(np.linalg.norm(dr) / np.linalg.norm(re_t)),
+        "a_rms": float(np.sqrt(np.mean(da**2))),
+        "a_max": float(np.abs(da).max()),
+        "a_rel": float(np.linalg.norm(da) / np.linalg.norm(a_t)),
+        "a_mean_rel": float((a.mean() - a_t.mean()) / a_t.mean()),
+    }
 
 
 def scene_rows(dbs):
@@ -211,10 +234,20 @@ def scene_rows(dbs):
         for thr in (0.0, 1.0):
             build_maps(db, pr.table, sp, tx, thr, cfg["neighbours"])  # compile
             sec, maps = best_of(lambda: build_maps(db, pr.table, sp, tx, thr, cfg["neighbours"]), repeat=3)
-            rows.append({"db": label, "n": len(db.features), "k_threshold": thr, "sectors": len(alpha),
-                         "traced": traced, "trace_s": trace_s, "maps_ms": sec * 1e3,
-                         "uniform": float(maps.uniform.mean()), "nn_z_median": float(np.median(nn)),
-                         **_map_errors(maps.re, maps.alpha, re_t, a_t)})
+            rows.append(
+                {
+                    "db": label,
+                    "n": len(db.features),
+                    "k_threshold": thr,
+                    "sectors": len(alpha),
+                    "traced": traced,
+                    "trace_s": trace_s,
+                    "maps_ms": sec * 1e3,
+                    "uniform": float(maps.uniform.mean()),
+                    "nn_z_median": float(np.median(nn)),
+                    **_map_errors(maps.re, maps.alpha, re_t, a_t),
+                }
+            )
     return rows
 
 
@@ -232,38 +265,76 @@ def main(argv=None):
         if "1" in args.sections:
             out["lookup"] = rows = lookup_rows(tmp, sizes, 128)
             print("\n## SATF lookups of 128 held-out sectors (16 views × 16 lights × 32 px), truth = direct trace\n")
-            print(table(rows, [("features", "features", "s"), ("n", "DB sectors", "d"), ("k", "k", "d"),
-                               ("query_ms", "query ms", ".1f"), ("re_rms", "re RMS", ".2e"), ("re_rel", "re rel", ".3f"),
-                               ("a_rms", "α RMS", ".2e"), ("a_rel", "α rel", ".3f"),
-                               ("a_mean_rel", "mean-α rel", ".3f")]))
+            print(
+                table(
+                    rows,
+                    [
+                        ("features", "features", "s"),
+                        ("n", "DB sectors", "d"),
+                        ("k", "k", "d"),
+                        ("query_ms", "query ms", ".1f"),
+                        ("re_rms", "re RMS", ".2e"),
+                        ("re_rel", "re rel", ".3f"),
+                        ("a_rms", "α RMS", ".2e"),
+                        ("a_rel", "α rel", ".3f"),
+                        ("a_mean_rel", "mean-α rel", ".3f"),
+                    ],
+                )
+            )
         if "2" in args.sections or ("3" in args.sections and not args.db):
             if not generic.exists():
                 bake(recipe(sizes[-1], 0, "basic"), generic)
         if "2" in args.sections:
             out["uniformity"] = urows = uniformity_rows(generic)
             print("\n## Uniformity shortcut (eq 6) on tables/scenes/two-clusters.toml; error against two fetches\n")
-            print(table(urows, [("mode", "mode", "s"), ("ms", "frame ms", ".1f"), ("uniform", "uniform HSVs", ".2f"),
-                                ("re_rms", "re-map RMS", ".2e"), ("re_max", "re-map max", ".2e")]))
+            print(
+                table(
+                    urows,
+                    [
+                        ("mode", "mode", "s"),
+                        ("ms", "frame ms", ".1f"),
+                        ("uniform", "uniform HSVs", ".2f"),
+                        ("re_rms", "re-map RMS", ".2e"),
+                        ("re_max", "re-map max", ".2e"),
+                    ],
+                )
+            )
         if "3" in args.sections:
             if args.db:
                 dbs = [(args.db.name, args.db)]
             else:
                 dbs, space = [], scene_space()
-                for n, features in ((256, "basic"),) if args.quick else ((256, "basic"), (1024, "basic"),
-                                                                         (1024, "moments")):
+                for n, features in ((256, "basic"),) if args.quick else ((256, "basic"), (1024, "basic"), (1024, "moments")):
                     path = tmp / f"db-scene-{features}-{n}.h5"
                     bake(recipe(n, 0, features, space), path)
                     dbs.append((f"scene space, {features}", path))
                 dbs.append(("generic, basic", generic))
             out["scene"] = srows = scene_rows(dbs)
             r0 = srows[0]
-            print(f"\n## Whole re-/α-map of {SCENE.relative_to(ROOT)} against its {r0['sectors']} sectors traced "
-                  f"directly ({r0['traced']} non-empty, {r0['trace_s']:.1f} s)\n")
-            print(table(srows, [("db", "database", "s"), ("n", "DB sectors", "d"), ("k_threshold", "k_thr", ".0f"),
-                                ("nn_z_median", "NN dist (z)", ".2f"), ("uniform", "uniform HSVs", ".2f"),
-                                ("maps_ms", "maps ms", ".1f"), ("re_rms", "re RMS", ".2e"), ("re_max", "re max", ".2e"),
-                                ("re_rel", "re rel", ".3f"), ("a_rms", "α RMS", ".2e"), ("a_max", "α max", ".2e"),
-                                ("a_rel", "α rel", ".3f"), ("a_mean_rel", "mean-α rel", "+.3f")]))
+            print(
+                f"\n## Whole re-/α-map of {SCENE.relative_to(ROOT)} against its {r0['sectors']} sectors traced "
+                f"directly ({r0['traced']} non-empty, {r0['trace_s']:.1f} s)\n"
+            )
+            print(
+                table(
+                    srows,
+                    [
+                        ("db", "database", "s"),
+                        ("n", "DB sectors", "d"),
+                        ("k_threshold", "k_thr", ".0f"),
+                        ("nn_z_median", "NN dist (z)", ".2f"),
+                        ("uniform", "uniform HSVs", ".2f"),
+                        ("maps_ms", "maps ms", ".1f"),
+                        ("re_rms", "re RMS", ".2e"),
+                        ("re_max", "re max", ".2e"),
+                        ("re_rel", "re rel", ".3f"),
+                        ("a_rms", "α RMS", ".2e"),
+                        ("a_max", "α max", ".2e"),
+                        ("a_rel", "α rel", ".3f"),
+                        ("a_mean_rel", "mean-α rel", "+.3f"),
+                    ],
+                )
+            )
     old = RESULTS / "satf_accuracy.json"
     if set(args.sections) != set("123") and old.exists():  # a partial run keeps the other sections' results
         out = {**{k: v for k, v in json.loads(old.read_text()).items() if k != "machine"}, **out}

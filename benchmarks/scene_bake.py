@@ -36,8 +36,8 @@ TARGET_S = 300.0
 
 def _scene(clusters: int):
     from hairlut.bench import ring_model
-    from hairlut.scene import resolve_scene
     from hairlut.planner import scene_maps_recipe
+    from hairlut.scene import resolve_scene
 
     base = ring_model(clusters, 64, 16, 64, 400)
     sc = resolve_scene({**base, "render": {**base["render"], "method": "scene"}})
@@ -53,14 +53,24 @@ def worker(args) -> None:
 
     sc, recipe = _scene(args.clusters)
     rep = bake(recipe, args.out, shard=args.worker, scene=sc)
-    print(json.dumps({"shard": args.worker, "rows": rep["rows"], "live": rep["live"], "wall_s": time.perf_counter() - t0,
-                      "cpu_s": time.process_time() - c0}), flush=True)
+    print(
+        json.dumps(
+            {
+                "shard": args.worker,
+                "rows": rep["rows"],
+                "live": rep["live"],
+                "wall_s": time.perf_counter() - t0,
+                "cpu_s": time.process_time() - c0,
+            }
+        ),
+        flush=True,
+    )
 
 
 def baseline(args, n: int) -> list[dict]:
     """The reference tracer and the bake's path on ``args.baseline_rows`` rows, warm, in this process."""
-    from hairlut.scenemaps import compress, hrir_recipe, ratio_terms, scene_inputs
     from hairlut.march import bake_view_grid, trace_view_grid
+    from hairlut.scenemaps import compress, hrir_recipe, ratio_terms, scene_inputs
 
     sc, recipe = _scene(args.clusters)
     dens, geom = scene_inputs(sc, recipe)
@@ -74,8 +84,9 @@ def baseline(args, n: int) -> list[dict]:
         return compress(a, re, V, K, Q, step)[:2]
 
     def bake_path():
-        half, ab, rb = bake_view_grid(dens[pick], geom[pick], full, views=V, lights=L, ratio_step=step, bins=Q,
-                                      alpha_grid=t["alpha_grid"])
+        half, ab, rb = bake_view_grid(
+            dens[pick], geom[pick], full, views=V, lights=L, ratio_step=step, bins=Q, alpha_grid=t["alpha_grid"]
+        )
         return half, ratio_terms(ab, rb, V, K, step)
 
     out = []
@@ -84,9 +95,17 @@ def baseline(args, n: int) -> list[dict]:
         c0, t0 = time.process_time(), time.perf_counter()
         arrays = fn()
         cpu = time.process_time() - c0
-        out.append({"path": name, "rows": int(pick.size), "wall_s": time.perf_counter() - t0, "cpu_s": cpu,
-                    "cpu_s_per_1000": 1000 * cpu / pick.size, "arrays": arrays,
-                    "projected_s": cpu / pick.size * n / args.processes})
+        out.append(
+            {
+                "path": name,
+                "rows": int(pick.size),
+                "wall_s": time.perf_counter() - t0,
+                "cpu_s": cpu,
+                "cpu_s_per_1000": 1000 * cpu / pick.size,
+                "arrays": arrays,
+                "projected_s": cpu / pick.size * n / args.processes,
+            }
+        )
     rel = lambda x, y: float(np.linalg.norm(x - y) / np.linalg.norm(y))  # noqa: E731
     out[1]["alpha_rel"], out[1]["terms_rel"] = (rel(x, y) for x, y in zip(out[1]["arrays"], out[0]["arrays"]))
     for r in out:
@@ -115,10 +134,26 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         shards = [Path(tmp) / f"s{k}.h5" for k in range(args.processes)]
         t0 = time.perf_counter()
-        procs = [subprocess.Popen([sys.executable, "-m", "benchmarks.scene_bake", "--worker", f"{k}/{args.processes}", "--out", str(s),
-                                   "--clusters", str(args.clusters)]
-                                  + ([] if args.no_pin else ["--pin", str(cores[k % len(cores)])]),
-                                  stdout=subprocess.PIPE, text=True, cwd=ROOT) for k, s in enumerate(shards)]
+        procs = [
+            subprocess.Popen(
+                [
+                    sys.executable,
+                    "-m",
+                    "benchmarks.scene_bake",
+                    "--worker",
+                    f"{k}/{args.processes}",
+                    "--out",
+                    str(s),
+                    "--clusters",
+                    str(args.clusters),
+                ]
+                + ([] if args.no_pin else ["--pin", str(cores[k % len(cores)])]),
+                stdout=subprocess.PIPE,
+                text=True,
+                cwd=ROOT,
+            )
+            for k, s in enumerate(shards)
+        ]
         reports = []
         for p in procs:
             out, _ = p.communicate()
@@ -131,18 +166,41 @@ def main(argv=None):
         end = time.perf_counter()
         size = merged.stat().st_size
     live = reports[0]["live"]
-    records = [{"path": f"end to end: {args.processes} shard processes + merge", "rows": live, "wall_s": end - t0,
-                "cpu_s": sum(r["cpu_s"] for r in reports), "cpu_s_per_1000": 1000 * sum(r["cpu_s"] for r in reports) / live,
-                "bytes": size, "merge_s": end - t1, "shards": reports, "within_target": end - t0 <= TARGET_S}]
+    records = [
+        {
+            "path": f"end to end: {args.processes} shard processes + merge",
+            "rows": live,
+            "wall_s": end - t0,
+            "cpu_s": sum(r["cpu_s"] for r in reports),
+            "cpu_s_per_1000": 1000 * sum(r["cpu_s"] for r in reports) / live,
+            "bytes": size,
+            "merge_s": end - t1,
+            "shards": reports,
+            "within_target": end - t0 <= TARGET_S,
+        }
+    ]
     if args.baseline_rows:
         records += baseline(args, live)
     print(f"\n## Scene table of the paper model ({args.clusters} clusters, {live} live rows), baked end to end\n")
-    print(table(records, [("path", "path", "s"), ("rows", "rows", "d"), ("wall_s", "wall s", ".1f"),
-                          ("cpu_s_per_1000", "CPU-s / 1,000 rows", ".1f"), ("projected_s", f"projected s on {args.processes} cores", ".0f"),
-                          ("bytes", "bytes on disk", ",d"), ("alpha_rel", "α rel-L2 vs reference", ".1e"),
-                          ("terms_rel", "terms rel-L2 vs reference", ".1e")]))
-    print(f"\nend to end {end - t0:.0f} s against the {TARGET_S:.0f} s target "
-          f"({'within' if end - t0 <= TARGET_S else 'OVER'}); merge {end - t1:.1f} s; file {size / 1e6:.0f} MB")
+    print(
+        table(
+            records,
+            [
+                ("path", "path", "s"),
+                ("rows", "rows", "d"),
+                ("wall_s", "wall s", ".1f"),
+                ("cpu_s_per_1000", "CPU-s / 1,000 rows", ".1f"),
+                ("projected_s", f"projected s on {args.processes} cores", ".0f"),
+                ("bytes", "bytes on disk", ",d"),
+                ("alpha_rel", "α rel-L2 vs reference", ".1e"),
+                ("terms_rel", "terms rel-L2 vs reference", ".1e"),
+            ],
+        )
+    )
+    print(
+        f"\nend to end {end - t0:.0f} s against the {TARGET_S:.0f} s target "
+        f"({'within' if end - t0 <= TARGET_S else 'OVER'}); merge {end - t1:.1f} s; file {size / 1e6:.0f} MB"
+    )
     emit("scene_bake", {"records": records, "target_s": TARGET_S}, args.json)
     return records
 

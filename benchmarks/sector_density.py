@@ -47,11 +47,20 @@ def head_clusters(n: int, layers: int, s_t: int, s_u: int, seed: int = 5) -> lis
         theta, phi = rng.uniform(0.2, 1.3), 2 * np.pi * i / n + rng.uniform(-0.2, 0.2)
         root = 10 * np.array([np.sin(theta) * np.cos(phi), np.cos(theta), np.sin(theta) * np.sin(phi)])
         out = root / 10
-        ctrl = [root + k * (2.5 * out + np.array([0, -4.0 * k / 5, 0])) + rng.normal(0, 0.6, 3) * (k > 0)
-                for k in range(6)]
+        ctrl = [root + k * (2.5 * out + np.array([0, -4.0 * k / 5, 0])) + rng.normal(0, 0.6, 3) * (k > 0) for k in range(6)]
         radii = tuple(np.linspace(1.0 / layers, 1.0, layers) * 0.8 + 0.2)
-        specs.append(ClusterSpec(np.array(ctrl), rng.uniform(0.8, 1.4, 4), rng.uniform(0.5, 1.0, 4),
-                                 rng.uniform(-1.5, 1.5, 3), layer_radii=radii, core_radius=0.15, s_t=s_t, s_u=s_u))
+        specs.append(
+            ClusterSpec(
+                np.array(ctrl),
+                rng.uniform(0.8, 1.4, 4),
+                rng.uniform(0.5, 1.0, 4),
+                rng.uniform(-1.5, 1.5, 3),
+                layer_radii=radii,
+                core_radius=0.15,
+                s_t=s_t,
+                s_u=s_u,
+            )
+        )
     return specs
 
 
@@ -111,8 +120,9 @@ def main() -> None:
     geom = ClusterGeometry(head_clusters(args.clusters, args.layers, args.s_t, args.s_u))
     per = np.full(args.clusters, args.strands // args.clusters)
     per[: args.strands - per.sum()] += 1
-    strands, owner = generate_strands(geom, per, radius=args.radius, profile="clumped", spread=0.15, clumps=8,
-                                      jitter=0.04, points=32, seed=1)
+    strands, owner = generate_strands(
+        geom, per, radius=args.radius, profile="clumped", spread=0.15, clumps=8, jitter=0.04, points=32, seed=1
+    )
     t_model = time.perf_counter() - t0
     t0 = time.perf_counter()
     tab = build_sectors(geom, strands, owner)
@@ -122,9 +132,11 @@ def main() -> None:
     sp = tab.splats(ids)
     t_pack = time.perf_counter() - t0
     n = sp.n_sectors
-    print(f"model: {geom.n_clusters} clusters, {geom.n_clusters * geom.n_layers} layers, {strands.n_strands} strands, "
-          f"{tab.n_hsvs} HSVs, {n} boundary sectors ({tab.n_sectors} distinct), ≤ {sp.max_splats} splats per sector; "
-          f"built in {t_model:.1f} s, sectors and crossings in {t_sectors:.1f} s, packing {t_pack:.1f} s")
+    print(
+        f"model: {geom.n_clusters} clusters, {geom.n_clusters * geom.n_layers} layers, {strands.n_strands} strands, "
+        f"{tab.n_hsvs} HSVs, {n} boundary sectors ({tab.n_sectors} distinct), ≤ {sp.max_splats} splats per sector; "
+        f"built in {t_model:.1f} s, sectors and crossings in {t_sectors:.1f} s, packing {t_pack:.1f} s"
+    )
 
     def run_jax():
         rho = sector_density(sp, grid)
@@ -153,13 +165,18 @@ def main() -> None:
         {"what": f"hairlut JAX float32 (density + 8 features), {n} sectors", "time": t_jax, "per": t_jax / n * 1e6},
         {"what": "  of which the density kernel", "time": t_jax_density, "per": t_jax_density / n * 1e6},
         {"what": "  first call (compile + run)", "time": t_warm, "per": None},
-        {"what": f"NumPy loop float64 (density + 3 features){' — scaled from ' + str(count) + ' sectors' if scaled else ''}",
-         "time": t_np, "per": t_np / n * 1e6},
+        {
+            "what": f"NumPy loop float64 (density + 3 features){' — scaled from ' + str(count) + ' sectors' if scaled else ''}",
+            "time": t_np,
+            "per": t_np / n * 1e6,
+        },
     ]
     print()
     print(table(rows, [("what", "run", "s"), ("time", "time (s)", ".2f"), ("per", "µs / sector", ".1f")]))
-    print(f"\nspeed-up NumPy / hairlut: {t_np / t_jax:.1f}×   max |Δρ| / max ρ = {err_rho:.2e} (float32 vs float64)   "
-          f"max |Δ feature| (ρ_st, ρ_s, ρ_t) = {', '.join(f'{e:.1e}' for e in err_feat)}")
+    print(
+        f"\nspeed-up NumPy / hairlut: {t_np / t_jax:.1f}×   max |Δρ| / max ρ = {err_rho:.2e} (float32 vs float64)   "
+        f"max |Δ feature| (ρ_st, ρ_s, ρ_t) = {', '.join(f'{e:.1e}' for e in err_feat)}"
+    )
 
     # grid convergence against 64², over the distinct sectors some strand reaches
     t0 = time.perf_counter()
@@ -171,27 +188,56 @@ def main() -> None:
     for g in (8, 16, 32):
         coarse = features_in_chunks(spr, (g, g), BASIC)
         d = np.abs(coarse - fine) / scale
-        conv.append({"grid": f"{g}×{g}", **{f"max_{k}": float(d[:, i].max()) for i, k in enumerate(BASIC)},
-                     **{f"rms_{k}": float(np.sqrt((d[:, i] ** 2).mean())) for i, k in enumerate(BASIC)}})
+        conv.append(
+            {
+                "grid": f"{g}×{g}",
+                **{f"max_{k}": float(d[:, i].max()) for i, k in enumerate(BASIC)},
+                **{f"rms_{k}": float(np.sqrt((d[:, i] ** 2).mean())) for i, k in enumerate(BASIC)},
+            }
+        )
     t_conv = time.perf_counter() - t0
-    print(f"\nfeature error against a 64×64 grid, over the {reached.size} distinct sectors some strand reaches, "
-          f"in units of each feature's standard deviation (std = {', '.join(f'{s:.3g}' for s in scale)}):")
+    print(
+        f"\nfeature error against a 64×64 grid, over the {reached.size} distinct sectors some strand reaches, "
+        f"in units of each feature's standard deviation (std = {', '.join(f'{s:.3g}' for s in scale)}):"
+    )
     cols = [("grid", "grid", "s")] + [(f"{a}_{k}", f"{a} {k}", ".2e") for k in BASIC for a in ("max", "rms")]
     print(table(conv, cols))
 
-    path = save("sector_density", {
-        "jax": jax.__version__, "device": str(jax.devices()[0]),
-        "model": {"clusters": geom.n_clusters, "layers": geom.n_clusters * geom.n_layers, "strands": strands.n_strands,
-                  "hsvs": tab.n_hsvs, "boundary_sectors": n, "distinct_sectors": tab.n_sectors,
-                  "max_splats": sp.max_splats, "grid": list(grid), "strand_radius": args.radius},
-        "setup_s": {"model_and_strands": t_model, "sectors_and_crossings": t_sectors, "pack": t_pack,
-                    "grid_convergence": t_conv},
-        "timing_s": {"hairlut_density_and_features": t_jax, "hairlut_density": t_jax_density, "hairlut_first_call": t_warm,
-                     "numpy_loop": t_np, "numpy_loop_scaled": scaled, "numpy_sectors_run": count,
-                     "speedup": t_np / t_jax},
-        "error": {"density_rel_max": err_rho, "features_max": dict(zip(BASIC, err_feat.tolist()))},
-        "grid_convergence_vs_64": conv,
-    })
+    path = save(
+        "sector_density",
+        {
+            "jax": jax.__version__,
+            "device": str(jax.devices()[0]),
+            "model": {
+                "clusters": geom.n_clusters,
+                "layers": geom.n_clusters * geom.n_layers,
+                "strands": strands.n_strands,
+                "hsvs": tab.n_hsvs,
+                "boundary_sectors": n,
+                "distinct_sectors": tab.n_sectors,
+                "max_splats": sp.max_splats,
+                "grid": list(grid),
+                "strand_radius": args.radius,
+            },
+            "setup_s": {
+                "model_and_strands": t_model,
+                "sectors_and_crossings": t_sectors,
+                "pack": t_pack,
+                "grid_convergence": t_conv,
+            },
+            "timing_s": {
+                "hairlut_density_and_features": t_jax,
+                "hairlut_density": t_jax_density,
+                "hairlut_first_call": t_warm,
+                "numpy_loop": t_np,
+                "numpy_loop_scaled": scaled,
+                "numpy_sectors_run": count,
+                "speedup": t_np / t_jax,
+            },
+            "error": {"density_rel_max": err_rho, "features_max": dict(zip(BASIC, err_feat.tolist()))},
+            "grid_convergence_vs_64": conv,
+        },
+    )
     print(f"\nwrote {path}")
 
 

@@ -106,23 +106,48 @@ def main(argv=None) -> int:
     storage = {"float32": storage_error(y64, np.float32), "float16": storage_error(y64, np.float16)}
     del y64, y32, y_ref, y_sc
 
-    print(f"real SH, lmax = {lmax} ({n_coeffs(lmax)} coefficients), {n:,} random unit directions; "
-          f"jax {jax.__version__} on {jax.devices()[0].platform}")
-    print(table(rows, [("impl", "implementation", "s"), ("seconds", "seconds", ".3f"), ("ratio", "× hairlut f64", ".2f"),
-                       ("err", "max abs err vs reference", ".2e"), ("rel_err", "÷ max|Y|", ".1e")]))
-    print(f"\nfirst hairlut float64 call (jit compile + run): {first_call:.2f} s;  of each real_sh call, host-side "
-          f"validation takes {t_validate:.3f} s;  max|Y| = {scale:.4f};  "
-          f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
+    print(
+        f"real SH, lmax = {lmax} ({n_coeffs(lmax)} coefficients), {n:,} random unit directions; "
+        f"jax {jax.__version__} on {jax.devices()[0].platform}"
+    )
+    print(
+        table(
+            rows,
+            [
+                ("impl", "implementation", "s"),
+                ("seconds", "seconds", ".3f"),
+                ("ratio", "× hairlut f64", ".2f"),
+                ("err", "max abs err vs reference", ".2e"),
+                ("rel_err", "÷ max|Y|", ".1e"),
+            ],
+        )
+    )
+    print(
+        f"\nfirst hairlut float64 call (jit compile + run): {first_call:.2f} s;  of each real_sh call, host-side "
+        f"validation takes {t_validate:.3f} s;  max|Y| = {scale:.4f};  "
+        f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs"
+    )
     print("storage rounding of the float64 result: " + ", ".join(f"{k} adds {v:.2e}" for k, v in storage.items()))
 
-    path = save("sh_basis", {
-        "benchmark": "sh_basis",
-        "lmax": lmax, "n_coeffs": n_coeffs(lmax), "n_dirs": n, "n_scipy_timed": n_sc,
-        "jax_version": jax.__version__, "device": str(jax.devices()[0]),
-        "first_call_seconds": first_call, "validation_seconds": t_validate, "max_abs_Y": scale, "load_average_1min": os.getloadavg()[0],
-        "rows": rows, "storage_error": storage,
-        "notes": "seconds are best-of-N warm wall times; SciPy time measured on n_scipy_timed points and scaled to n_dirs",
-    })
+    path = save(
+        "sh_basis",
+        {
+            "benchmark": "sh_basis",
+            "lmax": lmax,
+            "n_coeffs": n_coeffs(lmax),
+            "n_dirs": n,
+            "n_scipy_timed": n_sc,
+            "jax_version": jax.__version__,
+            "device": str(jax.devices()[0]),
+            "first_call_seconds": first_call,
+            "validation_seconds": t_validate,
+            "max_abs_Y": scale,
+            "load_average_1min": os.getloadavg()[0],
+            "rows": rows,
+            "storage_error": storage,
+            "notes": "seconds are best-of-N warm wall times; SciPy time measured on n_scipy_timed points and scaled to n_dirs",
+        },
+    )
     print(f"wrote {path}")
     return 0
 

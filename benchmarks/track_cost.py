@@ -46,8 +46,16 @@ def sweep_cost(name: str, runs: int) -> list[dict]:
         alpha = jnp.asarray(rng.uniform(0, 0.5, (S, 32)), jnp.float32)
         re = jnp.asarray(rng.uniform(0, 0.2, (S, Lt, 32)), jnp.float32)
         wall, cpu = best_wall_cpu(lambda: sweep_sectors(ix, alpha, re, cs), runs, warm=True)
-        rows.append({"model": name, "reads": reads, "sectors": S, "texels": int(np.prod(ix.offset.shape[2:])),
-                     "sweep_ms": 1e3 * wall, "sweep_cpu_ms": 1e3 * cpu})
+        rows.append(
+            {
+                "model": name,
+                "reads": reads,
+                "sectors": S,
+                "texels": int(np.prod(ix.offset.shape[2:])),
+                "sweep_ms": 1e3 * wall,
+                "sweep_cpu_ms": 1e3 * cpu,
+            }
+        )
         print(rows[-1], flush=True)
     rows[-1]["ratio_cpu"] = rows[-1]["sweep_cpu_ms"] / rows[-2]["sweep_cpu_ms"]
     return rows
@@ -59,9 +67,20 @@ def main(argv=None) -> None:
     ap.add_argument("--runs", type=int, default=20)
     args = ap.parse_args(argv)
     rows = [r for name in args.models for r in sweep_cost(name, args.runs)]
-    print(table(rows, [("model", "model", "s"), ("reads", "reads", "s"), ("sectors", "sectors", "d"),
-                       ("texels", "texels", "d"), ("sweep_ms", "sweep ms", ".1f"), ("sweep_cpu_ms", "sweep CPU ms", ".1f"),
-                       ("ratio_cpu", "track/pair CPU", ".1f")]))
+    print(
+        table(
+            rows,
+            [
+                ("model", "model", "s"),
+                ("reads", "reads", "s"),
+                ("sectors", "sectors", "d"),
+                ("texels", "texels", "d"),
+                ("sweep_ms", "sweep ms", ".1f"),
+                ("sweep_cpu_ms", "sweep CPU ms", ".1f"),
+                ("ratio_cpu", "track/pair CPU", ".1f"),
+            ],
+        )
+    )
     print("(best of the runs; CPU ms: process CPU time, every thread)")
     save("track_cost", {"args": vars(args), "rows": rows})
 

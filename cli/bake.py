@@ -34,8 +34,9 @@ def _click_option(opt) -> click.Option:
         kind, show = click.IntRange(opt.minimum) if opt.minimum is not None else click.INT, True
     else:
         kind, show = {float: click.FLOAT, str: click.STRING}[opt.type], opt.default is not None
-    return click.Option([flag, opt.name], type=kind, default=opt.default, show_default=show and opt.default is not None,
-                        help=opt.help)
+    return click.Option(
+        [flag, opt.name], type=kind, default=opt.default, show_default=show and opt.default is not None, help=opt.help
+    )
 
 
 def _first_key(schema, where="") -> str:
@@ -48,26 +49,46 @@ def _common_options(baker) -> list[click.Option]:
     example = _first_key(baker.schema) if baker.schema else "KEY=VALUE"
     return [
         click.Option(["--recipe"], type=click.Path(dir_okay=False), help="TOML recipe (default: the built-in defaults)."),
-        click.Option(["--out"], type=click.Path(dir_okay=False),
-                     help="Output HDF5 file; default: the table cache, reused when the recipe hash matches."),
-        click.Option(["--set", "sets"], multiple=True, metavar="KEY=VALUE",
-                     help=f"Override a recipe key (a TOML value), e.g. --set {example}; repeatable."),
-        click.Option(["--shard"], metavar="K/N",
-                     help="Bake only the K-th of N slices (K from 0) into a shard file for `hairlut merge` "
-                          "(kinds that shard; needs --out)."),
-        click.Option(["--distributed"], is_flag=True,
-                     help="Join JAX's distributed runtime (jax.distributed.initialize): each process bakes its share "
-                          "into OUT.parts/, process 0 writes OUT.  Without the next three options JAX detects the "
-                          "cluster (SLURM, Open MPI, ...). Needs --out."),
+        click.Option(
+            ["--out"],
+            type=click.Path(dir_okay=False),
+            help="Output HDF5 file; default: the table cache, reused when the recipe hash matches.",
+        ),
+        click.Option(
+            ["--set", "sets"],
+            multiple=True,
+            metavar="KEY=VALUE",
+            help=f"Override a recipe key (a TOML value), e.g. --set {example}; repeatable.",
+        ),
+        click.Option(
+            ["--shard"],
+            metavar="K/N",
+            help="Bake only the K-th of N slices (K from 0) into a shard file for `hairlut merge` "
+            "(kinds that shard; needs --out).",
+        ),
+        click.Option(
+            ["--distributed"],
+            is_flag=True,
+            help="Join JAX's distributed runtime (jax.distributed.initialize): each process bakes its share "
+            "into OUT.parts/, process 0 writes OUT.  Without the next three options JAX detects the "
+            "cluster (SLURM, Open MPI, ...). Needs --out.",
+        ),
         click.Option(["--coordinator"], metavar="HOST:PORT", help="With --distributed: process 0's address."),
         click.Option(["--num-processes", "num_processes"], type=click.IntRange(1), help="With --distributed: processes in all."),
         click.Option(["--process-id", "process_id"], type=click.IntRange(0), help="With --distributed: this process, from 0."),
-        click.Option(["--timeout"], type=click.IntRange(1), metavar="SECONDS",
-                     help="With --distributed: how long a process waits for a peer that has not joined, or that has "
-                          f"stopped answering, before it gives up with an error naming it [default: {TIMEOUT_S}]."),
-        click.Option(["--merge", "merge"], type=click.Choice(["virtual", "copy"]),
-                     help="The final asset of a split bake: HDF5 virtual datasets over OUT.parts/ (default with "
-                          "--distributed; nothing copied) or one self-contained file (copy)."),
+        click.Option(
+            ["--timeout"],
+            type=click.IntRange(1),
+            metavar="SECONDS",
+            help="With --distributed: how long a process waits for a peer that has not joined, or that has "
+            f"stopped answering, before it gives up with an error naming it [default: {TIMEOUT_S}].",
+        ),
+        click.Option(
+            ["--merge", "merge"],
+            type=click.Choice(["virtual", "copy"]),
+            help="The final asset of a split bake: HDF5 virtual datasets over OUT.parts/ (default with "
+            "--distributed; nothing copied) or one self-contained file (copy).",
+        ),
         click.Option(["--no-progress", "no_progress"], is_flag=True, help="No progress bar on stderr."),
         click.Option(["--json", "as_json"], is_flag=True, help="Print the bake report as JSON."),
     ]
@@ -79,25 +100,41 @@ def kind_command(kind: str, name: str | None = None) -> click.Command:
 
     baker = registry.get(kind)
 
-    def callback(recipe, out, sets, shard, distributed, coordinator, num_processes, process_id, timeout, merge,
-                 no_progress, as_json, **values):
+    def callback(
+        recipe,
+        out,
+        sets,
+        shard,
+        distributed,
+        coordinator,
+        num_processes,
+        process_id,
+        timeout,
+        merge,
+        no_progress,
+        as_json,
+        **values,
+    ):
         given = load_toml(recipe) if recipe else {}
         split = {}
         if distributed or coordinator or num_processes is not None or process_id is not None or timeout or merge:
             if out is None:
                 raise errors.ValidationError("out", None, "give --out with --distributed or --merge (not cached)")
             if baker.units is None:
-                raise errors.ValidationError("distributed" if distributed else "merge", distributed or merge,
-                                             f"{baker.kind} bakes cannot be split across processes")
+                raise errors.ValidationError(
+                    "distributed" if distributed else "merge",
+                    distributed or merge,
+                    f"{baker.kind} bakes cannot be split across processes",
+                )
             if not distributed and (coordinator or num_processes is not None or process_id is not None or timeout):
-                raise errors.ValidationError("distributed", False, "--coordinator, --num-processes, --process-id and "
-                                             "--timeout go with --distributed")
+                raise errors.ValidationError(
+                    "distributed", False, "--coordinator, --num-processes, --process-id and --timeout go with --distributed"
+                )
             split = {"merge": merge}
             if distributed:
                 from hairlut.bake.devices import initialize
 
-                split["distributed"] = initialize(coordinator, num_processes, process_id, timeout or TIMEOUT_S,
-                                                  on_fatal=_fatal)
+                split["distributed"] = initialize(coordinator, num_processes, process_id, timeout or TIMEOUT_S, on_fatal=_fatal)
         if not split.get("distributed"):
             _bake(baker, given, out, sets, shard, split, no_progress, as_json, values)
             return
@@ -111,8 +148,13 @@ def kind_command(kind: str, name: str | None = None) -> click.Command:
         leave()
 
     params = _common_options(baker) + [_click_option(o) for o in baker.options]
-    return click.Command(name or baker.command, callback=callback, params=params,
-                         help=baker.help or baker.description, short_help=baker.description)
+    return click.Command(
+        name or baker.command,
+        callback=callback,
+        params=params,
+        help=baker.help or baker.description,
+        short_help=baker.description,
+    )
 
 
 def _bake(baker, given, out, sets, shard, split, no_progress, as_json, values) -> None:
@@ -150,8 +192,10 @@ def _share_line(report: dict, unit: str) -> str:
     """What a distributed process other than 0 did: its share of the parts (process 0 writes the asset)."""
     lo, hi = report["unit_range"]
     share = f"{unit} {lo}..{hi - 1}" if hi > lo else f"no {unit} (every block went to other processes)"
-    return (f"process {report['process']} of {report['processes']}: baked {share} into {report['out']}.parts/ "
-            f"({report['computed']} computed, {report['resumed']} resumed); process 0 wrote {report['out']}")
+    return (
+        f"process {report['process']} of {report['processes']}: baked {share} into {report['out']}.parts/ "
+        f"({report['computed']} computed, {report['resumed']} resumed); process 0 wrote {report['out']}"
+    )
 
 
 def _fatal(message: str | None) -> None:
@@ -188,10 +232,14 @@ class KindGroup(click.Group):
 
 
 @click.group("bake", cls=KindGroup, invoke_without_command=True)
-@click.option("--scene", type=click.Path(dir_okay=False),
-              help="Bake exactly what this scene needs (see `hairlut plan`), into the table cache.")
-@click.option("--cache", "cache_root", type=click.Path(file_okay=False),
-              help="Table cache folder (default: $HAIRLUT_CACHE, else tables/).")
+@click.option(
+    "--scene",
+    type=click.Path(dir_okay=False),
+    help="Bake exactly what this scene needs (see `hairlut plan`), into the table cache.",
+)
+@click.option(
+    "--cache", "cache_root", type=click.Path(file_okay=False), help="Table cache folder (default: $HAIRLUT_CACHE, else tables/)."
+)
 @click.option("--no-progress", is_flag=True, help="No progress bars on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="With --scene: print the plan and the bake report as JSON.")
 @click.pass_context
@@ -231,8 +279,9 @@ def bake_group(ctx, scene, cache_root, no_progress, as_json):
     finally:
         bars.close()  # a live display gives the terminal back (its cursor) whatever happened
     if as_json:
-        click.echo(json.dumps({"plan": p.to_json(), "assets": done, "seconds": time.perf_counter() - start},
-                              indent=2, default=str))
+        click.echo(
+            json.dumps({"plan": p.to_json(), "assets": done, "seconds": time.perf_counter() - start}, indent=2, default=str)
+        )
         return
     for name, d in done.items():
         click.echo(f"{d['status']} {name}: {d['path']} ({d['seconds']:.1f} s)")

@@ -25,8 +25,14 @@ class _PartsEpilog(click.Command):
 @click.command("bench", cls=_PartsEpilog)
 @click.option("--quick", is_flag=True, help="Small sweeps (a few minutes): the same parts and tables, fewer settings.")
 @click.option("--only", "only", metavar="PART,...", help="Run only these parts (comma-separated; see the list below).")
-@click.option("--out", "out", type=click.Path(file_okay=False), default="bench-out", show_default=True,
-              help="Folder for report.md, results.json and plots/.")
+@click.option(
+    "--out",
+    "out",
+    type=click.Path(file_okay=False),
+    default="bench-out",
+    show_default=True,
+    help="Folder for report.md, results.json and plots/.",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print results.json's content on stdout instead of the summary.")
 @click.option("--no-progress", is_flag=True, help="No per-part progress lines on stderr.")
 def bench_cmd(quick: bool, only: str | None, out: str, as_json: bool, no_progress: bool) -> None:
@@ -58,9 +64,11 @@ def bench_cmd(quick: bool, only: str | None, out: str, as_json: bool, no_progres
     except BenchInterrupted as stop:
         pr = stop.results["partial"]
         done = [n for n, i in stop.results["parts"].items() if i["status"] not in ("interrupted", "not run")]
-        click.echo(f"hairlut: interrupted while {pr['interrupted']} ran; wrote a partial {out}/report.md and "
-                   f"{out}/results.json for {', '.join(done) or 'no part'}; not run: {', '.join(pr['not_run']) or 'none'}",
-                   err=True)
+        click.echo(
+            f"hairlut: interrupted while {pr['interrupted']} ran; wrote a partial {out}/report.md and "
+            f"{out}/results.json for {', '.join(done) or 'no part'}; not run: {', '.join(pr['not_run']) or 'none'}",
+            err=True,
+        )
         raise SystemExit(130) from None
     if as_json:
         from .format import dumps

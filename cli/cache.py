@@ -13,7 +13,9 @@ def cache_group():
 
 
 @cache_group.command("ls")
-@click.option("--cache", "--dir", "root", type=click.Path(file_okay=False), help="Cache folder (default: $HAIRLUT_CACHE or ./tables).")
+@click.option(
+    "--cache", "--dir", "root", type=click.Path(file_okay=False), help="Cache folder (default: $HAIRLUT_CACHE or ./tables)."
+)
 @click.option("--json", "as_json", is_flag=True, help="One JSON document on stdout.")
 def ls_cmd(root, as_json):
     """List cached assets, newest first, each with its status: ok; foreign (a valid asset under another asset's
@@ -22,22 +24,41 @@ def ls_cmd(root, as_json):
 
     rows = entries(root)
     if as_json:
-        click.echo(json.dumps([{"path": str(e.path), "kind": e.kind, "recipe_hash": e.recipe_hash, "created": e.created,
-                                "bytes": e.bytes, "status": e.status, "fault": e.fault} for e in rows], indent=2))
+        click.echo(
+            json.dumps(
+                [
+                    {
+                        "path": str(e.path),
+                        "kind": e.kind,
+                        "recipe_hash": e.recipe_hash,
+                        "created": e.created,
+                        "bytes": e.bytes,
+                        "status": e.status,
+                        "fault": e.fault,
+                    }
+                    for e in rows
+                ],
+                indent=2,
+            )
+        )
         return
     if not rows:
         click.echo(f"no cached assets in {cache_dir(root)}")
         return
     for e in rows:
         why = f"  ({e.fault})" if e.fault else ""
-        click.echo(f"{e.status:<8} {e.kind or '-':<12} {e.recipe_hash[:16] or '-':<16}  {e.bytes / 1024:>9.1f} KiB  "
-                   f"{e.created or '-'}  {e.path}{why}")
+        click.echo(
+            f"{e.status:<8} {e.kind or '-':<12} {e.recipe_hash[:16] or '-':<16}  {e.bytes / 1024:>9.1f} KiB  "
+            f"{e.created or '-'}  {e.path}{why}"
+        )
     counts = ", ".join(f"{n} {s}" for s in ("foreign", "corrupt") if (n := sum(e.status == s for e in rows)))
     click.echo(f"{len(rows)} assets{f' ({counts})' if counts else ''}, {sum(e.bytes for e in rows) / 2**20:.2f} MiB")
 
 
 @cache_group.command("prune")
-@click.option("--cache", "--dir", "root", type=click.Path(file_okay=False), help="Cache folder (default: $HAIRLUT_CACHE or ./tables).")
+@click.option(
+    "--cache", "--dir", "root", type=click.Path(file_okay=False), help="Cache folder (default: $HAIRLUT_CACHE or ./tables)."
+)
 @click.option("--kind", "kinds", multiple=True, help="Remove assets of this kind (repeatable).")
 @click.option("--older-than", "days", type=float, help="Remove assets older than this many days.")
 @click.option("--all", "everything", is_flag=True, help="Remove every cached asset.")

@@ -22,12 +22,24 @@ def _cached(status: str | None) -> str:
 
 
 @click.command("demo")
-@click.option("--out", "out_dir", default="out/demo", show_default=True, type=click.Path(file_okay=False),
-              help="Folder for the synthesised maps and previews.")
-@click.option("--scene", "scenes", multiple=True, type=click.Path(dir_okay=False),
-              help="Scene file(s) to run instead of the built-in examples.")
-@click.option("--cache", "cache_root", type=click.Path(file_okay=False),
-              help="Table cache folder (default: $HAIRLUT_CACHE, else tables/).")
+@click.option(
+    "--out",
+    "out_dir",
+    default="out/demo",
+    show_default=True,
+    type=click.Path(file_okay=False),
+    help="Folder for the synthesised maps and previews.",
+)
+@click.option(
+    "--scene",
+    "scenes",
+    multiple=True,
+    type=click.Path(dir_okay=False),
+    help="Scene file(s) to run instead of the built-in examples.",
+)
+@click.option(
+    "--cache", "cache_root", type=click.Path(file_okay=False), help="Table cache folder (default: $HAIRLUT_CACHE, else tables/)."
+)
 @click.option("--no-progress", is_flag=True, help="No progress bars on stderr.")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 def demo_cmd(out_dir, scenes, cache_root, no_progress, as_json):
@@ -71,19 +83,25 @@ def demo_cmd(out_dir, scenes, cache_root, no_progress, as_json):
         if cam:
             f, lay, strand = cam["figures"], cam["layered"], cam["strands"]
             w, h = cam["resolution"]
-            click.echo(f"  camera {w} x {h}: layered ({lay['map_method']} maps) frame {1e3 * lay['seconds']['raster']:.0f} ms "
-                       f"+ maps {1e3 * lay['seconds']['maps']:.0f} ms; strand render level {strand['level']} "
-                       f"({strand['samples_per_pixel']} spp, {strand['steps_per_crossing']} steps per crossing; a fixed level, "
-                       f"not converged, environment {strand['environment']}) {strand['seconds']['frame']:.1f} s"
-                       + _cached((strand.get("cache") or {}).get("status")))
+            click.echo(
+                f"  camera {w} x {h}: layered ({lay['map_method']} maps) frame {1e3 * lay['seconds']['raster']:.0f} ms "
+                f"+ maps {1e3 * lay['seconds']['maps']:.0f} ms; strand render level {strand['level']} "
+                f"({strand['samples_per_pixel']} spp, {strand['steps_per_crossing']} steps per crossing; a fixed level, "
+                f"not converged, environment {strand['environment']}) {strand['seconds']['frame']:.1f} s"
+                + _cached((strand.get("cache") or {}).get("status"))
+            )
             pr = strand.get("convergence_probe")
             if pr:
                 ch = pr["change_to_next"]
-                click.echo(f"  strand render level {pr['level']} -> {pr['next_level']} at {pr['resolution'][0]} x "
-                           f"{pr['resolution'][1]} (same camera): RGB RMSE {ch['rgb_rmse']:.4f}, alpha RMSE "
-                           f"{ch['alpha_rmse']:.4f} ({pr['cpu_seconds']:.1f} CPU-s{_cached(pr.get('cache'))})")
-            click.echo(f"  layered vs strands: FLIP {f['flip_mean']:.3f}, mean-alpha bias {f['alpha_bias']:+.4f} "
-                       f"({_relative(f['alpha_bias_relative'])}), RGB RMSE {f['rgb_rmse']:.4f}, 8x8 RGB RMSE {f['rgb_rmse_8x8']:.4f}")
+                click.echo(
+                    f"  strand render level {pr['level']} -> {pr['next_level']} at {pr['resolution'][0]} x "
+                    f"{pr['resolution'][1]} (same camera): RGB RMSE {ch['rgb_rmse']:.4f}, alpha RMSE "
+                    f"{ch['alpha_rmse']:.4f} ({pr['cpu_seconds']:.1f} CPU-s{_cached(pr.get('cache'))})"
+                )
+            click.echo(
+                f"  layered vs strands: FLIP {f['flip_mean']:.3f}, mean-alpha bias {f['alpha_bias']:+.4f} "
+                f"({_relative(f['alpha_bias_relative'])}), RGB RMSE {f['rgb_rmse']:.4f}, 8x8 RGB RMSE {f['rgb_rmse_8x8']:.4f}"
+            )
             click.echo(f"  side by side (layered | strands | FLIP): {cam['files']['side_by_side']}")
     click.echo(f"demo finished in {report['total_seconds']:.1f} s; outputs in {out_dir}/ (sky map {report['sky']})")
 

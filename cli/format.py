@@ -48,9 +48,13 @@ def render(summary: dict) -> str:
             lines.append(f"    {ds['name']}  {shape} {ds['dtype']}  dims ({', '.join(ds['dims'])})  units {ds['units'] or '-'}")
             lines.append(f"      {ds['long_name']}")
             lines.append(f"      {_stats(ds)}")
-            lines.append(f"      storage: chunks {ds['chunks']}, {ds['compression']}, fletcher32 {'on' if ds['fletcher32'] else 'off'}")
+            lines.append(
+                f"      storage: chunks {ds['chunks']}, {ds['compression']}, fletcher32 {'on' if ds['fletcher32'] else 'off'}"
+            )
     else:
-        lines.append(f"{summary['path']}  (OpenEXR image, {len(summary['parts'])} part{'s' if len(summary['parts']) > 1 else ''})")
+        lines.append(
+            f"{summary['path']}  (OpenEXR image, {len(summary['parts'])} part{'s' if len(summary['parts']) > 1 else ''})"
+        )
         lines.append(f"  kind      {summary['kind'] or '-'}")
         lines.append(f"  checksum  {summary['checksum']}")
         _recipe(lines, summary)

@@ -12,7 +12,7 @@ import click
 from .bake import kind_command, merge_cmd
 from .progress import Bars, Progress
 
-__all__ = ["Bars", "Progress", "hrir_cmd", "hrir_slice_cmd", "merge_cmd"]
+__all__ = ["Bars", "Progress", "hrir_cmd", "hrir_slice_cmd", "merge_cmd"]  # noqa: F822 (hrir_cmd: module __getattr__)
 
 
 def __getattr__(name: str):

@@ -33,10 +33,10 @@ def inspect_cmd(paths, as_json, png, channel, part, dataset, index, exposure, no
       hairlut inspect --json out/demo/sky-clusters/*.exr
       hairlut inspect out/demo/sky-clusters/cluster000.exr --channel layer2.A --png alpha.png
     """
-    from hairlut.bake import registry
     from hairlut.assets import preview, summarize
-    from hairlut.files import not_an_input
     from hairlut.assets.virtual_write import check_virtual
+    from hairlut.bake import registry
+    from hairlut.files import not_an_input
 
     if png and len(paths) != 1:
         raise click.UsageError("--png takes exactly one input file")

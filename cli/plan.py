@@ -35,8 +35,9 @@ def echo_plan(p) -> None:
 
 @click.command("plan")
 @click.argument("scene", type=click.Path(dir_okay=False))
-@click.option("--cache", "cache_root", type=click.Path(file_okay=False),
-              help="Table cache folder (default: $HAIRLUT_CACHE, else tables/).")
+@click.option(
+    "--cache", "cache_root", type=click.Path(file_okay=False), help="Table cache folder (default: $HAIRLUT_CACHE, else tables/)."
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the plan as JSON.")
 def plan_cmd(scene: str, cache_root: str | None, as_json: bool) -> None:
     """Plan the tables SCENE needs: what will be baked, reused or skipped, and why.

@@ -15,7 +15,8 @@ import time
 from datetime import timedelta
 
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, ProgressColumn, TextColumn, TimeElapsedColumn, Progress as RichProgress
+from rich.progress import BarColumn, MofNCompleteColumn, ProgressColumn, TextColumn, TimeElapsedColumn
+from rich.progress import Progress as RichProgress
 from rich.table import Column
 from rich.text import Text
 
@@ -46,9 +47,17 @@ def _columns(tty: bool) -> list:
     def text(fmt: str) -> TextColumn:
         return TextColumn(fmt, table_column=Column(no_wrap=True))
 
-    return [text("{task.description}"), *bar, MofNCompleteColumn(table_column=Column(no_wrap=True)),
-            text("{task.fields[unit]}"), text("{task.fields[resumed]}"), _Rate(table_column=Column(no_wrap=True)),
-            _Eta(table_column=Column(no_wrap=True)), text("elapsed"), TimeElapsedColumn(table_column=Column(no_wrap=True))]
+    return [
+        text("{task.description}"),
+        *bar,
+        MofNCompleteColumn(table_column=Column(no_wrap=True)),
+        text("{task.fields[unit]}"),
+        text("{task.fields[resumed]}"),
+        _Rate(table_column=Column(no_wrap=True)),
+        _Eta(table_column=Column(no_wrap=True)),
+        text("elapsed"),
+        TimeElapsedColumn(table_column=Column(no_wrap=True)),
+    ]
 
 
 def _unit_of(name: str) -> str:
@@ -70,8 +79,7 @@ class Bars:
         self.enabled, self.unit = enabled, unit
         self.tty = sys.stderr.isatty()
         # force_terminal: our own test of stderr decides, not FORCE_COLOR or TTY_COMPATIBLE in the environment
-        self.console = Console(stderr=True, force_terminal=self.tty, force_jupyter=False,
-                               width=None if self.tty else 160)
+        self.console = Console(stderr=True, force_terminal=self.tty, force_jupyter=False, width=None if self.tty else 160)
         self.rich = RichProgress(*_columns(self.tty), console=self.console, refresh_per_second=4, expand=self.tty)
         self.tasks = {}  # name: (task id, units done at the first call, its time)
         self.live = False
@@ -81,8 +89,14 @@ class Bars:
             return
         now = time.perf_counter()
         if name not in self.tasks:
-            task = self.rich.add_task(name, total=total, completed=done, unit=self.unit or _unit_of(name), rate=None,
-                                      resumed=f"resumed {done}" if done else "")
+            task = self.rich.add_task(
+                name,
+                total=total,
+                completed=done,
+                unit=self.unit or _unit_of(name),
+                rate=None,
+                resumed=f"resumed {done}" if done else "",
+            )
             self.tasks[name] = task, done, now
         task, base, t0 = self.tasks[name]
         rate = (done - base) / (now - t0) if done > base and now > t0 else None

@@ -12,19 +12,35 @@ import click
 @click.argument("scene", type=click.Path(dir_okay=False))
 @click.option("--out", "out_path", required=True, type=click.Path(dir_okay=False), help="The frame's EXR (R, G, B, A, Z).")
 @click.option("--png", is_flag=True, help="Also write a PNG beside the EXR.")
-@click.option("--strands", is_flag=True, help="The strand render (the strands ray-marched, converged) instead of the layered model.")
-@click.option("--db", "db_path", type=click.Path(dir_okay=False),
-              help="Layered: the hrir_db file of the satf map method (default: from the table cache).")
-@click.option("--sh", "sh_path", type=click.Path(dir_okay=False),
-              help="Layered: the sh_tables file of the scene's environment light (default: from the cache).")
-@click.option("--cache", "cache_root", type=click.Path(file_okay=False),
-              help="Table cache folder (default: $HAIRLUT_CACHE, else tables/).")
-@click.option("--bound", default=None, type=float,
-              help="--strands: stop when one more level changes RGB and α RMSE by less than this "
-                   "(default: the scene's [render] strands_bound, 0.01 unless set).")
+@click.option(
+    "--strands", is_flag=True, help="The strand render (the strands ray-marched, converged) instead of the layered model."
+)
+@click.option(
+    "--db",
+    "db_path",
+    type=click.Path(dir_okay=False),
+    help="Layered: the hrir_db file of the satf map method (default: from the table cache).",
+)
+@click.option(
+    "--sh",
+    "sh_path",
+    type=click.Path(dir_okay=False),
+    help="Layered: the sh_tables file of the scene's environment light (default: from the cache).",
+)
+@click.option(
+    "--cache", "cache_root", type=click.Path(file_okay=False), help="Table cache folder (default: $HAIRLUT_CACHE, else tables/)."
+)
+@click.option(
+    "--bound",
+    default=None,
+    type=float,
+    help="--strands: stop when one more level changes RGB and α RMSE by less than this "
+    "(default: the scene's [render] strands_bound, 0.01 unless set).",
+)
 @click.option("--max-level", default=3, show_default=True, type=int, help="--strands: the finest level tried.")
-@click.option("--verify", is_flag=True,
-              help="--strands: once converged, render one more level and store whether the bound still holds.")
+@click.option(
+    "--verify", is_flag=True, help="--strands: once converged, render one more level and store whether the bound still holds."
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON.")
 def render_cmd(scene, out_path, png, strands, db_path, sh_path, cache_root, bound, max_level, verify, as_json):
     """Render SCENE through its [camera] into an EXR (R, G, B, A premultiplied, Z; the camera's
@@ -47,9 +63,9 @@ def render_cmd(scene, out_path, png, strands, db_path, sh_path, cache_root, boun
     from pathlib import Path
 
     from hairlut.atomic import check_writable
+    from hairlut.planner import scene_assets
     from hairlut.render import render_layered, render_strands, write_frame
     from hairlut.scene import load_scene
-    from hairlut.planner import scene_assets
 
     for path in [out_path] + ([Path(out_path).with_suffix(".png")] if png else []):
         check_writable(path)  # before the frame is computed
@@ -61,8 +77,11 @@ def render_cmd(scene, out_path, png, strands, db_path, sh_path, cache_root, boun
         frame = render_layered(sc, db=db_path, sh=sh_path, maps=maps_path)
     files = write_frame(frame, out_path, png=png)
     if not frame.rgba[..., 3].any() and logging.getLogger("hairlut").isEnabledFor(logging.WARNING):  # not under -q
-        click.echo("hairlut: warning: the frame catches no hair (alpha = 0 everywhere): the hair lies outside [camera]'s "
-                   "frame or shrinks below a pixel (extent, fov, position, look_at)", err=True)
+        click.echo(
+            "hairlut: warning: the frame catches no hair (alpha = 0 everywhere): the hair lies outside [camera]'s "
+            "frame or shrinks below a pixel (extent, fov, position, look_at)",
+            err=True,
+        )
     report = {**files, **frame.info, "camera": frame.camera.to_json()}
     if as_json:
         click.echo(json.dumps(report, indent=2, default=str))
@@ -71,23 +90,28 @@ def render_cmd(scene, out_path, png, strands, db_path, sh_path, cache_root, boun
     if strands:
         last = frame.info["levels"][-1]
         ch = last.get("change_from_previous", {})
-        click.echo(f"strands {cam.width} x {cam.height} ({cam.projection}): frame "
-                   f"{frame.info['seconds']['frame']:.1f} s, level {last['level']} ({last['samples_per_pixel']} spp, "
-                   f"{last['steps_per_crossing']} steps), converged={frame.info['converged']} "
-                   + (f"(change RGB {ch['rgb_rmse']:.2g}, alpha {ch['alpha_rmse']:.2g}; bound {frame.info['bound']:g})"
-                      if ch else ""))
+        click.echo(
+            f"strands {cam.width} x {cam.height} ({cam.projection}): frame "
+            f"{frame.info['seconds']['frame']:.1f} s, level {last['level']} ({last['samples_per_pixel']} spp, "
+            f"{last['steps_per_crossing']} steps), converged={frame.info['converged']} "
+            + (f"(change RGB {ch['rgb_rmse']:.2g}, alpha {ch['alpha_rmse']:.2g}; bound {frame.info['bound']:g})" if ch else "")
+        )
         ver = frame.info.get("verified")
         if ver:
             vc = ver["change_from_returned"]
-            click.echo(f"  one more level ({ver['level']}): change RGB {vc['rgb_rmse']:.2g}, alpha {vc['alpha_rmse']:.2g}: "
-                       f"the bound {'holds' if ver['holds'] else 'does NOT hold'}")
+            click.echo(
+                f"  one more level ({ver['level']}): change RGB {vc['rgb_rmse']:.2g}, alpha {vc['alpha_rmse']:.2g}: "
+                f"the bound {'holds' if ver['holds'] else 'does NOT hold'}"
+            )
     else:
         sec = frame.info["seconds"]
-        click.echo(f"layered {cam.width} x {cam.height} ({cam.projection}), map method {frame.info['map_method']}: "
-                   f"{frame.info['clusters']} clusters x {frame.info['layers']} layers, {frame.info['triangles']} triangles; "
-                   f"maps {1e3 * sec['maps']:.0f} ms, shade {1e3 * sec['shade']:.0f} ms, camera pass {sec['plan']:.1f} s, "
-                   f"frame (texturing and composite) {1e3 * sec['raster']:.0f} ms (first call with compile "
-                   f"{sec['raster_first']:.1f} s)")
+        click.echo(
+            f"layered {cam.width} x {cam.height} ({cam.projection}), map method {frame.info['map_method']}: "
+            f"{frame.info['clusters']} clusters x {frame.info['layers']} layers, {frame.info['triangles']} triangles; "
+            f"maps {1e3 * sec['maps']:.0f} ms, shade {1e3 * sec['shade']:.0f} ms, camera pass {sec['plan']:.1f} s, "
+            f"frame (texturing and composite) {1e3 * sec['raster']:.0f} ms (first call with compile "
+            f"{sec['raster_first']:.1f} s)"
+        )
     for v in files.values():
         click.echo(f"  wrote {v}")
 

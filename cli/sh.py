@@ -20,10 +20,20 @@ def sh_group():
 
 @sh_group.command("project")
 @click.argument("envmap", type=click.Path(dir_okay=False))
-@click.option("--bands", type=click.IntRange(min=1, max=65), default=8, show_default=True,
-              help="Number of SH bands (lmax + 1); 8 bands = 64 coefficients, the paper's specular light.")
-@click.option("--layout", type=click.Choice(LAYOUTS), default="auto", show_default=True,
-              help="Map layout; auto reads the EXR 'envmap' attribute and the aspect ratio.")
+@click.option(
+    "--bands",
+    type=click.IntRange(min=1, max=65),
+    default=8,
+    show_default=True,
+    help="Number of SH bands (lmax + 1); 8 bands = 64 coefficients, the paper's specular light.",
+)
+@click.option(
+    "--layout",
+    type=click.Choice(LAYOUTS),
+    default="auto",
+    show_default=True,
+    help="Map layout; auto reads the EXR 'envmap' attribute and the aspect ratio.",
+)
 @click.option("--up", type=click.Choice(["z", "y"]), default="z", show_default=True, help="Which world axis the map's up is.")
 @click.option("--out", type=click.Path(dir_okay=False), help="Write the coefficients as an sh_light HDF5 table.")
 @click.option("--json", "as_json", is_flag=True, help="Print coefficients and errors as JSON.")

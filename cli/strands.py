@@ -17,8 +17,7 @@ def strands_group():
 
 
 def _render(path: str, summary: dict) -> str:
-    lines = [f"{path}  ({_FORMAT_NAMES.get(summary['format'], summary['format'])})",
-             f"  strands   {summary['strands']}"]
+    lines = [f"{path}  ({_FORMAT_NAMES.get(summary['format'], summary['format'])})", f"  strands   {summary['strands']}"]
     per = summary.get("points_per_strand")
     if per is None:
         lines.append(f"  vertices  {summary['points']}")

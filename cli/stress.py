@@ -12,8 +12,9 @@ from .progress import Progress
 @click.command("stress")
 @click.option("--quick", is_flag=True, help="The smaller sweep the test suite runs (about a minute).")
 @click.option("--json", "as_json", is_flag=True, help="Print the report as JSON (for scripts) instead of the table.")
-@click.option("--only", "only", metavar="CASE,...",
-              help="Run only these cases or areas (sh, hrir, shadow, storage, gpu), comma-separated.")
+@click.option(
+    "--only", "only", metavar="CASE,...", help="Run only these cases or areas (sh, hrir, shadow, storage, gpu), comma-separated."
+)
 @click.option("--reasons", is_flag=True, help="Also print each tolerance's one-line reason.")
 @click.option("--no-progress", is_flag=True, help="No progress bar on stderr.")
 def stress_cmd(quick: bool, as_json: bool, only: str | None, reasons: bool, no_progress: bool) -> None:

@@ -29,8 +29,25 @@ import importlib
 from . import errors
 from ._version import __version__
 
-_SUBMODULES = {"assets", "bake", "bench", "demo", "envlight", "geometry", "hrir", "march", "planner", "render", "scene",
-               "scenemaps", "sh", "shadows", "shtables", "stress", "synth"}
+_SUBMODULES = {
+    "assets",
+    "bake",
+    "bench",
+    "demo",
+    "envlight",
+    "geometry",
+    "hrir",
+    "march",
+    "planner",
+    "render",
+    "scene",
+    "scenemaps",
+    "sh",
+    "shadows",
+    "shtables",
+    "stress",
+    "synth",
+}
 _ATTRIBUTES = {"SHTables": "shtables", "HRIRDB": "hrir", "plan": "planner", "synthesize": "synth"}
 
 __all__ = ["__version__", "errors", *sorted(_SUBMODULES), *sorted(_ATTRIBUTES)]

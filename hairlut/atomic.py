@@ -38,8 +38,11 @@ def _size(n: float) -> str:
 
 def disk_full(final, exc: OSError) -> errors.DiskFullError:
     """The DiskFullError for a write of ``final`` that failed with ``exc``."""
-    return errors.DiskFullError(final, f"cannot write: {os.strerror(exc.errno)} (errno {errno.errorcode.get(exc.errno, exc.errno)}); "
-                                       "nothing was left under this name")
+    return errors.DiskFullError(
+        final,
+        f"cannot write: {os.strerror(exc.errno)} (errno {errno.errorcode.get(exc.errno, exc.errno)}); "
+        "nothing was left under this name",
+    )
 
 
 def free_bytes(folder: str | os.PathLike) -> int | None:
@@ -56,7 +59,9 @@ def ensure_space(final: str | os.PathLike, nbytes: int) -> None:
     final = Path(final)
     free = free_bytes(final.parent if final.parent.exists() else Path.cwd())
     if free is not None and nbytes > free:
-        raise errors.DiskFullError(final, f"needs {_size(nbytes)} but only {_size(free)} are free on its file system; nothing was written")
+        raise errors.DiskFullError(
+            final, f"needs {_size(nbytes)} but only {_size(free)} are free on its file system; nothing was written"
+        )
 
 
 def check_writable(path: str | os.PathLike, *, folder: bool = False) -> Path:
@@ -82,13 +87,15 @@ def check_writable(path: str | os.PathLike, *, folder: bool = False) -> Path:
     if read_only:
         raise errors.AssetError(target, f"cannot write: {where} is on a read-only file system; nothing was written")
     if not os.access(where, os.W_OK | os.X_OK):
-        raise errors.AssetError(target, f"cannot write: the folder {where} is not writable (permission denied); "
-                                        "nothing was written")
+        raise errors.AssetError(
+            target, f"cannot write: the folder {where} is not writable (permission denied); nothing was written"
+        )
     try:  # what the bits do not show (ACLs, sysfs, root on some mounts): a probe file, made and removed
         fd, probe = tempfile.mkstemp(prefix=".hairlut-probe-", suffix=TMP_SUFFIX, dir=where)
     except OSError as exc:
-        raise errors.AssetError(target, f"cannot write: the folder {where} refuses new files "
-                                        f"({exc.strerror or exc}); nothing was written") from None
+        raise errors.AssetError(
+            target, f"cannot write: the folder {where} refuses new files ({exc.strerror or exc}); nothing was written"
+        ) from None
     os.close(fd)
     os.unlink(probe)
     return target

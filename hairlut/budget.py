@@ -89,10 +89,12 @@ def check(field: str, value: object, nbytes: float, what: str, limit: int | None
     cap = memory_limit(limit)
     if not nbytes <= cap:  # also refuses NaN and inf estimates
         raise errors.BudgetError(
-            field, value,
+            field,
+            value,
             f"needs about {describe(nbytes)} for {what}, above the memory limit of {describe(cap)} "
             f"({'the limit= argument' if limit is not None else source()})",
-            estimate=int(min(nbytes, 2**63 - 1)) if math.isfinite(nbytes) else 2**63 - 1, limit=cap,
+            estimate=int(min(nbytes, 2**63 - 1)) if math.isfinite(nbytes) else 2**63 - 1,
+            limit=cap,
         )
     return nbytes
 
@@ -126,8 +128,14 @@ PIXEL_BYTES = 64  # per preview pixel: RGBA float32 and its tone-mapped copies
 SECTOR_BYTES = 1024  # per sector: its table row, frames, index and the float64 edge points of its extent
 
 
-def check_scene(cfg: dict, n_clusters: int, n_layers: int, n_lights: int, limit: int | None = None,
-                structure: tuple[str, int, int, Mapping] | None = None) -> None:
+def check_scene(
+    cfg: dict,
+    n_clusters: int,
+    n_layers: int,
+    n_lights: int,
+    limit: int | None = None,
+    structure: tuple[str, int, int, Mapping] | None = None,
+) -> None:
     """Refuse a scene whose strands, sectors, maps or preview would not fit (keys ``strands.count``,
     ``<where>.s_t``/``s_u``, ``render.resolution``, ``lights.directions``, ``render.preview_size``), or whose
     exponents ``material.p_I``/``p_II`` the float32 shading cannot raise to, or with more than
@@ -137,37 +145,66 @@ def check_scene(cfg: dict, n_clusters: int, n_layers: int, n_lights: int, limit:
     for key in ("p_I", "p_II"):  # float32 shading: cos^p of a huge p overflows on the way (p_I = 1e300)
         p = cfg["material"][key]
         if not p <= MAX_EXPONENT:
-            raise errors.ValidationError(f"material.{key}", p, f"at most {MAX_EXPONENT:g} (the shading runs in float32; "
-                                         "beyond that the lobe is a single texel anyway)")
+            raise errors.ValidationError(
+                f"material.{key}",
+                p,
+                f"at most {MAX_EXPONENT:g} (the shading runs in float32; beyond that the lobe is a single texel anyway)",
+            )
     if n_lights > MAX_LIGHTS:
-        raise errors.ValidationError("lights.directions", f"{n_lights} directions",
-                                     f"at most {MAX_LIGHTS} direct lights (each is shaded and written as its own maps; "
-                                     "light a scene with many directions through [environment] map)")
+        raise errors.ValidationError(
+            "lights.directions",
+            f"{n_lights} directions",
+            f"at most {MAX_LIGHTS} direct lights (each is shaded and written as its own maps; "
+            "light a scene with many directions through [environment] map)",
+        )
     n = cfg["strands"]["count"]
-    check("strands.count", n, product(n, max(n_clusters, 1), STRAND_BYTES), f"{n} strands in each of {n_clusters} clusters",
-          limit)
+    check(
+        "strands.count", n, product(n, max(n_clusters, 1), STRAND_BYTES), f"{n} strands in each of {n_clusters} clusters", limit
+    )
     if structure is not None:
         where, s_t, s_u, defaults = structure
         key, value = driver((f"{where}.s_t", s_t, defaults["s_t"]), (f"{where}.s_u", s_u, defaults["s_u"]))
-        check(key, value, product(max(n_clusters, 1), s_t + 1, max(n_layers, 1), s_u, SECTOR_BYTES),
-              f"the sectors of {n_clusters} clusters × {s_t + 1} rings × {n_layers} layers × {s_u} columns", limit)
+        check(
+            key,
+            value,
+            product(max(n_clusters, 1), s_t + 1, max(n_layers, 1), s_u, SECTOR_BYTES),
+            f"the sectors of {n_clusters} clusters × {s_t + 1} rings × {n_layers} layers × {s_u} columns",
+            limit,
+        )
     n_u, n_t = cfg["render"]["resolution"]
     texels = product(n_u, n_t, max(n_layers, 1), max(n_clusters, 1))
-    check("render.resolution", cfg["render"]["resolution"], texels * TEXEL_BYTES,
-          f"the texel frames of {n_layers} layers × {n_clusters} clusters", limit)
-    check("lights.directions", f"{n_lights} directions", texels * (TEXEL_BYTES + TEXEL_LIGHT_BYTES * n_lights),
-          f"the per-light maps at render.resolution {cfg['render']['resolution']}", limit)
+    check(
+        "render.resolution",
+        cfg["render"]["resolution"],
+        texels * TEXEL_BYTES,
+        f"the texel frames of {n_layers} layers × {n_clusters} clusters",
+        limit,
+    )
+    check(
+        "lights.directions",
+        f"{n_lights} directions",
+        texels * (TEXEL_BYTES + TEXEL_LIGHT_BYTES * n_lights),
+        f"the per-light maps at render.resolution {cfg['render']['resolution']}",
+        limit,
+    )
     size = cfg["render"]["preview_size"]
     check("render.preview_size", size, product(size, size, PIXEL_BYTES), "the preview image", limit)
 
 
-HRIR_DEFAULTS = {"sectors.count": 512, "angles.views": 32, "angles.lights": 32, "trace.pixels": 64, "trace.steps": 64,
-                 "trace.rays_per_pixel": 1, "sectors.grid": 32 * 32, "sectors.space.strands": 48}
+HRIR_DEFAULTS = {
+    "sectors.count": 512,
+    "angles.views": 32,
+    "angles.lights": 32,
+    "trace.pixels": 64,
+    "trace.steps": 64,
+    "trace.rays_per_pixel": 1,
+    "sectors.grid": 32 * 32,
+    "sectors.space.strands": 48,
+}
 HRIR_BLOCK = 32  # sectors sampled and traced together (hairlut.hrir BLOCK)
 
 
-def check_hrir(r: dict, limit: int | None = None, *, block: int | None = None, held: int | None = None,
-               note: str = "") -> None:
+def check_hrir(r: dict, limit: int | None = None, *, block: int | None = None, held: int | None = None, note: str = "") -> None:
     """Refuse an ``hrir_db`` recipe whose held tables, tracer working set, grids or splats would not fit.
 
     ``block``: the sectors sampled and traced together (``--block``; default :data:`HRIR_BLOCK`).
@@ -186,22 +223,40 @@ def check_hrir(r: dict, limit: int | None = None, *, block: int | None = None, h
     strands = max(r["sectors"]["space"]["strands"])
 
     def keyed(*keys):
-        vals = {"sectors.count": n, "angles.views": V, "angles.lights": L, "trace.pixels": P, "trace.steps": K,
-                "trace.rays_per_pixel": rays, "sectors.grid": n_s * n_r, "sectors.space.strands": strands}
+        vals = {
+            "sectors.count": n,
+            "angles.views": V,
+            "angles.lights": L,
+            "trace.pixels": P,
+            "trace.steps": K,
+            "trace.rays_per_pixel": rays,
+            "sectors.grid": n_s * n_r,
+            "sectors.space.strands": strands,
+        }
         key, _ = driver(*((k, vals[k], d[k]) for k in keys))
         shown = {"sectors.grid": r["sectors"]["grid"], "sectors.space.strands": r["sectors"]["space"]["strands"]}
         return key, shown.get(key, vals[key])
 
     what = "the database's" if held == n else f"{held} of its {n} sectors'"
-    check(*keyed(*(("sectors.count",) if held == n else ()), "angles.views", "angles.lights", "trace.pixels"),
-          product(held, V, P, L + 1, 4), f"{what} α and reflectance tables ({held} sectors × {V} views × {L} lights × "
-          f"{P} pixels, float32{note and '; ' + note})", limit)
-    check(*keyed("angles.views", "angles.lights", "trace.pixels", "trace.steps", "trace.rays_per_pixel"),
-          product(V, P, rays, K, 6 + L, 4), f"tracing one sector ({V} views × {P}×{rays} rays × {K} steps × {L} lights)",
-          limit)
+    check(
+        *keyed(*(("sectors.count",) if held == n else ()), "angles.views", "angles.lights", "trace.pixels"),
+        product(held, V, P, L + 1, 4),
+        f"{what} α and reflectance tables ({held} sectors × {V} views × {L} lights × {P} pixels, float32{note and '; ' + note})",
+        limit,
+    )
+    check(
+        *keyed("angles.views", "angles.lights", "trace.pixels", "trace.steps", "trace.rays_per_pixel"),
+        product(V, P, rays, K, 6 + L, 4),
+        f"tracing one sector ({V} views × {P}×{rays} rays × {K} steps × {L} lights)",
+        limit,
+    )
     check(*keyed("sectors.grid", "sectors.count"), product(n, n_s, n_r, 4 * 2), f"{n} density grids of {n_s}×{n_r}", limit)
-    check(*keyed("sectors.space.strands"), product(block, strands, 64, n_s * n_r / (32 * 32) + 1),
-          f"the splats of a block of {block} sectors with up to {strands} strands each", limit)
+    check(
+        *keyed("sectors.space.strands"),
+        product(block, strands, 64, n_s * n_r / (32 * 32) + 1),
+        f"the splats of a block of {block} sectors with up to {strands} strands each",
+        limit,
+    )
 
 
 def check_sh(r: dict, limit: int | None = None) -> None:
@@ -210,18 +265,40 @@ def check_sh(r: dict, limit: int | None = None) -> None:
     T = b["transmittance"]
     li = max(b["light_specular"] if k["specular"] else 0, b["light_diffuse"] if k["diffuse"] else 0)
     key = "bands.light_specular" if k["specular"] and b["light_specular"] >= b["light_diffuse"] else "bands.light_diffuse"
-    check(key, b[key.split(".")[1]], product((li + T - 1) ** 2, li**2, T**2, 8 * 2),
-          f"the float64 Gaunt tensor ({li} light bands, {T} transmittance bands)", limit)
+    check(
+        key,
+        b[key.split(".")[1]],
+        product((li + T - 1) ** 2, li**2, T**2, 8 * 2),
+        f"the float64 Gaunt tensor ({li} light bands, {T} transmittance bands)",
+        limit,
+    )
     nodes = 6 * math.sqrt(k["p"]) + li + T  # the specular kernel's quadrature grows with √p (p = 1e12: 6e6 nodes)
     if k["specular"]:
         check("kernel.p", k["p"], product(nodes, nodes, 8), f"the specular kernel's quadrature (~{nodes:.3g}² nodes)", limit)
     n = dense["t_resolution"]
     if n:
-        per_t = (b["light_diffuse"] ** 2 if k["diffuse"] else 0) + \
-            (b["light_specular"] ** 2 * dense["theta_v_steps"] if k["specular"] else 0)
-        check("dense.t_resolution", n, product(6, n, n, per_t, T**2, 8 * 2),
-              f"the dense Rd/Rs grids ({6 * n * n} tangent directions, float64)", limit)
+        per_t = (b["light_diffuse"] ** 2 if k["diffuse"] else 0) + (
+            b["light_specular"] ** 2 * dense["theta_v_steps"] if k["specular"] else 0
+        )
+        check(
+            "dense.t_resolution",
+            n,
+            product(6, n, n, per_t, T**2, 8 * 2),
+            f"the dense Rd/Rs grids ({6 * n * n} tangent directions, float64)",
+            limit,
+        )
 
 
-__all__ = ["ENV", "check", "check_hrir", "check_scene", "check_sh", "describe", "driver", "memory_limit",
-           "parse_size", "physical_memory", "product"]
+__all__ = [
+    "ENV",
+    "check",
+    "check_hrir",
+    "check_scene",
+    "check_sh",
+    "describe",
+    "driver",
+    "memory_limit",
+    "parse_size",
+    "physical_memory",
+    "product",
+]

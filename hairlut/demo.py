@@ -84,11 +84,21 @@ def strands_probe(scene, level: int = STRANDS_LEVEL, size: int = PROBE_SIZE, *, 
         return f
 
     # the camera's table and the size determine the fitted camera (with the scene's strands, in the scene's record)
-    f = probe() if cache is None else cached_frame(
-        scene, {"what": "convergence probe", "camera": {**cfg, "resolution": small}, "levels": levels}, probe, cache)
-    return {"level": level, "next_level": level + 1, "resolution": small,
-            "change_to_next": f.info["levels"][-1]["change_from_previous"], "cpu_seconds": f.info["cpu_seconds"],
-            "cache": f.info.get("cache", {}).get("status")}
+    f = (
+        probe()
+        if cache is None
+        else cached_frame(
+            scene, {"what": "convergence probe", "camera": {**cfg, "resolution": small}, "levels": levels}, probe, cache
+        )
+    )
+    return {
+        "level": level,
+        "next_level": level + 1,
+        "resolution": small,
+        "change_to_next": f.info["levels"][-1]["change_from_previous"],
+        "cpu_seconds": f.info["cpu_seconds"],
+        "cache": f.info.get("cache", {}).get("status"),
+    }
 
 
 def run_scene(scene_path, out_dir, cache_root=None, progress=None) -> dict:
@@ -114,17 +124,35 @@ def run_scene(scene_path, out_dir, cache_root=None, progress=None) -> dict:
 
         cache = cache_dir(cache_root)  # the strand-render frames are kept beside the tables (hairlut.render.cached_frame)
         probe = strands_probe(p.scene, cache=cache)
-        camera = layered_vs_strands(p.scene, Path(out_dir) / "camera", prepared=prepared, level=STRANDS_LEVEL,
-                                    strands_info={"convergence_probe": probe}, cache=cache)
+        camera = layered_vs_strands(
+            p.scene,
+            Path(out_dir) / "camera",
+            prepared=prepared,
+            level=STRANDS_LEVEL,
+            strands_info={"convergence_probe": probe},
+            cache=cache,
+        )
     accuracy = {"hrir_query_self_check": _hrir_self_check(assets["hrir_db"]["path"])} if "hrir_db" in assets else {}
     if "sh_tables" in assets:
         accuracy.update(_sh_figures(assets["sh_tables"]["path"]))
     if "environment_clamped" in result.stats:
         accuracy["environment_clamped_fraction"] = result.stats["environment_clamped"]
-    return {"scene": str(scene_path), "plan": p.to_json()["steps"], "assets": assets, "files": files,
-            "stats": result.stats, "accuracy": accuracy, "camera": camera,
-            "seconds": {"plan": t1 - t0, "bake": t2 - t1, "synth": t3 - t2, "write": t4 - t3,
-                        **({"camera": time.perf_counter() - t4} if camera else {})}}
+    return {
+        "scene": str(scene_path),
+        "plan": p.to_json()["steps"],
+        "assets": assets,
+        "files": files,
+        "stats": result.stats,
+        "accuracy": accuracy,
+        "camera": camera,
+        "seconds": {
+            "plan": t1 - t0,
+            "bake": t2 - t1,
+            "synth": t3 - t2,
+            "write": t4 - t3,
+            **({"camera": time.perf_counter() - t4} if camera else {}),
+        },
+    }
 
 
 def run(out_dir: str | os.PathLike, scenes, cache_root=None, progress=None) -> dict:

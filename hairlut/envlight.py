@@ -168,8 +168,9 @@ def read_envmap(path: str | os.PathLike, layout: str = "auto", up: str = "z") ->
             faces, kind = _cross_faces(img, n, vertical=4 * w == 3 * h), "cube"
         else:
             raise errors.ValidationError(
-                "envmap.shape", (h, w), f"{path}: not a 2:1 lat-long map, a cube strip 6n high and n wide, a 4:3 or 3:4 cross, "
-                                    "nor six cube parts"
+                "envmap.shape",
+                (h, w),
+                f"{path}: not a 2:1 lat-long map, a cube strip 6n high and n wide, a 4:3 or 3:4 cross, nor six cube parts",
             )
         if kind == "latlong" and w != 2 * h:
             raise errors.ValidationError("envmap.shape", (h, w), f"{path}: a lat-long map is twice as wide as high")
@@ -191,8 +192,12 @@ def read_envmap(path: str | os.PathLike, layout: str = "auto", up: str = "z") ->
         raise errors.ValidationError("envmap", str(path), f"{int(bad.any(axis=-1).sum())} texels are NaN or infinite")
     peak = float(np.abs(radiance).max()) if radiance.size else 0.0
     if peak > MAX_RADIANCE:
-        raise errors.ValidationError("envmap", str(path), f"radiance up to {peak:.3g} exceeds {MAX_RADIANCE:g}: the light's "
-                                     "Cd/Cs tables are float32 (max 3.4e38) and would hold infinities; scale the map down")
+        raise errors.ValidationError(
+            "envmap",
+            str(path),
+            f"radiance up to {peak:.3g} exceeds {MAX_RADIANCE:g}: the light's "
+            "Cd/Cs tables are float32 (max 3.4e38) and would hold infinities; scale the map down",
+        )
     dirs = dirs.reshape(-1, 3)
     if up == "y":
         dirs = dirs[:, [1, 2, 0]]
@@ -214,7 +219,6 @@ def project_samples(dirs: np.ndarray, weights: np.ndarray, values: np.ndarray, l
         y = np.asarray(real_sh(lmax, np.asarray(dirs[sl], np.float64)))
         out += y.T @ (weights[sl, None] * values[sl])
     return out
-
 
 
 def project_env(samples: EnvSamples, lmax: int) -> EnvLight:
@@ -245,8 +249,9 @@ def sky_radiance(height: int = SKY["height"]) -> np.ndarray:
 def sky_light(lmax: int) -> EnvLight:
     """The built-in sky projected to SH up to band ``lmax`` (its source hash is that of :data:`SKY`)."""
     dirs, omega = latlong_samples(SKY["height"], 2 * SKY["height"])
-    light = project_env(EnvSamples(dirs.reshape(-1, 3), omega.reshape(-1), sky_radiance().reshape(-1, 3),
-                                   ("R", "G", "B"), "latlong"), lmax)
+    light = project_env(
+        EnvSamples(dirs.reshape(-1, 3), omega.reshape(-1), sky_radiance().reshape(-1, 3), ("R", "G", "B"), "latlong"), lmax
+    )
     digest = hashlib.sha256(repr(sorted(SKY.items())).encode()).hexdigest()
     return EnvLight(light.coeffs, light.channels, light.lmax, light.band_error, light.layout, digest)
 
@@ -266,8 +271,10 @@ LIGHT_KIND = "sh_light"
 def write_light(path: str | os.PathLike, light: EnvLight, recipe: dict) -> Path:
     """Store light coefficients as an ``sh_light`` table (a: coefficient × channel)."""
     n, c = light.coeffs.shape
-    axes = [Axis("sh_i", np.arange(n, dtype=np.int32), "1", "SH index i = l*l + l + m"),
-            Axis("channel", np.arange(c, dtype=np.int32), "1", "colour channel: " + ",".join(light.channels))]
+    axes = [
+        Axis("sh_i", np.arange(n, dtype=np.int32), "1", "SH index i = l*l + l + m"),
+        Axis("channel", np.arange(c, dtype=np.int32), "1", "colour channel: " + ",".join(light.channels)),
+    ]
     var = Variable("a", light.coeffs, ("sh_i", "channel"), "W/(m2 sr)", "SH coefficients a_i of the environment radiance")
     attrs = {"band_error": light.band_error.astype(np.float64), "channels": ",".join(light.channels)}
     return write_table(path, LIGHT_KIND, recipe, axes, [var], attrs=attrs)
@@ -280,7 +287,9 @@ def read_light(path: str | os.PathLike) -> EnvLight:
     lmax = int(round(np.sqrt(a.shape[0]))) - 1
     if (lmax + 1) ** 2 != a.shape[0]:
         raise errors.CorruptAssetError(path, f"{a.shape[0]} coefficients is not a square number")
-    channels = tuple(str(t.attrs.get("channels", "")).split(",")) if "channels" in t.attrs else tuple(f"c{i}" for i in range(a.shape[1]))
+    channels = (
+        tuple(str(t.attrs.get("channels", "")).split(",")) if "channels" in t.attrs else tuple(f"c{i}" for i in range(a.shape[1]))
+    )
     err = np.asarray(t.attrs.get("band_error", np.zeros(a.shape[1])), np.float64)
     return EnvLight(a, channels, lmax, err, str(t.recipe.get("layout", "")), t.recipe.get("source_sha256"))
 
@@ -300,8 +309,9 @@ def load_light(path: str | os.PathLike, lmax: int, layout: str = "auto", up: str
 # ----------------------------------------------------------------------------- the radiance reference
 
 
-def hair_radiance(coeffs, b, tangent, theta_v, kd=1.0, ks=1.0, p: float = 49.0, *, height: int = 96,
-                  block: int = 256) -> np.ndarray:
+def hair_radiance(
+    coeffs, b, tangent, theta_v, kd=1.0, ks=1.0, p: float = 49.0, *, height: int = 96, block: int = 256
+) -> np.ndarray:
     """xing eq 2 by brute-force quadrature, the reference the SH tables are measured against:
 
         E_k = ∫ L_k(ω) V(ω) (kd_k sin θ + ks_k max(0, −cos(θ + θ′))^p) dω,   θ = ∠(ω, t),

@@ -19,8 +19,13 @@ from pathlib import Path
 from . import errors
 
 #: What a path that is not a regular file is, by its ``st_mode`` test.
-_KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
-          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
+_KINDS = (
+    (stat.S_ISDIR, "a folder"),
+    (stat.S_ISFIFO, "a FIFO"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+)
 
 
 def not_regular(mode: int) -> str | None:
@@ -57,5 +62,8 @@ def not_an_input(out: str | os.PathLike | None, inputs, field: str = "out") -> N
         if not same and os.path.exists(out) and os.path.exists(given):
             same = os.path.samefile(out, given)
         if same:
-            raise errors.ValidationError(field, os.fspath(out), f"is the input {os.fspath(given)}; writing there would "
-                                         "overwrite it: choose another output path")
+            raise errors.ValidationError(
+                field,
+                os.fspath(out),
+                f"is the input {os.fspath(given)}; writing there would overwrite it: choose another output path",
+            )

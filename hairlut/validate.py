@@ -93,11 +93,13 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)
 def float32(check):
     """Field check: ``check``'s rule, and at most :data:`FLOAT32_MAX` in magnitude (for a value a float32 kernel
     receives as it is: beyond, it becomes infinity in the kernel, and inf · 0 = NaN)."""
+
     def run(x):
         reason = check(x)
         if reason is None and _is_real(x) and abs(x) > FLOAT32_MAX:
             return f"must be ≤ {FLOAT32_MAX:.8g} (float32's largest: the kernel computes in float32)"
         return reason
+
     return run
 
 
@@ -119,11 +121,13 @@ def one_of(*choices):
 
 def auto_or(check):
     """Field check: the word ``'auto'``, or a value ``check`` accepts."""
+
     def run(x):
         if x == "auto":
             return None
         reason = check(x)
         return None if reason is None else f"{reason}, or 'auto'"
+
     return run
 
 
@@ -191,8 +195,12 @@ def directions(value, field: str = "dirs", *, normalize: bool = True, tol: float
     dev = np.abs(norm - 1.0)
     if dev.size and float(dev.max()) > tol:
         k = np.unravel_index(int(np.argmax(dev)), dev.shape)
-        raise errors.ValidationError(field, value, f"not a unit vector at index {tuple(int(v) for v in k)} "
-                                     f"(|d| = {float(norm[k]):.8g}, tolerance {tol:g}); normalise first")
+        raise errors.ValidationError(
+            field,
+            value,
+            f"not a unit vector at index {tuple(int(v) for v in k)} "
+            f"(|d| = {float(norm[k]):.8g}, tolerance {tol:g}); normalise first",
+        )
     return arr.astype(dtype, copy=False)
 
 

@@ -5,13 +5,12 @@ import h5py
 import pytest
 from click.testing import CliRunner
 
-from hairlut_cli.main import cli
 from hairlut.assets import recipe_hash
 from hairlut.hrir import bake as bake_hrir
 from hairlut.shtables import bake_sh, write_sh_tables
+from hairlut_cli.main import cli
 
-SMALL_HRIR = {"sectors": {"count": 6, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3},
-              "trace": {"pixels": 8, "steps": 12}}
+SMALL_HRIR = {"sectors": {"count": 6, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3}, "trace": {"pixels": 8, "steps": 12}}
 
 
 @pytest.fixture(scope="module")

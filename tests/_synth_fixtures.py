@@ -15,17 +15,36 @@ def synthetic_db(seed: int = 5):
     feats = np.stack([rng.uniform(0.0, 0.4, N), rng.uniform(0.2, 0.8, N), rng.uniform(0.2, 0.8, N)], axis=1)
     alpha = rng.uniform(0.0, 1.0, (N, V, P))
     refl = alpha[:, :, None, :] * rng.uniform(0.0, 1.0, (N, V, L, P))
-    return SimpleNamespace(features=feats, stats=FeatureStats.fit(feats, ("rho_st", "rho_s", "rho_t")),
-                           theta_v=2 * np.pi * np.arange(V) / V, theta_l=2 * np.pi * np.arange(L) / L,
-                           alpha=alpha, reflectance=refl,
-                           recipe={"sectors": {"grid": [8, 8], "density_scale": 1.0}})
+    return SimpleNamespace(
+        features=feats,
+        stats=FeatureStats.fit(feats, ("rho_st", "rho_s", "rho_t")),
+        theta_v=2 * np.pi * np.arange(V) / V,
+        theta_l=2 * np.pi * np.arange(L) / L,
+        alpha=alpha,
+        reflectance=refl,
+        recipe={"sectors": {"grid": [8, 8], "density_scale": 1.0}},
+    )
 
 
-CLUSTER_A = {"trajectory": [[0.0, 1.0, 0.0], [0.05, 0.5, 0.1], [0.1, 0.0, 0.1]], "half_axis_a": 0.08,
-             "half_axis_b": 0.06, "twist": [0.0, 1.0], "layer_radii": [0.6, 1.0], "core_radius": 0.2,
-             "s_t": 4, "s_u": 4}
-CLUSTER_B = {"trajectory": [[0.3, 1.0, 0.0], [0.3, 0.5, 0.05], [0.28, 0.0, 0.0]], "half_axis_a": [0.07, 0.09],
-             "half_axis_b": 0.05, "layer_radii": [0.6, 1.0], "core_radius": 0.2, "s_t": 4, "s_u": 4}
+CLUSTER_A = {
+    "trajectory": [[0.0, 1.0, 0.0], [0.05, 0.5, 0.1], [0.1, 0.0, 0.1]],
+    "half_axis_a": 0.08,
+    "half_axis_b": 0.06,
+    "twist": [0.0, 1.0],
+    "layer_radii": [0.6, 1.0],
+    "core_radius": 0.2,
+    "s_t": 4,
+    "s_u": 4,
+}
+CLUSTER_B = {
+    "trajectory": [[0.3, 1.0, 0.0], [0.3, 0.5, 0.05], [0.28, 0.0, 0.0]],
+    "half_axis_a": [0.07, 0.09],
+    "half_axis_b": 0.05,
+    "layer_radii": [0.6, 1.0],
+    "core_radius": 0.2,
+    "s_t": 4,
+    "s_u": 4,
+}
 
 
 def scene(**material):

@@ -38,7 +38,9 @@ def pytest_configure(config):
     import jax
 
     jax.config.update("jax_compilation_cache_dir", os.environ["JAX_COMPILATION_CACHE_DIR"])
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.2)  # hairlut_cli.main keeps every kernel (0); in-process tests keep the slower ones only
+    jax.config.update(
+        "jax_persistent_cache_min_compile_time_secs", 0.2
+    )  # hairlut_cli.main keeps every kernel (0); in-process tests keep the slower ones only
 
 
 def pytest_unconfigure(config):
@@ -135,8 +137,11 @@ def pytest_runtest_protocol(item, nextitem):
     import time
 
     def cpu():
-        return time.process_time() + resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime + \
-            resource.getrusage(resource.RUSAGE_CHILDREN).ru_stime
+        return (
+            time.process_time()
+            + resource.getrusage(resource.RUSAGE_CHILDREN).ru_utime
+            + resource.getrusage(resource.RUSAGE_CHILDREN).ru_stime
+        )
 
     wall0, cpu0 = time.perf_counter(), cpu()
     yield

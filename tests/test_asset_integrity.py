@@ -20,20 +20,20 @@ import pytest
 from click.testing import CliRunner
 
 from hairlut import errors
-from hairlut.bake import registry
-from hairlut.assets import open_table, read_exr, read_table, summarize, h5 as store
+from hairlut.assets import h5 as store
+from hairlut.assets import open_table, read_exr, read_table, summarize
 from hairlut.assets.layout import layout
-from hairlut.files import not_an_input, regular_file
-from hairlut.hrir import bake, load_hrir_db
 from hairlut.assets.parts import parts_dir
 from hairlut.assets.virtual_write import check_virtual
+from hairlut.bake import registry
+from hairlut.files import not_an_input, regular_file
+from hairlut.hrir import bake, load_hrir_db
 from hairlut_cli.main import cli
 
 from ._tables import lobes_table
 from .test_distributed_bake import split_cases
 
-SMALL = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 3, "lights": 2},
-         "trace": {"pixels": 4, "steps": 4}}
+SMALL = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 3, "lights": 2}, "trace": {"pixels": 4, "steps": 4}}
 
 
 def invoke(*args):
@@ -223,7 +223,9 @@ def test_a_fifo_groom_scene_or_recipe_is_refused(tmp_path):
 def test_folders_and_devices_are_refused(tmp_path, what):
     path = tmp_path if what == "folder" else Path("/dev/null")
     for fn in (read_table, summarize, read_exr, load_hrir_db, regular_file):
-        with pytest.raises(errors.FormatError, match=f"not a regular file \\(a {'folder' if what == 'folder' else 'character device'}\\)"):
+        with pytest.raises(
+            errors.FormatError, match=f"not a regular file \\(a {'folder' if what == 'folder' else 'character device'}\\)"
+        ):
             fn(path)
     res = invoke("inspect", path)
     assert res.exit_code == 2 and str(path) in res.output  # a folder: click's own usage error
@@ -238,8 +240,7 @@ def test_compare_refuses_to_write_its_png_over_an_input(tmp_path):
     from hairlut.scene import CAMERA, make_camera
 
     rng = np.random.default_rng(3)
-    cam = make_camera(resolve(CAMERA, {"view": [0.0, 0.0, 1.0], "resolution": [16, 16]}, "camera."),
-                      rng.normal(size=(9, 3)))
+    cam = make_camera(resolve(CAMERA, {"view": [0.0, 0.0, 1.0], "resolution": [16, 16]}, "camera."), rng.normal(size=(9, 3)))
     a, b = tmp_path / "a.exr", tmp_path / "b.exr"
     for path, scale in ((a, 1.0), (b, 0.5)):
         rgba = np.concatenate([rng.uniform(0, scale, (16, 16, 3)), np.ones((16, 16, 1))], -1).astype(np.float32)

@@ -89,8 +89,11 @@ def test_check_writable_refuses_what_cannot_be_written_and_creates_nothing(tmp_p
     from hairlut import errors
     from hairlut.atomic import atomic_write_bytes, check_writable
 
-    for target, folder in ((read_only_dir / "r.exr", False), (read_only_dir / "a" / "b" / "r.exr", False),
-                           (read_only_dir / "out", True)):
+    for target, folder in (
+        (read_only_dir / "r.exr", False),
+        (read_only_dir / "a" / "b" / "r.exr", False),
+        (read_only_dir / "out", True),
+    ):
         with pytest.raises(errors.AssetError, match="cannot write") as exc:
             check_writable(target, folder=folder)
         assert exc.value.path == str(target) and str(read_only_dir) in str(exc.value)
@@ -98,8 +101,11 @@ def test_check_writable_refuses_what_cannot_be_written_and_creates_nothing(tmp_p
         atomic_write_bytes(read_only_dir / "r.png", b"x")
     assert exc.value.path == str(read_only_dir / "r.png") and ".tmp" not in str(exc.value)
     (tmp_path / "file").write_bytes(b"")
-    for target, folder, words in ((tmp_path / "file" / "r.exr", False, "is a file, not a folder"),
-                                  (tmp_path, False, "is a folder"), (tmp_path / "file", True, "is a file")):
+    for target, folder, words in (
+        (tmp_path / "file" / "r.exr", False, "is a file, not a folder"),
+        (tmp_path, False, "is a folder"),
+        (tmp_path / "file", True, "is a file"),
+    ):
         with pytest.raises(errors.AssetError, match=words):
             check_writable(target, folder=folder)
     fresh = tmp_path / "new" / "deeper" / "r.exr"

@@ -9,8 +9,8 @@ import pytest
 
 from hairlut import errors
 from hairlut.bake.devices import dispatch_units, map_units
-from hairlut.hrir import _bake, resolve_recipe
 from hairlut.bake.sharding import _bake_blocks
+from hairlut.hrir import _bake, resolve_recipe
 
 
 class Toy:
@@ -40,8 +40,7 @@ def _run(tmp_path, units, n_blocks=3):
     todo = [(8 * i, 8 * i + 8) for i in range(n_blocks)]
     parts = [tmp_path / f"part-{s}-{e}" for s, e in todo]
     report, seen = {"computed": 0, "resumed": 0}, []
-    _bake_blocks(units, {}, todo, parts, 8 * n_blocks, "hash", None, report, lambda d, t: seen.append((d, t)),
-                 8 * n_blocks, {})
+    _bake_blocks(units, {}, todo, parts, 8 * n_blocks, "hash", None, report, lambda d, t: seen.append((d, t)), 8 * n_blocks, {})
     return report, seen, parts
 
 

@@ -11,6 +11,7 @@ from click.testing import CliRunner
 
 from hairlut import errors
 from hairlut.bench import PARTS, Figure, Part, derive, pareto_front, run_bench, strand_transmittance
+
 from ._readonly import read_only_dir  # noqa: F401  (a fixture)
 
 
@@ -39,8 +40,12 @@ def test_ratios_against_the_same_run_baseline():
 
 def _fake_run(ctx):
     ctx.note("fake", "a made-up part")
-    return [_fig("slow exact", 1.0, 1e-6), _fig("straightforward", 0.5, 1e-3, baseline=True),
-            _fig("fast", 0.01, 1e-2, paper=True), _fig("stored as float16", None, 2e-3)]
+    return [
+        _fig("slow exact", 1.0, 1e-6),
+        _fig("straightforward", 0.5, 1e-3, baseline=True),
+        _fig("fast", 0.01, 1e-2, paper=True),
+        _fig("stored as float16", None, 2e-3),
+    ]
 
 
 def _boom(ctx):
@@ -48,8 +53,11 @@ def _boom(ctx):
 
 
 def test_run_bench_writes_report_results_and_plots(tmp_path):
-    registry = {"fake": Part("fake", "a fake part", _fake_run), "broken": Part("broken", "fails", _boom),
-                "absent": Part("absent", "cannot run", _fake_run, lambda: "no such device")}
+    registry = {
+        "fake": Part("fake", "a fake part", _fake_run),
+        "broken": Part("broken", "fails", _boom),
+        "absent": Part("absent", "cannot run", _fake_run, lambda: "no such device"),
+    }
     res = run_bench(tmp_path / "out", registry=registry)
     out = tmp_path / "out"
     doc = json.loads((out / "results.json").read_text())
@@ -142,13 +150,16 @@ def test_a_real_part_at_its_quick_size(tmp_path):
 
 def _recording_registry(ran: list, interrupt_in: str | None = None) -> dict:
     """Three fake parts that record that they ran; ``interrupt_in`` raises KeyboardInterrupt (Ctrl-C) in that one."""
+
     def runner(name):
         def run(ctx):
             ran.append(name)
             if name == interrupt_in:
                 raise KeyboardInterrupt
             return [Figure(name, "t", "base", 1.0, 1e-2, "err", baseline=True), Figure(name, "t", "fast", 0.5, 2e-2, "err")]
+
         return run
+
     return {n: Part(n, f"the {n} part", runner(n)) for n in ("one", "two", "three")}
 
 

@@ -24,10 +24,12 @@ def test_exclude_leaves_out_each_points_own_strand():
     pts = np.array([[0.0, 0.0, -1.999], [0.0, 0.0, -1.0]])  # on strand 1 (just in front); between the strands
     near = np.exp(-kappa / (np.sqrt(2 * np.pi) * sigma))
     np.testing.assert_allclose(strand_transmittance(strands, light, pts, kappa, sigma), [near, near], rtol=2e-3)
-    np.testing.assert_allclose(strand_transmittance(strands, light, pts, kappa, sigma, exclude=np.array([1, 1])),
-                               [near, near], rtol=2e-3)
-    np.testing.assert_allclose(strand_transmittance(strands, light, pts, kappa, sigma, exclude=np.array([0, 0])),
-                               [1.0, 1.0], atol=1e-12)
+    np.testing.assert_allclose(
+        strand_transmittance(strands, light, pts, kappa, sigma, exclude=np.array([1, 1])), [near, near], rtol=2e-3
+    )
+    np.testing.assert_allclose(
+        strand_transmittance(strands, light, pts, kappa, sigma, exclude=np.array([0, 0])), [1.0, 1.0], atol=1e-12
+    )
 
 
 def test_numpy_table_6_1_matches_the_jitted_maps():
@@ -60,8 +62,9 @@ def test_a_maps_footprint_is_half_its_cell(res):
     pts = np.asarray(strands.points)[::8]
     m = light_oriented_map(strands, LIGHT, resolution=res, kappa=KAPPA)
     t = m.at(pts)
-    rms = {c: np.sqrt(np.mean((t - strand_transmittance(strands, LIGHT, pts, KAPPA, c * m.spacing)) ** 2))
-           for c in (0.25, 0.5, 1.0)}
+    rms = {
+        c: np.sqrt(np.mean((t - strand_transmittance(strands, LIGHT, pts, KAPPA, c * m.spacing)) ** 2)) for c in (0.25, 0.5, 1.0)
+    }
     assert rms[0.5] < 0.8 * min(rms[0.25], rms[1.0]), rms
 
 
@@ -90,6 +93,9 @@ def test_the_part_at_its_quick_size(tmp_path):
     for rows in by.values():
         assert sum(f["baseline"] for f in rows) == 1 and all(np.isfinite(f["error"]) for f in rows)
     assert {f["label"] for f in by[TABLE_OWN]} <= {f["label"] for f in by[TABLE]}
-    lom = {f["knobs"]["cells"]: f["error"] for f in by[TABLE] if f["label"].startswith("light-oriented")
-           and "storage" not in f["knobs"]}
+    lom = {
+        f["knobs"]["cells"]: f["error"]
+        for f in by[TABLE]
+        if f["label"].startswith("light-oriented") and "storage" not in f["knobs"]
+    }
     assert min(lom, key=lom.get) == 128, lom

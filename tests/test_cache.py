@@ -3,7 +3,6 @@
 import json
 import os
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -20,8 +19,14 @@ def _bake_lobes(recipe, calls):
     def bake(path):
         calls.append(path)
         x = np.linspace(0, 1, recipe["n"])
-        write_table(path, "kk_lobes", recipe, [Axis("x", x, "1", "x"), Axis("p", [1.0], "1", "p")],
-                    [Variable("diffuse", x, ("x",), "1", "d"), Variable("specular", x[None], ("p", "x"), "1", "s")])
+        write_table(
+            path,
+            "kk_lobes",
+            recipe,
+            [Axis("x", x, "1", "x"), Axis("p", [1.0], "1", "p")],
+            [Variable("diffuse", x, ("x",), "1", "d"), Variable("specular", x[None], ("p", "x"), "1", "s")],
+        )
+
     return bake
 
 

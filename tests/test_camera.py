@@ -4,14 +4,18 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from hairlut import errors
 from hairlut.recipes import resolve
 from hairlut.scene import CAMERA, check_camera, frame_bytes, make_camera, resolve_scene
 
-BASE = {"camera": {"view": [0.0, 0.0, 1.0]}, "lights": {"directions": [[0.0, 1.0, 0.0]]},
-        "clusters": [{"trajectory": [[0, 0, 0], [0, 1, 0], [0, 2, 0]], "half_axis_a": 0.2, "half_axis_b": 0.2}]}
+BASE = {
+    "camera": {"view": [0.0, 0.0, 1.0]},
+    "lights": {"directions": [[0.0, 1.0, 0.0]]},
+    "clusters": [{"trajectory": [[0, 0, 0], [0, 1, 0], [0, 2, 0]], "half_axis_a": 0.2, "half_axis_b": 0.2}],
+}
 BOX = np.array([[x, y, z] for x in (-1, 1) for y in (-2, 2) for z in (-0.5, 0.5)], float)
 
 
@@ -25,21 +29,24 @@ def _cam(**keys):
     return c
 
 
-@pytest.mark.parametrize("cam, key", [
-    ({"view": [0.0, 0.0, 0.0]}, "camera.view"),
-    ({"view": [float("nan"), 0.0, 1.0]}, "camera.view"),
-    ({"up": [0.0, 0.0, 2.0]}, "camera.up"),
-    ({"fov": 0.0}, "camera.fov"),
-    ({"fov": 180.0}, "camera.fov"),
-    ({"resolution": [0, 768]}, "camera.resolution"),
-    ({"resolution": [768]}, "camera.resolution"),
-    ({"resolution": [16384, 16384]}, "camera.resolution"),
-    ({"projection": "fisheye"}, "camera.projection"),
-    ({"extent": -1.0}, "camera.extent"),
-    ({"position": [0.0, 1.0], "look_at": [0.0, 0.0, 0.0]}, "camera.position"),
-    ({"position": [1.0, 0.0, 5.0], "look_at": [0.0, 0.0, 0.0]}, "camera.position"),
-    ({"lens": 35}, "camera.lens"),
-])
+@pytest.mark.parametrize(
+    "cam, key",
+    [
+        ({"view": [0.0, 0.0, 0.0]}, "camera.view"),
+        ({"view": [float("nan"), 0.0, 1.0]}, "camera.view"),
+        ({"up": [0.0, 0.0, 2.0]}, "camera.up"),
+        ({"fov": 0.0}, "camera.fov"),
+        ({"fov": 180.0}, "camera.fov"),
+        ({"resolution": [0, 768]}, "camera.resolution"),
+        ({"resolution": [768]}, "camera.resolution"),
+        ({"resolution": [16384, 16384]}, "camera.resolution"),
+        ({"projection": "fisheye"}, "camera.projection"),
+        ({"extent": -1.0}, "camera.extent"),
+        ({"position": [0.0, 1.0], "look_at": [0.0, 0.0, 0.0]}, "camera.position"),
+        ({"position": [1.0, 0.0, 5.0], "look_at": [0.0, 0.0, 0.0]}, "camera.position"),
+        ({"lens": 35}, "camera.lens"),
+    ],
+)
 def test_bad_camera_names_the_key(cam, key):
     with pytest.raises(errors.ValidationError) as exc:
         _scene(**cam)
@@ -66,9 +73,12 @@ def test_camera_inside_the_hair_is_refused(projection):
     assert exc.value.field == "camera.position"
 
 
-@given(view=st.tuples(*[st.floats(-1, 1)] * 3).filter(lambda v: 0.1 < np.linalg.norm(v) and abs(v[1]) < 0.95 * np.linalg.norm(v)),
-       pts=st.lists(st.tuples(*[st.floats(-1, 1)] * 3), min_size=1, max_size=5),
-       projection=st.sampled_from(["orthographic", "perspective"]), fov=st.floats(10, 120))
+@given(
+    view=st.tuples(*[st.floats(-1, 1)] * 3).filter(lambda v: 0.1 < np.linalg.norm(v) and abs(v[1]) < 0.95 * np.linalg.norm(v)),
+    pts=st.lists(st.tuples(*[st.floats(-1, 1)] * 3), min_size=1, max_size=5),
+    projection=st.sampled_from(["orthographic", "perspective"]),
+    fov=st.floats(10, 120),
+)
 def test_matrix_agrees_with_rays(view, pts, projection, fov):
     """A point on the ray through pixel (x, y) projects, through the 4 × 4 matrix, back to (x, y); every
     fitted point lies in the frame (NDC within [-1, 1])."""
@@ -97,30 +107,39 @@ def test_view_is_derived_from_position_and_look_at():
     agree = resolve_scene({**BASE, "camera": {"view": [6.0, 0.0, 8.0], "position": [3.0, 1.0, 4.0], "look_at": [0.0, 1.0, 0.0]}})
     assert np.allclose(agree.view, sc.view)
     far = resolve_scene({**BASE, "camera": {"position": [1e308, 0.0, 1e308], "look_at": [-1e308, 0.0, -1e308]}})
-    assert np.allclose(far.view, [2 ** -0.5, 0.0, 2 ** -0.5])
+    assert np.allclose(far.view, [2**-0.5, 0.0, 2**-0.5])
 
 
-@pytest.mark.parametrize("cam, key, words", [
-    ({"position": [3.0, 1.0, 4.0], "look_at": [0.0, 1.0, 0.0], "view": [0.0, 0.0, 1.0]}, "camera.position",
-     ["camera.view [0.0, 0.0, 1.0]", "look_at [0.0, 1.0, 0.0]"]),
-    ({"position": [1.0, 1.0, 1.0], "look_at": [1.0, 1.0, 1.0]}, "camera.position", ["equals camera.look_at"]),
-    ({"position": [1.0, 1.0, 1.0]}, "camera.view", ["missing required key", "camera.position and camera.look_at"]),
-    ({"look_at": [1.0, 1.0, 1.0]}, "camera.view", ["missing required key"]),
-    ({"position": [1.0, float("inf"), 1.0], "look_at": [0.0, 0.0, 0.0]}, "camera.position", ["finite"]),
-])
+@pytest.mark.parametrize(
+    "cam, key, words",
+    [
+        (
+            {"position": [3.0, 1.0, 4.0], "look_at": [0.0, 1.0, 0.0], "view": [0.0, 0.0, 1.0]},
+            "camera.position",
+            ["camera.view [0.0, 0.0, 1.0]", "look_at [0.0, 1.0, 0.0]"],
+        ),
+        ({"position": [1.0, 1.0, 1.0], "look_at": [1.0, 1.0, 1.0]}, "camera.position", ["equals camera.look_at"]),
+        ({"position": [1.0, 1.0, 1.0]}, "camera.view", ["missing required key", "camera.position and camera.look_at"]),
+        ({"look_at": [1.0, 1.0, 1.0]}, "camera.view", ["missing required key"]),
+        ({"position": [1.0, float("inf"), 1.0], "look_at": [0.0, 0.0, 0.0]}, "camera.position", ["finite"]),
+    ],
+)
 def test_view_position_and_look_at_refusals_name_the_keys(cam, key, words):
     with pytest.raises(errors.ValidationError) as exc:
         resolve_scene({**BASE, "camera": cam})
     assert exc.value.field == key and all(w in str(exc.value) for w in words), str(exc.value)
 
 
-@pytest.mark.parametrize("keys, key", [
-    ({"projection": "perspective", "fov": 1e-6}, "camera.fov"),  # the fitted eye stands ~1e8 radii away
-    ({"projection": "perspective", "position": [0.0, 0.0, 1e12], "look_at": [0.0, 0.0, 0.0]}, "camera.position"),
-    ({"position": [0.0, 0.0, 1e12], "look_at": [0.0, 0.0, 0.0]}, "camera.position"),
-    ({"look_at": [1e9, 0.0, 0.0]}, "camera.look_at"),
-    ({"extent": 1e-30}, "camera.extent"),  # a pixel 1e-32 wide
-])
+@pytest.mark.parametrize(
+    "keys, key",
+    [
+        ({"projection": "perspective", "fov": 1e-6}, "camera.fov"),  # the fitted eye stands ~1e8 radii away
+        ({"projection": "perspective", "position": [0.0, 0.0, 1e12], "look_at": [0.0, 0.0, 0.0]}, "camera.position"),
+        ({"position": [0.0, 0.0, 1e12], "look_at": [0.0, 0.0, 0.0]}, "camera.position"),
+        ({"look_at": [1e9, 0.0, 0.0]}, "camera.look_at"),
+        ({"extent": 1e-30}, "camera.extent"),  # a pixel 1e-32 wide
+    ],
+)
 def test_a_camera_float32_cannot_draw_is_refused_naming_the_key(keys, key):
     """Issue 29 N2: where float32 (both renderers' precision) would lose the hair (its step at the eye's distance
     above 1/16 of the thinnest strand's radius, or a pixel narrower than 16 steps), the camera is refused naming

@@ -78,9 +78,17 @@ def _both(data, chunks, threads=3, **kw):
     return files
 
 
-CASES = [((37, 5, 9), (16, 5, 4), np.float32), ((100,), (7,), np.float64), ((3, 33), (2, 10), np.float16),
-         ((65,), (64,), np.int64), ((13, 3), (4, 3), np.int8), ((1000,), True, np.uint16), ((5,), (5,), np.bool_),
-         ((2, 32, 32, 64), (1, 32, 32, 64), np.float32), ((40, 6), True, np.int32)]
+CASES = [
+    ((37, 5, 9), (16, 5, 4), np.float32),
+    ((100,), (7,), np.float64),
+    ((3, 33), (2, 10), np.float16),
+    ((65,), (64,), np.int64),
+    ((13, 3), (4, 3), np.int8),
+    ((1000,), True, np.uint16),
+    ((5,), (5,), np.bool_),
+    ((2, 32, 32, 64), (1, 32, 32, 64), np.float32),
+    ((40, 6), True, np.int32),
+]
 
 
 @pytest.mark.parametrize("shape,chunks,dtype", CASES)
@@ -147,19 +155,24 @@ register_kind("chunk_toy", ("x",), "a table for the chunk writer's tests")
 def _table(path):
     rng = np.random.default_rng(1)
     axes = [Axis("a", np.arange(40.0), "1", "a"), Axis("b", np.arange(6.0), "1", "b")]
-    variables = [Variable("x", rng.standard_normal((40, 6)).astype(np.float32), ("a", "b"), "1", "x", chunks=(16, 6)),
-                 Variable("g/y", np.arange(40, dtype=np.int16), ("a",), "1", "y")]
+    variables = [
+        Variable("x", rng.standard_normal((40, 6)).astype(np.float32), ("a", "b"), "1", "x", chunks=(16, 6)),
+        Variable("g/y", np.arange(40, dtype=np.int16), ("a",), "1", "y"),
+    ]
     write_table(path, "chunk_toy", {"r": 1}, axes, variables)
     return variables
 
 
 def test_write_table_reads_back_and_is_the_same_file_for_any_thread_count(tmp_path):
-    code = ("import os, sys; sys.path.insert(0, {tests!r}); os.environ['SOURCE_DATE_EPOCH'] = '0'; "
-            "from test_chunk_writer import _table; _table(sys.argv[1])")
+    code = (
+        "import os, sys; sys.path.insert(0, {tests!r}); os.environ['SOURCE_DATE_EPOCH'] = '0'; "
+        "from test_chunk_writer import _table; _table(sys.argv[1])"
+    )
     for t in (1, 4):
         env = {**os.environ, "HAIRLUT_WRITE_THREADS": str(t)}
-        subprocess.run([sys.executable, "-c", code.format(tests=os.path.dirname(__file__)), str(tmp_path / f"{t}.h5")],
-                       check=True, env=env)
+        subprocess.run(
+            [sys.executable, "-c", code.format(tests=os.path.dirname(__file__)), str(tmp_path / f"{t}.h5")], check=True, env=env
+        )
     assert (tmp_path / "1.h5").read_bytes() == (tmp_path / "4.h5").read_bytes()
     variables = _table(tmp_path / "here.h5")
     t = read_table(tmp_path / "1.h5", "chunk_toy")

@@ -61,10 +61,12 @@ def test_version_and_help_import_neither_jax_nor_hdf5():
     """``hairlut --version`` and ``--help`` import no command's heavy parts (each took ~2 CPU-s with JAX)."""
     import sys
 
-    code = ("import sys; from hairlut_cli.main import cli\n"
-            "try: cli(sys.argv[1:], prog_name='hairlut')\n"
-            "except SystemExit as e: assert not e.code, e.code\n"
-            "print(sorted({'jax', 'h5py', 'numpy', 'hairlut.bake.registry'} & set(sys.modules)))")
+    code = (
+        "import sys; from hairlut_cli.main import cli\n"
+        "try: cli(sys.argv[1:], prog_name='hairlut')\n"
+        "except SystemExit as e: assert not e.code, e.code\n"
+        "print(sorted({'jax', 'h5py', 'numpy', 'hairlut.bake.registry'} & set(sys.modules)))"
+    )
     for args in (["--version"], ["--help"]):
         out = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=120)
         assert out.returncode == 0, out.stderr
@@ -75,7 +77,15 @@ def test_inspect_table_text_and_json(tmp_path):
     path, ref = lobes_table(tmp_path / "t.h5")
     res = run("inspect", path)
     assert res.exit_code == 0
-    for word in ("kk_lobes", f"schema    {SCHEMA}", "specular", "2×33×17 float32", "dims (exponent, theta, theta_v)", "fletcher32 on", "n_theta"):
+    for word in (
+        "kk_lobes",
+        f"schema    {SCHEMA}",
+        "specular",
+        "2×33×17 float32",
+        "dims (exponent, theta, theta_v)",
+        "fletcher32 on",
+        "n_theta",
+    ):
         assert word in res.output, word
     doc = json.loads(run("inspect", "--json", path).output)
     spec = next(d for d in doc["datasets"] if d["name"] == "specular")
@@ -174,13 +184,16 @@ def test_usage_errors_are_status_2(tmp_path):
     assert CliRunner().invoke(cli, ["nonsense"]).exit_code == 2
 
 
-@pytest.mark.parametrize("command", [
-    ["render", "{missing}/s.toml", "--out", "{out}/r.exr"],
-    ["render", "{missing}/s.toml", "--strands", "--out", "{out}/sub/r.exr", "--png"],
-    ["compare", "{missing}/a.exr", "{missing}/b.exr", "--png", "{out}/d.png"],
-    ["strands", "convert", "{missing}/a.tfx", "{out}/a.hair"],
-    ["synth", "{missing}/s.toml", "--out", "{out}/maps"],
-])
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["render", "{missing}/s.toml", "--out", "{out}/r.exr"],
+        ["render", "{missing}/s.toml", "--strands", "--out", "{out}/sub/r.exr", "--png"],
+        ["compare", "{missing}/a.exr", "{missing}/b.exr", "--png", "{out}/d.png"],
+        ["strands", "convert", "{missing}/a.tfx", "{out}/a.hair"],
+        ["synth", "{missing}/s.toml", "--out", "{out}/maps"],
+    ],
+)
 @pytest.mark.parametrize("folder", ["read_only", "under_a_file"])
 def test_outputs_are_checked_before_any_work(tmp_path, read_only_dir, command, folder):
     """Issue 29 m5: an output that cannot be written is refused first, one line naming the user's path (render
@@ -218,8 +231,13 @@ def test_demo_writes_and_inspects(tmp_path):
 
 def test_real_subprocess(tmp_path, hairlut_exe):
     # a fresh process knows only the kinds hairlut ships (kk_lobes is the tests' own), so inspect an sh_light
-    path = write_table(tmp_path / "t.h5", "sh_light", {"lmax": 0}, [Axis("sh_i", np.arange(1), "1", "i"),
-                       Axis("channel", np.arange(3), "1", "c")], [Variable("a", np.ones((1, 3)), ("sh_i", "channel"), "1", "a")])
+    path = write_table(
+        tmp_path / "t.h5",
+        "sh_light",
+        {"lmax": 0},
+        [Axis("sh_i", np.arange(1), "1", "i"), Axis("channel", np.arange(3), "1", "c")],
+        [Variable("a", np.ones((1, 3)), ("sh_i", "channel"), "1", "a")],
+    )
     ok = subprocess.run([hairlut_exe, "inspect", "--json", str(path)], capture_output=True, text=True, timeout=120)
     assert ok.returncode == 0 and json.loads(ok.stdout)["kind"] == "sh_light"
     bad = subprocess.run([hairlut_exe, "inspect", str(tmp_path / "none.exr")], capture_output=True, text=True, timeout=120)

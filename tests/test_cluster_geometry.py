@@ -9,8 +9,7 @@ from hypothesis import strategies as st
 from scipy.interpolate import BSpline as SciBSpline
 
 from hairlut.errors import ValidationError
-from hairlut.geometry import (BSpline, ClusterBatch, ClusterGeometry, ClusterSpec, MacroCluster, fit_bspline,
-                              layer_meshes)
+from hairlut.geometry import BSpline, ClusterBatch, ClusterGeometry, ClusterSpec, MacroCluster, fit_bspline, layer_meshes
 from hairlut.geometry._bspline import uniform_knots
 
 
@@ -51,8 +50,7 @@ def test_fit_bspline_reproduces_a_cubic():
 def test_straight_cylinder_positions_are_analytic():
     # colinear but unevenly spaced control points: only an arc-length parametrisation gives z = L·t
     a_ctrl, b_ctrl, q_ctrl = [0.5, 0.9, 0.7, 0.6], [0.4, 0.3, 0.5], [0.0, 1.0, 3.0]
-    spec = ClusterSpec([[0, 0, 0], [0, 0, 0.5], [0, 0, 4], [0, 0, 5], [0, 0, 8]], a_ctrl, b_ctrl, q_ctrl,
-                       normal0=[1, 0, 0])
+    spec = ClusterSpec([[0, 0, 0], [0, 0, 0.5], [0, 0, 4], [0, 0, 5], [0, 0, 8]], a_ctrl, b_ctrl, q_ctrl, normal0=[1, 0, 0])
     geom = ClusterGeometry(spec)
     assert geom.lengths[0] == pytest.approx(8.0, rel=1e-12)
     t, v, u = np.meshgrid(np.linspace(0, 1, 9), np.linspace(0, 1, 4), np.linspace(0, 2 * np.pi, 7), indexing="ij")
@@ -147,8 +145,9 @@ def test_batch_mixes_spline_sizes_but_needs_equal_sampling(rng):
 
 # -- layer meshes --------------------------------------------------------------------------------
 def test_layer_meshes_lie_on_the_layers_with_outward_normals():
-    spec = ClusterSpec(S_CURVE, [0.3, 0.5, 0.4], [0.2, 0.3], [0, 2, 1], layer_radii=(0.5, 0.8, 1.0), core_radius=0.2,
-                       s_t=6, s_u=10)
+    spec = ClusterSpec(
+        S_CURVE, [0.3, 0.5, 0.4], [0.2, 0.3], [0, 2, 1], layer_radii=(0.5, 0.8, 1.0), core_radius=0.2, s_t=6, s_u=10
+    )
     geom = ClusterGeometry([spec, spec.transformed(np.eye(3), [0, 5, 0])])
     m = layer_meshes(geom, t_subdiv=2)
     rows, cols = 13, 11
@@ -175,10 +174,12 @@ coords = st.floats(-2.0, 2.0, allow_nan=False)
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(offsets=st.lists(st.tuples(coords, coords, coords), min_size=5, max_size=5),
-       axes=st.lists(st.floats(0.05, 2.0), min_size=6, max_size=6),
-       twist=st.lists(st.floats(-6, 6), min_size=3, max_size=3),
-       params=st.lists(st.tuples(st.floats(0, 1), st.floats(0, 1), st.floats(0, 2 * np.pi)), min_size=16, max_size=16))
+@given(
+    offsets=st.lists(st.tuples(coords, coords, coords), min_size=5, max_size=5),
+    axes=st.lists(st.floats(0.05, 2.0), min_size=6, max_size=6),
+    twist=st.lists(st.floats(-6, 6), min_size=3, max_size=3),
+    params=st.lists(st.tuples(st.floats(0, 1), st.floats(0, 1), st.floats(0, 2 * np.pi)), min_size=16, max_size=16),
+)
 def test_positions_lie_within_the_layer_radii(offsets, axes, twist, params):
     ctrl = np.array([[0, 0, 3.0 * i] for i in range(5)]) + np.array(offsets)
     spec = ClusterSpec(ctrl, axes[:3], axes[3:], twist, layer_radii=(0.4, 0.7, 1.0), core_radius=0.1)
@@ -201,22 +202,27 @@ def test_positions_lie_within_the_layer_radii(offsets, axes, twist, params):
 GOOD = dict(trajectory=S_CURVE, half_axis_a=0.3, half_axis_b=0.2)
 
 
-@pytest.mark.parametrize("change, field", [
-    (dict(trajectory={"control": S_CURVE, "knots": [0, 0, 0, 0, 0.6, 0.4, 0.8, 1, 1, 1, 1]}), "trajectory.knots"),
-    (dict(half_axis_a={"control": [0.3, 0.2], "knots": [0, 0.5, 0.2, 1]}), "half_axis_a.knots"),
-    (dict(half_axis_a=[0.3, -0.1, 0.2]), "half_axis_a"),
-    (dict(half_axis_b=-1.0), "half_axis_b"),
-    (dict(trajectory=np.where(np.arange(21).reshape(7, 3) == 4, np.nan, S_CURVE)), "trajectory"),
-    (dict(trajectory=np.vstack([S_CURVE[:1], S_CURVE])), "trajectory"),
-    (dict(trajectory=S_CURVE[:, :2]), "trajectory"),
-    (dict(layer_radii=(0.5, 0.4, 1.0)), "layer_radii"),
-    (dict(layer_radii=(0.5, 1.2)), "layer_radii"),
-    (dict(core_radius=0.5, layer_radii=(0.5, 1.0)), "core_radius"),
-    (dict(core_radius=-0.1), "core_radius"),
-    (dict(s_t=0), "s_t"), (dict(s_u=0), "s_u"), (dict(s_v=1.5), "s_v"),
-    (dict(twist=[0.0, np.inf]), "twist"),
-    (dict(normal0=[2.0, 0.0, 3.0]), "normal0"),  # parallel to T′(0)
-])
+@pytest.mark.parametrize(
+    "change, field",
+    [
+        (dict(trajectory={"control": S_CURVE, "knots": [0, 0, 0, 0, 0.6, 0.4, 0.8, 1, 1, 1, 1]}), "trajectory.knots"),
+        (dict(half_axis_a={"control": [0.3, 0.2], "knots": [0, 0.5, 0.2, 1]}), "half_axis_a.knots"),
+        (dict(half_axis_a=[0.3, -0.1, 0.2]), "half_axis_a"),
+        (dict(half_axis_b=-1.0), "half_axis_b"),
+        (dict(trajectory=np.where(np.arange(21).reshape(7, 3) == 4, np.nan, S_CURVE)), "trajectory"),
+        (dict(trajectory=np.vstack([S_CURVE[:1], S_CURVE])), "trajectory"),
+        (dict(trajectory=S_CURVE[:, :2]), "trajectory"),
+        (dict(layer_radii=(0.5, 0.4, 1.0)), "layer_radii"),
+        (dict(layer_radii=(0.5, 1.2)), "layer_radii"),
+        (dict(core_radius=0.5, layer_radii=(0.5, 1.0)), "core_radius"),
+        (dict(core_radius=-0.1), "core_radius"),
+        (dict(s_t=0), "s_t"),
+        (dict(s_u=0), "s_u"),
+        (dict(s_v=1.5), "s_v"),
+        (dict(twist=[0.0, np.inf]), "twist"),
+        (dict(normal0=[2.0, 0.0, 3.0]), "normal0"),  # parallel to T′(0)
+    ],
+)
 def test_bad_cluster_input_names_the_field(change, field):
     with pytest.raises(ValidationError) as exc:
         ClusterSpec(**(GOOD | change))
@@ -228,8 +234,9 @@ def test_bad_knots_name_the_field():
         BSpline.make(S_CURVE, knots=[0, 0, 0, 0, 0.6, 0.4, 0.8, 1, 1, 1, 1], field="trajectory", dim=3)
     assert exc.value.field == "trajectory.knots" and "non-decreasing" in exc.value.reason
     with pytest.raises(ValidationError) as exc:
-        BSpline.make(np.vstack([S_CURVE, [[7, 0, 1]]]), knots=[0, 0, 0, 0, 0.5, 0.5, 0.5, 0.5, 1, 1, 1, 1],
-                     field="trajectory", dim=3)
+        BSpline.make(
+            np.vstack([S_CURVE, [[7, 0, 1]]]), knots=[0, 0, 0, 0, 0.5, 0.5, 0.5, 0.5, 1, 1, 1, 1], field="trajectory", dim=3
+        )
     assert exc.value.field == "trajectory.knots" and "repeats" in exc.value.reason
     with pytest.raises(ValidationError) as exc:
         BSpline.make(S_CURVE, knots=[0, 0, 0, 0, 1, 1, 1, 1], field="trajectory", dim=3)

@@ -7,9 +7,9 @@ import pytest
 from click.testing import CliRunner
 
 from hairlut import errors
+from hairlut.recipes import resolve
 from hairlut.render import Frame, block_average, compare, read_frame, write_frame
 from hairlut.scene import CAMERA, make_camera
-from hairlut.recipes import resolve
 from hairlut_cli.main import cli
 
 
@@ -43,7 +43,7 @@ def test_known_perturbation(rng):
 def test_block_average_is_a_loop(rng):
     x = rng.normal(size=(17, 20, 2))
     got = block_average(x)
-    want = np.array([[x[8 * i:8 * i + 8, 8 * j:8 * j + 8].mean((0, 1)) for j in range(2)] for i in range(2)])
+    want = np.array([[x[8 * i : 8 * i + 8, 8 * j : 8 * j + 8].mean((0, 1)) for j in range(2)] for i in range(2)])
     assert np.allclose(got, want)
 
 
@@ -55,8 +55,10 @@ def test_bad_frames():
 
 
 def test_frame_round_trip_keeps_the_camera(tmp_path, rng):
-    cam = make_camera(resolve(CAMERA, {"view": [1.0, 0.5, 0.2], "projection": "perspective", "resolution": [48, 64]},
-                              "camera."), rng.normal(size=(20, 3)))
+    cam = make_camera(
+        resolve(CAMERA, {"view": [1.0, 0.5, 0.2], "projection": "perspective", "resolution": [48, 64]}, "camera."),
+        rng.normal(size=(20, 3)),
+    )
     f = Frame(_frame(rng), rng.uniform(1, 2, (64, 48)).astype(np.float32), cam, {"method": "test"})
     write_frame(f, tmp_path / "f.exr", png=True)
     g = read_frame(tmp_path / "f.exr")
@@ -72,8 +74,11 @@ def test_cli_compare(tmp_path, rng):
     b[..., :3] *= 0.5
     write_frame(Frame(a, np.ones((32, 32), np.float32), cam), tmp_path / "a.exr")
     write_frame(Frame(b, np.ones((32, 32), np.float32), cam), tmp_path / "b.exr")
-    out = CliRunner().invoke(cli, ["compare", str(tmp_path / "b.exr"), str(tmp_path / "a.exr"), "--json",
-                                   "--png", str(tmp_path / "d.png")], catch_exceptions=False)
+    out = CliRunner().invoke(
+        cli,
+        ["compare", str(tmp_path / "b.exr"), str(tmp_path / "a.exr"), "--json", "--png", str(tmp_path / "d.png")],
+        catch_exceptions=False,
+    )
     assert out.exit_code == 0, out.output
     fig = json.loads(out.stdout)
     assert np.isclose(fig["rgb_rmse"], np.sqrt(np.mean((0.5 * a[..., :3].astype(np.float64)) ** 2)), rtol=1e-5)
@@ -83,8 +88,10 @@ def test_cli_compare(tmp_path, rng):
 
 
 def _camera_record(**change):
-    cam = make_camera(resolve(CAMERA, {"view": [0.0, 0.0, 1.0], "projection": "perspective", "resolution": [16, 16]},
-                              "camera."), np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]))
+    cam = make_camera(
+        resolve(CAMERA, {"view": [0.0, 0.0, 1.0], "projection": "perspective", "resolution": [16, 16]}, "camera."),
+        np.array([[0.0, 0.0, 0.0], [1.0, 1.0, 1.0]]),
+    )
     return {**cam.to_json(), **change}
 
 
@@ -92,32 +99,34 @@ def _frame_with_camera(path, text, rng):
     """A checksum-valid 16 x 16 RGBA EXR whose ``hairlut:camera`` header is ``text``."""
     from hairlut.assets import write_exr
 
-    write_exr(path, {c: v for c, v in zip("RGBA", np.moveaxis(_frame(rng, 16, 16), -1, 0))},
-              attributes={"hairlut:camera": text})
+    write_exr(path, {c: v for c, v in zip("RGBA", np.moveaxis(_frame(rng, 16, 16), -1, 0))}, attributes={"hairlut:camera": text})
     return path
 
 
-@pytest.mark.parametrize("text, field, reason", [
-    (json.dumps(_camera_record(resolution=[1e999, 1e999])), "hairlut:camera.resolution", "2 integers"),  # Infinity
-    (json.dumps(_camera_record(resolution=[16.0, 16])), "hairlut:camera.resolution", "2 integers"),
-    (json.dumps(_camera_record(resolution=[32, 32])), "hairlut:camera.resolution", "16 x 16 pixels"),
-    (json.dumps(_camera_record(resolution=[10 ** 30, 16])), "hairlut:camera.resolution", "at most"),
-    (json.dumps(_camera_record(eye=[float("nan"), 0.0, 1.0])), "hairlut:camera.eye", "finite"),
-    (json.dumps(_camera_record(view=[0.0, 0.0, 2.0])), "hairlut:camera.view", "unit"),
-    (json.dumps(_camera_record(up=[1.0, 0.0, 0.0])), "hairlut:camera.right", "orthogonal"),
-    (json.dumps(_camera_record(fov=1e999)), "hairlut:camera.fov", "finite"),
-    (json.dumps(_camera_record(fov=180)), "hairlut:camera.fov", "(0, 180)"),
-    (json.dumps(_camera_record(extent=-1.0)), "hairlut:camera.extent", "> 0"),
-    (json.dumps(_camera_record(near="0.1")), "hairlut:camera.near", "finite number"),
-    (json.dumps(_camera_record(near=0.0)), "hairlut:camera.near", "in front of the eye"),
-    (json.dumps(_camera_record(far=-1.0)), "hairlut:camera.far", "beyond the near plane"),
-    (json.dumps(_camera_record(projection="fisheye")), "hairlut:camera.projection", "'perspective'"),
-    (json.dumps(_camera_record(world_to_clip=[[1.0] * 4] * 4)), "hairlut:camera.world_to_clip", "not the matrix"),
-    (json.dumps(_camera_record(world_to_clip=[[1e999] * 4] * 4)), "hairlut:camera.world_to_clip", "finite"),
-    (json.dumps({k: v for k, v in _camera_record().items() if k != "far"}), "hairlut:camera", "missing field(s) far"),
-    (json.dumps([1, 2, 3]), "hairlut:camera", "not a JSON object"),  # m3: valid JSON, not "not JSON"
-    ("{not json", "hairlut:camera", "is not JSON"),
-])
+@pytest.mark.parametrize(
+    "text, field, reason",
+    [
+        (json.dumps(_camera_record(resolution=[1e999, 1e999])), "hairlut:camera.resolution", "2 integers"),  # Infinity
+        (json.dumps(_camera_record(resolution=[16.0, 16])), "hairlut:camera.resolution", "2 integers"),
+        (json.dumps(_camera_record(resolution=[32, 32])), "hairlut:camera.resolution", "16 x 16 pixels"),
+        (json.dumps(_camera_record(resolution=[10**30, 16])), "hairlut:camera.resolution", "at most"),
+        (json.dumps(_camera_record(eye=[float("nan"), 0.0, 1.0])), "hairlut:camera.eye", "finite"),
+        (json.dumps(_camera_record(view=[0.0, 0.0, 2.0])), "hairlut:camera.view", "unit"),
+        (json.dumps(_camera_record(up=[1.0, 0.0, 0.0])), "hairlut:camera.right", "orthogonal"),
+        (json.dumps(_camera_record(fov=1e999)), "hairlut:camera.fov", "finite"),
+        (json.dumps(_camera_record(fov=180)), "hairlut:camera.fov", "(0, 180)"),
+        (json.dumps(_camera_record(extent=-1.0)), "hairlut:camera.extent", "> 0"),
+        (json.dumps(_camera_record(near="0.1")), "hairlut:camera.near", "finite number"),
+        (json.dumps(_camera_record(near=0.0)), "hairlut:camera.near", "in front of the eye"),
+        (json.dumps(_camera_record(far=-1.0)), "hairlut:camera.far", "beyond the near plane"),
+        (json.dumps(_camera_record(projection="fisheye")), "hairlut:camera.projection", "'perspective'"),
+        (json.dumps(_camera_record(world_to_clip=[[1.0] * 4] * 4)), "hairlut:camera.world_to_clip", "not the matrix"),
+        (json.dumps(_camera_record(world_to_clip=[[1e999] * 4] * 4)), "hairlut:camera.world_to_clip", "finite"),
+        (json.dumps({k: v for k, v in _camera_record().items() if k != "far"}), "hairlut:camera", "missing field(s) far"),
+        (json.dumps([1, 2, 3]), "hairlut:camera", "not a JSON object"),  # m3: valid JSON, not "not JSON"
+        ("{not json", "hairlut:camera", "is not JSON"),
+    ],
+)
 def test_a_bad_camera_record_is_refused_naming_the_field(tmp_path, rng, text, field, reason):
     """Issue 29 N3 and m3: every field of the ``hairlut:camera`` record is checked (an infinite resolution raised
     OverflowError from ``compare``; a JSON list was called "not JSON"); the CLI gives one line naming the file,
@@ -157,7 +166,6 @@ def test_json_is_strict_when_the_reference_alpha_is_zero(tmp_path, rng):
     assert text.exit_code == 0 and "alpha_bias_relative  n/a" in text.stdout
 
 
-
 def _multipart(path, parts):
     """A multi-part EXR written with OpenEXR's own binding (no hairlut metadata): ``parts`` (name, channels)."""
     import OpenEXR
@@ -166,8 +174,12 @@ def _multipart(path, parts):
     display = (np.array([0, 0], np.int32), np.array([31, 31], np.int32))  # every part's, as EXR requires
     for name, ch in parts:
         h, w = next(iter(ch.values())).shape
-        header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage, "displayWindow": display,
-                  "dataWindow": (np.array([0, 0], np.int32), np.array([w - 1, h - 1], np.int32))}
+        header = {
+            "compression": OpenEXR.ZIP_COMPRESSION,
+            "type": OpenEXR.scanlineimage,
+            "displayWindow": display,
+            "dataWindow": (np.array([0, 0], np.int32), np.array([w - 1, h - 1], np.int32)),
+        }
         out.append(OpenEXR.Part(header, {k: np.ascontiguousarray(v, np.float32) for k, v in ch.items()}, name))
     OpenEXR.File(out).write(str(path))
     return path

@@ -9,16 +9,33 @@ from hypothesis import strategies as st
 from scipy.special import ndtr
 
 from hairlut.errors import ValidationError
-from hairlut.geometry import (SIGMA_PER_RADIUS, ClusterGeometry, ClusterSpec, FeatureStats, PCABasis, SplatBatch,
-                              Strands, build_sectors, feature_names, sector_density, sector_density_numpy,
-                              sector_features)
+from hairlut.geometry import (
+    SIGMA_PER_RADIUS,
+    ClusterGeometry,
+    ClusterSpec,
+    FeatureStats,
+    PCABasis,
+    SplatBatch,
+    Strands,
+    build_sectors,
+    feature_names,
+    sector_density,
+    sector_density_numpy,
+    sector_features,
+)
 
 
 def one_sector(centers, sigmas, radii, *, area_scale=0.7, v_range=(0.4, 0.9)) -> SplatBatch:
     c = np.asarray(centers, float).reshape(1, -1, 2)
     k = c.shape[1]
-    return SplatBatch(c, np.asarray(sigmas, float).reshape(1, k, 2), np.asarray(radii, float).reshape(1, k),
-                      np.ones((1, k), bool), np.array([area_scale]), np.array([v_range]))
+    return SplatBatch(
+        c,
+        np.asarray(sigmas, float).reshape(1, k, 2),
+        np.asarray(radii, float).reshape(1, k),
+        np.ones((1, k), bool),
+        np.array([area_scale]),
+        np.array([v_range]),
+    )
 
 
 def mass(rho: np.ndarray, splats: SplatBatch) -> np.ndarray:
@@ -35,8 +52,9 @@ def test_single_strand_integrates_to_its_cross_section_area():
         assert mass(rho, sp)[0] == pytest.approx(2.5 * np.pi * r * r, rel=1e-12)
 
 
-@pytest.mark.parametrize("center, fraction", [([0.0, 0.5], 0.5), ([0.5, 1.0], 0.5), ([0.0, 0.0], 0.25),
-                                              ([-0.03, 0.5], None), ([1.1, 0.2], None)])
+@pytest.mark.parametrize(
+    "center, fraction", [([0.0, 0.5], 0.5), ([0.5, 1.0], 0.5), ([0.0, 0.0], 0.25), ([-0.03, 0.5], None), ([1.1, 0.2], None)]
+)
 def test_a_strand_partly_outside_keeps_exactly_its_inside_part(center, fraction):
     sig = (0.04, 0.06)
     if fraction is None:  # the analytic fraction of the Gaussian inside [0, 1]²
@@ -48,8 +66,14 @@ def test_a_strand_partly_outside_keeps_exactly_its_inside_part(center, fraction)
 
 def test_jax_kernel_matches_the_numpy_loop(rng):
     n, k = 40, 12
-    sp = SplatBatch(rng.uniform(-0.2, 1.2, (n, k, 2)), rng.uniform(0.01, 0.3, (n, k, 2)), rng.uniform(0.001, 0.05, (n, k)),
-                    rng.uniform(size=(n, k)) < 0.7, rng.uniform(0.1, 2, n), np.sort(rng.uniform(0, 1, (n, 2)), axis=1))
+    sp = SplatBatch(
+        rng.uniform(-0.2, 1.2, (n, k, 2)),
+        rng.uniform(0.01, 0.3, (n, k, 2)),
+        rng.uniform(0.001, 0.05, (n, k)),
+        rng.uniform(size=(n, k)) < 0.7,
+        rng.uniform(0.1, 2, n),
+        np.sort(rng.uniform(0, 1, (n, 2)), axis=1),
+    )
     ref = sector_density_numpy(sp, (16, 24))
     np.testing.assert_allclose(sector_density(sp, (16, 24), dtype=np.float64, chunk=7), ref, rtol=1e-12, atol=1e-14)
     f32 = sector_density(sp, (16, 24))
@@ -59,8 +83,19 @@ def test_jax_kernel_matches_the_numpy_loop(rng):
 
 # -- through the cluster model -------------------------------------------------------------------------
 def straight_cylinder(**kw) -> ClusterGeometry:
-    spec = dict(trajectory=[[0, 0, 0], [0, 0, 1], [0, 0, 2], [0, 0, 3]], half_axis_a=1.0, half_axis_b=1.0,
-                layer_radii=(0.5, 0.75, 1.0), core_radius=0.25, s_t=1, s_u=8, normal0=[1, 0, 0]) | kw
+    spec = (
+        dict(
+            trajectory=[[0, 0, 0], [0, 0, 1], [0, 0, 2], [0, 0, 3]],
+            half_axis_a=1.0,
+            half_axis_b=1.0,
+            layer_radii=(0.5, 0.75, 1.0),
+            core_radius=0.25,
+            s_t=1,
+            s_u=8,
+            normal0=[1, 0, 0],
+        )
+        | kw
+    )
     return ClusterGeometry(ClusterSpec(**spec))
 
 
@@ -126,8 +161,16 @@ def test_features_follow_their_definitions(rng):
         cs, ct = (s * h_s).sum() / h_s.sum(), (r * h_t).sum() / h_t.sum()
         cov = (rho[n] * np.outer(s - cs, r - ct)).sum() / rho[n].sum()
         contrast = np.sqrt(((rho[n] - mean) ** 2 * a).sum() / a.sum()) / mean
-        want = [mean, cs, ct, ((s - cs) ** 2 * h_s).sum() / h_s.sum(), ((r - ct) ** 2 * h_t).sum() / h_t.sum(), cov,
-                contrast, rho[n].max()]
+        want = [
+            mean,
+            cs,
+            ct,
+            ((s - cs) ** 2 * h_s).sum() / h_s.sum(),
+            ((r - ct) ** 2 * h_t).sum() / h_t.sum(),
+            cov,
+            contrast,
+            rho[n].max(),
+        ]
         np.testing.assert_allclose(f[n], want, rtol=1e-12)
     assert feature_names("moments")[:3] == ("rho_st", "rho_s", "rho_t")
 
@@ -151,11 +194,16 @@ def test_features_are_invariant_under_strand_order(seed, n):
     k = 12
     mask = np.zeros((3, k), bool)
     mask[:, :n] = True
-    sp = SplatBatch(gen.uniform(-0.1, 1.1, (3, k, 2)), gen.uniform(0.02, 0.3, (3, k, 2)), gen.uniform(0.001, 0.05, (3, k)),
-                    mask, gen.uniform(0.1, 2, 3), np.array([[0.2, 0.5], [0.5, 0.7], [0.0, 1.0]]))
+    sp = SplatBatch(
+        gen.uniform(-0.1, 1.1, (3, k, 2)),
+        gen.uniform(0.02, 0.3, (3, k, 2)),
+        gen.uniform(0.001, 0.05, (3, k)),
+        mask,
+        gen.uniform(0.1, 2, 3),
+        np.array([[0.2, 0.5], [0.5, 0.7], [0.0, 1.0]]),
+    )
     perm = gen.permutation(k)
-    shuffled = SplatBatch(sp.center[:, perm], sp.sigma[:, perm], sp.radius[:, perm], sp.mask[:, perm], sp.area_scale,
-                          sp.v_range)
+    shuffled = SplatBatch(sp.center[:, perm], sp.sigma[:, perm], sp.radius[:, perm], sp.mask[:, perm], sp.area_scale, sp.v_range)
     f0 = sector_features(sector_density(sp, 16, dtype=np.float64), sp, "moments")
     f1 = sector_features(sector_density(shuffled, 16, dtype=np.float64), shuffled, "moments")
     np.testing.assert_allclose(f1, f0, rtol=1e-10, atol=1e-13)
@@ -193,8 +241,13 @@ def test_normalisation_statistics_and_pca(rng):
 # -- bad input -----------------------------------------------------------------------------------------
 def test_bad_density_and_feature_input_names_the_field():
     sp = one_sector([[0.5, 0.5]], [[0.1, 0.1]], [0.01])
-    for kwargs, field in ((dict(grid=0), "grid"), (dict(grid=(8, 8, 8)), "grid"), (dict(density_scale=-1.0), "density_scale"),
-                          (dict(dtype=np.float16), "dtype"), (dict(chunk=0), "chunk")):
+    for kwargs, field in (
+        (dict(grid=0), "grid"),
+        (dict(grid=(8, 8, 8)), "grid"),
+        (dict(density_scale=-1.0), "density_scale"),
+        (dict(dtype=np.float16), "dtype"),
+        (dict(chunk=0), "chunk"),
+    ):
         with pytest.raises(ValidationError) as exc:
             sector_density(sp, **kwargs)
         assert exc.value.field == field

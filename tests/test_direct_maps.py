@@ -7,7 +7,8 @@ and wrapped angles, and input validation.
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from hairlut.errors import HairlutError, ValidationError
 from hairlut.geometry.density import sector_density
@@ -36,8 +37,13 @@ def _random(n=4, grid=(16, 16), seed=11, pixels=P):
 def _one_strand_sector(sigma=0.09, n_s=512, n_r=384, sigma_t=5.0, pixels=64):
     """An annular sector v ∈ [1, 2], Δu = π/4, holding one Gaussian strand at its middle: ρ given at
     the cell centres (peak 1).  Returns (ρ, geometry row, strand centre in the local frame)."""
-    params = {"phase": np.array([0.3]), "s_u": np.array([8]), "v_range": np.array([[1.0, 2.0]]),
-              "aspect": np.array([1.0]), "radius_rel": np.array([0.05])}
+    params = {
+        "phase": np.array([0.3]),
+        "s_u": np.array([8]),
+        "v_range": np.array([[1.0, 2.0]]),
+        "aspect": np.array([1.0]),
+        "radius_rel": np.array([0.05]),
+    }
     g = sector_geometry(params, kappa=1.0, n_pix=pixels)
     g[:, COL["sigma_t"]] = sigma_t
     phi = 0.3 + np.pi / 4 * (np.arange(n_s) + 0.5) / n_s
@@ -55,14 +61,15 @@ def test_one_strand_alpha_is_the_analytic_chord_integral():
     rho, g, o = _one_strand_sector(sigma, sigma_t=sigma_t, pixels=pixels)
     views = np.array([0.0, 0.7, np.pi / 2, 2.0, 3.3, 4.5, 3 * np.pi / 2])
     n = len(views)
-    alpha, re = direct_sector_maps(np.repeat(rho, n, 0), np.repeat(g, n, 0), views, np.zeros((n, 0)),
-                                   _recipe(pixels=pixels, steps=1024, smooth=False))
+    alpha, re = direct_sector_maps(
+        np.repeat(rho, n, 0), np.repeat(g, n, 0), views, np.zeros((n, 0)), _recipe(pixels=pixels, steps=1024, smooth=False)
+    )
     R = g[0, COL["extent"]]
     t = -R + (np.arange(pixels) + 0.5) * 2 * R / pixels  # pixel centres (one ray per pixel)
     for i, th in enumerate(views):
         e = np.array([-np.sin(th), np.cos(th)])
         dist = o @ e - t
-        line = np.sqrt(2 * np.pi) * sigma * np.exp(-dist**2 / (2 * sigma**2))  # ∫ρ ds, peak density 1
+        line = np.sqrt(2 * np.pi) * sigma * np.exp(-(dist**2) / (2 * sigma**2))  # ∫ρ ds, peak density 1
         np.testing.assert_allclose(alpha[i], 1 - np.exp(-sigma_t * line), atol=1e-4, rtol=0)
     assert alpha.max() > 0.6 and (alpha < 1e-3).sum() > pixels  # not vacuous: a peak and empty pixels
     assert re.shape == (n, 0, pixels)
@@ -109,8 +116,12 @@ def test_march_shadow_lookup_is_close_to_the_tracers_grid():
 
 
 @settings(max_examples=12)
-@given(seed=st.integers(0, 10_000), shadow=st.booleans(), rays=st.sampled_from([1, 2]),
-       angles=st.lists(st.floats(-10.0, 10.0, allow_nan=False), min_size=3, max_size=3))
+@given(
+    seed=st.integers(0, 10_000),
+    shadow=st.booleans(),
+    rays=st.sampled_from([1, 2]),
+    angles=st.lists(st.floats(-10.0, 10.0, allow_nan=False), min_size=3, max_size=3),
+)
 def test_property_direct_equals_the_tracer_at_random_angles(seed, shadow, rays, angles):
     rho, g = _random(1, seed=seed, grid=(12, 12))
     tv, tl = np.array(angles[:1]), np.array(angles[1:])
@@ -130,7 +141,7 @@ def test_each_sector_uses_its_own_angles():
     rec = _recipe()
     a, r = direct_sector_maps(rho, g, tv, tl, rec, block=4)
     for i in (0, 5, 10):
-        ai, ri = direct_sector_maps(rho[i:i + 1], g[i:i + 1], tv[i:i + 1], tl[i:i + 1], rec)
+        ai, ri = direct_sector_maps(rho[i : i + 1], g[i : i + 1], tv[i : i + 1], tl[i : i + 1], rec)
         np.testing.assert_allclose(a[i], ai[0], atol=1e-6)
         np.testing.assert_allclose(r[i], ri[0], atol=1e-6)
 
@@ -199,19 +210,22 @@ def _good():
     return {"density": rho, "geometry": g, "theta_v": np.zeros(3), "theta_l": np.zeros((3, 2))}
 
 
-@pytest.mark.parametrize("name,value", [
-    ("density", np.zeros((3, 16))),
-    ("density", np.full((3, 16, 16), np.nan)),
-    ("density", -np.ones((3, 16, 16))),
-    ("geometry", np.zeros((2, len(GEOM)))),
-    ("geometry", np.zeros((3, 5))),
-    ("theta_v", np.zeros(4)),
-    ("theta_v", np.array([0.0, np.nan, 1.0])),
-    ("theta_v", np.array([0.0, np.inf, 1.0])),
-    ("theta_l", np.zeros(3)),
-    ("theta_l", np.zeros((2, 2))),
-    ("theta_l", np.array([[0.0, 1.0], [np.inf, 0.0], [0.0, 0.0]])),
-])
+@pytest.mark.parametrize(
+    "name,value",
+    [
+        ("density", np.zeros((3, 16))),
+        ("density", np.full((3, 16, 16), np.nan)),
+        ("density", -np.ones((3, 16, 16))),
+        ("geometry", np.zeros((2, len(GEOM)))),
+        ("geometry", np.zeros((3, 5))),
+        ("theta_v", np.zeros(4)),
+        ("theta_v", np.array([0.0, np.nan, 1.0])),
+        ("theta_v", np.array([0.0, np.inf, 1.0])),
+        ("theta_l", np.zeros(3)),
+        ("theta_l", np.zeros((2, 2))),
+        ("theta_l", np.array([[0.0, 1.0], [np.inf, 0.0], [0.0, 0.0]])),
+    ],
+)
 def test_bad_inputs_name_the_argument(name, value):
     args = {**_good(), name: value}
     with pytest.raises(ValidationError) as err:
@@ -229,8 +243,13 @@ def test_bad_geometry_values_and_settings_are_rejected():
     with pytest.raises(ValidationError, match="geometry"):
         direct_sector_maps(args["density"], g, args["theta_v"], args["theta_l"], _recipe())
     call = (args["density"], args["geometry"], args["theta_v"], args["theta_l"])
-    for kwargs, field in (({"n_pix": 0}, "n_pix"), ({"rays": 0}, "rays"), ({"shadow_lookup": "nope"}, "shadow_lookup"),
-                          ({"block": 0}, "block"), ({"bogus": 1}, "bogus")):
+    for kwargs, field in (
+        ({"n_pix": 0}, "n_pix"),
+        ({"rays": 0}, "rays"),
+        ({"shadow_lookup": "nope"}, "shadow_lookup"),
+        ({"block": 0}, "block"),
+        ({"bogus": 1}, "bogus"),
+    ):
         with pytest.raises(ValidationError) as err:
             direct_sector_maps(*call, _recipe(), **kwargs)
         assert err.value.field == field
@@ -258,9 +277,9 @@ def test_outputs_are_finite_or_an_error_never_a_silent_nan():
 
 def test_scene_sector_inputs_match_the_online_frames_and_densities():
     from hairlut.geometry import ClusterGeometry, azimuths, build_sectors, sector_axes
+    from hairlut.march._direct import scene_sector_inputs, sector_extent
     from hairlut.scene import resolve_scene, scene_clusters
     from hairlut.synth import sector_frames
-    from hairlut.march._direct import scene_sector_inputs, sector_extent
 
     from ._synth_fixtures import scene, synthetic_db
 

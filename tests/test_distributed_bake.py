@@ -16,12 +16,11 @@ import h5py
 import pytest
 
 from hairlut import errors
-from hairlut.assets.parts import parts_dir
-from hairlut.hrir import bake, load_hrir_db
-from hairlut.assets.parts import MARKER, locked, part_name
+from hairlut.assets.parts import MARKER, locked, part_name, parts_dir
 from hairlut.assets.virtual_write import check_virtual
+from hairlut.hrir import bake, load_hrir_db
 
-RECIPE = '[sectors]\ncount = 12\ngrid = [8, 8]\n[angles]\nviews = 4\nlights = 3\n[trace]\npixels = 8\nsteps = 12\n'
+RECIPE = "[sectors]\ncount = 12\ngrid = [8, 8]\n[angles]\nviews = 4\nlights = 3\n[trace]\npixels = 8\nsteps = 12\n"
 SMALL = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3}, "trace": {"pixels": 8, "steps": 12}}
 CODE = "import sys; from hairlut_cli.main import cli; cli(sys.argv[1:])"
 
@@ -64,22 +63,53 @@ def _env(devices: int) -> dict:
 
 
 def _cmd(recipe, out, *extra):
-    return [sys.executable, "-c", CODE, "bake", "hrir", "--recipe", str(recipe), "--out", str(out), "--block", "4",
-            "--no-progress", *extra]
+    return [
+        sys.executable,
+        "-c",
+        CODE,
+        "bake",
+        "hrir",
+        "--recipe",
+        str(recipe),
+        "--out",
+        str(out),
+        "--block",
+        "4",
+        "--no-progress",
+        *extra,
+    ]
 
 
 def _launch(recipe, out, port, *extra, devices=2):
-    return [subprocess.Popen(_cmd(recipe, out, "--distributed", "--coordinator", f"127.0.0.1:{port}",
-                                  "--num-processes", "2", "--process-id", str(k), "--json", *extra),
-                             env=_env(devices), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-            for k in range(2)]
+    return [
+        subprocess.Popen(
+            _cmd(
+                recipe,
+                out,
+                "--distributed",
+                "--coordinator",
+                f"127.0.0.1:{port}",
+                "--num-processes",
+                "2",
+                "--process-id",
+                str(k),
+                "--json",
+                *extra,
+            ),
+            env=_env(devices),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for k in range(2)
+    ]
 
 
 def _finish(procs, timeout=300):
     outs = [p.communicate(timeout=timeout) for p in procs]
     assert all(p.returncode == 0 for p in procs), [o[1][-2000:] for o in outs]
     # the report is the JSON document on stdout; gloo (JAX's CPU collectives) prints its own lines there too
-    return [json.loads(o[0][o[0].index("\n{") + 1 if not o[0].startswith("{") else 0:]) for o in outs]
+    return [json.loads(o[0][o[0].index("\n{") + 1 if not o[0].startswith("{") else 0 :]) for o in outs]
 
 
 @pytest.fixture
@@ -145,8 +175,7 @@ def test_virtual_asset_with_a_missing_or_foreign_part(tmp_path):
 
 @pytest.mark.slow
 def test_a_killed_process_resumes_its_part(recipe, tmp_path):
-    subprocess.run(_cmd(recipe, tmp_path / "one.h5", "--set", "sectors.count=16"), env=_env(1), check=True,
-                   capture_output=True)
+    subprocess.run(_cmd(recipe, tmp_path / "one.h5", "--set", "sectors.count=16"), env=_env(1), check=True, capture_output=True)
     out = tmp_path / "db.h5"
     procs = _launch(recipe, out, _free_port(), "--set", "sectors.count=16", "--block", "2", devices=1)
     mine = parts_dir(out) / part_name(8, 10, 16, 2)  # process 1's first part (sectors 8..15)
@@ -252,9 +281,11 @@ def split_cases() -> dict:
     from hairlut.planner import scene_maps_recipe
 
     sc = tiny_scene()
-    return {"hrir_db": (SMALL, {"block": 4}, {"phong": {"shininess": 5.0}}),
-            "sh_tables": (SH, {"block": 40, "light": "sky"}, {"kernel": {"p": 17.0}}),
-            "scene_maps": (scene_maps_recipe(sc), {"block": 24, "scene": sc}, {"table": {"lights": 17}})}
+    return {
+        "hrir_db": (SMALL, {"block": 4}, {"phong": {"shininess": 5.0}}),
+        "sh_tables": (SH, {"block": 40, "light": "sky"}, {"kernel": {"p": 17.0}}),
+        "scene_maps": (scene_maps_recipe(sc), {"block": 24, "scene": sc}, {"table": {"lights": 17}}),
+    }
 
 
 def test_every_kind_bakes_the_same_data_sharded_virtual_and_whole(tmp_path):
@@ -269,8 +300,9 @@ def test_every_kind_bakes_the_same_data_sharded_virtual_and_whole(tmp_path):
         whole = registry.bake(kind, recipe, tmp_path / f"{kind}.h5", options=options)
         assert whole["computed"] == whole["total_units"] > options["block"] and not parts_dir(whole["out"]).exists()
         virtual = registry.bake(kind, recipe, tmp_path / f"{kind}-v.h5", options=options, merge="virtual")
-        shards = [registry.bake(kind, recipe, tmp_path / f"{kind}-{k}.h5", shard=f"{k}/2", options=options)["out"]
-                  for k in range(2)]
+        shards = [
+            registry.bake(kind, recipe, tmp_path / f"{kind}-{k}.h5", shard=f"{k}/2", options=options)["out"] for k in range(2)
+        ]
         merged = registry.merge(shards[::-1], tmp_path / f"{kind}-m.h5")
         for other in (virtual["out"], merged["out"]):
             _assert_same_data(whole["out"], other)
@@ -283,7 +315,8 @@ def test_every_kind_bakes_the_same_data_sharded_virtual_and_whole(tmp_path):
 def test_sh_dense_tables_do_not_depend_on_blocks_and_match_the_exact_tables(tmp_path):
     import numpy as np
 
-    from hairlut.shtables import bake as bake_sh_asset, compute, load_sh_tables
+    from hairlut.shtables import bake as bake_sh_asset
+    from hairlut.shtables import compute, load_sh_tables
 
     a = bake_sh_asset(SH, tmp_path / "a.h5", block=7)
     b = bake_sh_asset({**SH, "dense": {**SH["dense"], "storage": "float64"}}, tmp_path / "b.h5", block=96)
@@ -295,13 +328,33 @@ def test_sh_dense_tables_do_not_depend_on_blocks_and_match_the_exact_tables(tmp_
     np.testing.assert_array_equal(_datasets(a["out"])["dense/rd"], ref["dense"]["rd"].astype(np.float32))
     # an independent evaluation: the tables' own rd/rs at the stored tangents, all at once
     np.testing.assert_allclose(t["dense/rd"], np.asarray(exact.rd(t["dense/t_dirs"])), rtol=0, atol=1e-13)
-    np.testing.assert_allclose(t["dense/rs"], np.asarray(exact.rs(t["dense/t_dirs"][:, None], t.axes["theta_v"].values[None])),
-                               rtol=0, atol=1e-13)
+    np.testing.assert_allclose(
+        t["dense/rs"], np.asarray(exact.rs(t["dense/t_dirs"][:, None], t.axes["theta_v"].values[None])), rtol=0, atol=1e-13
+    )
 
 
 def _sh_cmd(out, *extra):
-    return [sys.executable, "-c", CODE, "bake", "sh", "--p", "16", "--set", "dense.t_resolution=4", "--set",
-            "dense.theta_v_steps=5", "--light", "sky", "--block", "16", "--out", str(out), "--no-progress", *extra]
+    return [
+        sys.executable,
+        "-c",
+        CODE,
+        "bake",
+        "sh",
+        "--p",
+        "16",
+        "--set",
+        "dense.t_resolution=4",
+        "--set",
+        "dense.theta_v_steps=5",
+        "--light",
+        "sky",
+        "--block",
+        "16",
+        "--out",
+        str(out),
+        "--no-progress",
+        *extra,
+    ]
 
 
 @pytest.mark.slow
@@ -309,9 +362,26 @@ def test_two_processes_on_loopback_bake_the_sh_tables_of_one(tmp_path):
     subprocess.run(_sh_cmd(tmp_path / "one.h5"), env=_env(1), check=True, capture_output=True)
     out = tmp_path / "sh.h5"
     port = _free_port()
-    procs = [subprocess.Popen(_sh_cmd(out, "--distributed", "--coordinator", f"127.0.0.1:{port}", "--num-processes", "2",
-                                      "--process-id", str(k), "--json"), env=_env(2), stdout=subprocess.PIPE,
-                              stderr=subprocess.PIPE, text=True) for k in range(2)]
+    procs = [
+        subprocess.Popen(
+            _sh_cmd(
+                out,
+                "--distributed",
+                "--coordinator",
+                f"127.0.0.1:{port}",
+                "--num-processes",
+                "2",
+                "--process-id",
+                str(k),
+                "--json",
+            ),
+            env=_env(2),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for k in range(2)
+    ]
     docs = _finish(procs)
     assert [d["unit_range"] for d in docs] == [[0, 48], [48, 96]] and all(d["computed"] == 48 for d in docs)
     _assert_same_data(tmp_path / "one.h5", out)

@@ -17,17 +17,46 @@ from hairlut_cli.main import cli
 
 from .test_distributed_bake import CODE, _assert_same_data, _env, _free_port
 
-RECIPE = ["--set", "sectors.count=12", "--set", "sectors.grid=[8, 8]", "--set", "angles.views=4", "--set",
-          "angles.lights=3", "--set", "trace.pixels=8", "--set", "trace.steps=12"]
+RECIPE = [
+    "--set",
+    "sectors.count=12",
+    "--set",
+    "sectors.grid=[8, 8]",
+    "--set",
+    "angles.views=4",
+    "--set",
+    "angles.lights=3",
+    "--set",
+    "trace.pixels=8",
+    "--set",
+    "trace.steps=12",
+]
 
 
 def _start(out, port, k, n=2, *extra, timeout=60):
     """Process ``k`` of ``n`` of a small HRIR bake into ``out`` (one CPU device each)."""
-    cmd = [sys.executable, "-c", CODE, "bake", "hrir", *RECIPE, "--out", str(out), "--no-progress", "--distributed",
-           "--coordinator", f"127.0.0.1:{port}", "--num-processes", str(n), "--process-id", str(k),
-           "--timeout", str(timeout), *extra]
-    return subprocess.Popen(cmd, env=_env(1), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            cwd=str(out.parent))
+    cmd = [
+        sys.executable,
+        "-c",
+        CODE,
+        "bake",
+        "hrir",
+        *RECIPE,
+        "--out",
+        str(out),
+        "--no-progress",
+        "--distributed",
+        "--coordinator",
+        f"127.0.0.1:{port}",
+        "--num-processes",
+        str(n),
+        "--process-id",
+        str(k),
+        "--timeout",
+        str(timeout),
+        *extra,
+    ]
+    return subprocess.Popen(cmd, env=_env(1), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=str(out.parent))
 
 
 def _end(proc, limit=240) -> tuple[int, str, str]:
@@ -58,9 +87,11 @@ def test_a_peer_that_never_comes(tmp_path):
     out, port = tmp_path / "db.h5", _free_port()
     status, _, last = _end(_start(out, port, 0, timeout=3))
     at = f"127.0.0.1:{port}"
-    assert status == 2 and last == (f"hairlut: error: distributed: process 0 of 2: process 1 did not join the coordinator "
-                                    f"at {at} within 3 s (--timeout): start every process with --coordinator {at} "
-                                    "--num-processes 2 and its own --process-id")
+    assert status == 2 and last == (
+        f"hairlut: error: distributed: process 0 of 2: process 1 did not join the coordinator "
+        f"at {at} within 3 s (--timeout): start every process with --coordinator {at} "
+        "--num-processes 2 and its own --process-id"
+    )
     assert not parts_dir(out).exists()
     _failed(_start(out, _free_port(), 1, timeout=3), "process 1 of 2: no coordinator answered at", "within 3 s")
     assert not parts_dir(out).exists()
@@ -72,14 +103,16 @@ def test_a_process_id_given_twice(tmp_path):
     out, port = tmp_path / "db.h5", _free_port()
     first = _start(out, port, 0, timeout=8)
     time.sleep(1.0)
-    _failed(_start(out, port, 0, timeout=8), "process 0 of 2: the coordinator's port", "is in use",
-            "repeated --process-id 0")
+    _failed(_start(out, port, 0, timeout=8), "process 0 of 2: the coordinator's port", "is in use", "repeated --process-id 0")
     _failed(first, "process 0 of 2: process 1 did not join")
     port, extra = _free_port(), ("--set", "sectors.count=64", "--block", "2")
     procs = [_start(out, port, k, 2, *extra, timeout=30) for k in (0, 1)]
     _wait_for(parts_dir(out) / "part-64x2-16.h5", procs)  # process 1 has joined and bakes its share
-    _failed(_start(out, port, 1, 2, *extra, timeout=30), "process 1 of 2: process 1 was started twice: pid "
-            f"{procs[1].pid} on ", "joined first")
+    _failed(
+        _start(out, port, 1, 2, *extra, timeout=30),
+        f"process 1 of 2: process 1 was started twice: pid {procs[1].pid} on ",
+        "joined first",
+    )
     _failed(procs[0], "process 0 of 2: process 1 failed: process 1 was started twice")
     _failed(procs[1], "process 1 of 2: ")
 
@@ -129,8 +162,7 @@ def test_a_killed_peer_ends_the_survivor_with_one_line_and_a_rerun_resumes(tmp_p
     port = _free_port()
     procs = [_start(out, port, k, 2, *extra, timeout=10) for k in range(2)]
     _kill_when(procs, 1, parts_dir(out) / "part-16x2-4.h5")  # process 1's first part (sectors 8..9)
-    _failed(procs[0], "process 0 of 2: process 1 stopped answering", "no heartbeat for 10 s",
-            "run every process again to resume")
+    _failed(procs[0], "process 0 of 2: process 1 stopped answering", "no heartbeat for 10 s", "run every process again to resume")
     assert not out.exists()
     kept = {p.name for p in parts_dir(out).glob("part-*.h5")}
     port = _free_port()
@@ -148,6 +180,10 @@ def test_a_killed_peer_ends_the_survivor_with_one_line_and_a_rerun_resumes(tmp_p
     assert line.startswith("process 1 of 2: baked sectors 8..15 into ") and line.endswith(f"process 0 wrote {out}")
     assert "0 resumed" not in line  # process 1 kept its parts from before
     one = tmp_path / "one.h5"
-    subprocess.run([sys.executable, "-c", CODE, "bake", "hrir", *RECIPE, *extra, "--out", str(one), "--no-progress"],
-                   env=_env(1), check=True, capture_output=True)
+    subprocess.run(
+        [sys.executable, "-c", CODE, "bake", "hrir", *RECIPE, *extra, "--out", str(one), "--no-progress"],
+        env=_env(1),
+        check=True,
+        capture_output=True,
+    )
     _assert_same_data(one, out)

@@ -60,7 +60,7 @@ def blocks(doc: Path) -> list[Block]:
             continue
         indent, language = len(m.group(1)), m.group(2)
         end = next(j for j in range(i + 1, len(lines)) if lines[j].strip() == "```")
-        code = "\n".join(line[indent:] for line in lines[i + 1:end]) + "\n"
+        code = "\n".join(line[indent:] for line in lines[i + 1 : end]) + "\n"
         before = next((lines[j] for j in range(i - 1, -1, -1) if lines[j].strip()), "")
         mark = MARKER.match(before)
         out.append(Block(doc, i + 2, language, code, mark and mark.group(1), mark.group(2).strip() if mark else ""))
@@ -124,8 +124,9 @@ def test_the_block_runs(block: Block, scratch, monkeypatch):
     if not (bindir / "hairlut").exists():
         pytest.skip(f"the hairlut console script is not installed beside {sys.executable}")
     env = {**os.environ, "HAIRLUT_CACHE": str(cache), "PATH": f"{bindir}{os.pathsep}{os.environ.get('PATH', '')}"}
-    r = subprocess.run(["bash", "-e", "-o", "pipefail", "-c", block.code], cwd=folder, env=env, capture_output=True,
-                       text=True, timeout=3600)
+    r = subprocess.run(
+        ["bash", "-e", "-o", "pipefail", "-c", block.code], cwd=folder, env=env, capture_output=True, text=True, timeout=3600
+    )
     assert r.returncode == 0, f"{block.id} exited {r.returncode}:\n{block.code}\n--- output ---\n{(r.stdout + r.stderr)[-4000:]}"
 
 

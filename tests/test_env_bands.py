@@ -67,8 +67,9 @@ def test_window_factors_closed_form():
     """σ_l for B = 4 written out: Hanning (1 + cos(πl/4))/2, Lanczos sin(πl/4)/(πl/4)."""
     r = np.sqrt(0.5)
     np.testing.assert_allclose(window_factors(4, "hanning"), [1.0, (1 + r) / 2, 0.5, (1 - r) / 2], rtol=1e-14)
-    np.testing.assert_allclose(window_factors(4, "lanczos"), [1.0, r / (np.pi / 4), 1 / (np.pi / 2), r / (3 * np.pi / 4)],
-                               rtol=1e-14)
+    np.testing.assert_allclose(
+        window_factors(4, "lanczos"), [1.0, r / (np.pi / 4), 1 / (np.pi / 2), r / (3 * np.pi / 4)], rtol=1e-14
+    )
 
 
 def test_hair_radiance_quadrature_equals_the_band_sum():
@@ -83,8 +84,9 @@ def test_hair_radiance_quadrature_equals_the_band_sum():
     kd, ks, p = np.array([0.3, 0.5, 0.2]), 0.6, 16.0
     t = _fibonacci(12)
     tv = np.linspace(0.0, np.pi, 5)
-    ref = band_radiance(a, 1.0, 0.0, p, tangents=12, theta_v=5).sum(0) * kd + band_radiance(a, 0.0, ks, p, tangents=12,
-                                                                                             theta_v=5).sum(0)
+    ref = band_radiance(a, 1.0, 0.0, p, tangents=12, theta_v=5).sum(0) * kd + band_radiance(
+        a, 0.0, ks, p, tangents=12, theta_v=5
+    ).sum(0)
     tt, vv = np.repeat(t, 5, axis=0), np.tile(tv, 12)
     b = np.zeros((60, 9))
     b[:, 0] = np.sqrt(4 * np.pi)
@@ -110,7 +112,7 @@ def test_band_choice_matches_a_brute_force_measurement():
     brute = []
     for bands in range(1, 13):
         e = hair_radiance(a[: bands * bands], b, t, tv, kd, ks, p, height=128)
-        brute.append(np.sqrt(np.mean((e - ref) ** 2) / np.mean(ref ** 2)))
+        brute.append(np.sqrt(np.mean((e - ref) ** 2) / np.mean(ref**2)))
     fh = [radiance_error(terms, bands)[0] for bands in range(1, 13)]
     np.testing.assert_allclose(brute, fh, rtol=0.02, atol=1e-4)
     for tol in (0.2, 0.05, 0.01):

@@ -6,7 +6,14 @@ import pytest
 from hairlut import errors
 from hairlut.assets import ExrPart, write_exr
 from hairlut.envlight import (
-    FACES, cube_dirs, cube_face_samples, latlong_samples, load_env_light, load_light, read_light, write_light,
+    FACES,
+    cube_dirs,
+    cube_face_samples,
+    latlong_samples,
+    load_env_light,
+    load_light,
+    read_light,
+    write_light,
 )
 from hairlut.sh import real_sh
 
@@ -14,7 +21,7 @@ COEFFS = np.zeros((9, 3))
 COEFFS[0] = [2.0, 1.0, 0.5]
 COEFFS[3] = [0.8, -0.3, 0.1]  # x
 COEFFS[6] = [0.4, 0.2, -0.6]  # 3z² − 1
-COEFFS[4] = [0.3, 0.0, 0.2]   # xy
+COEFFS[4] = [0.3, 0.0, 0.2]  # xy
 
 
 def radiance(dirs):

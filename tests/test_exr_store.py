@@ -128,8 +128,17 @@ OIIOTOOL = shutil.which("oiiotool", path=str(Path(sys.executable).parent)) or sh
 @pytest.mark.skipif(OIIOTOOL is None, reason="oiiotool (OpenImageIO test extra) not installed")
 def test_reads_an_oiiotool_pattern(tmp_path):
     path = tmp_path / "ramp.exr"
-    cmd = [OIIOTOOL, "--pattern", "fill:topleft=0,0,0:topright=1,0,0:bottomleft=0,1,0:bottomright=1,1,0", "33x17", "3",
-           "-d", "float", "-o", str(path)]
+    cmd = [
+        OIIOTOOL,
+        "--pattern",
+        "fill:topleft=0,0,0:topright=1,0,0:bottomleft=0,1,0:bottomright=1,1,0",
+        "33x17",
+        "3",
+        "-d",
+        "float",
+        "-o",
+        str(path),
+    ]
     subprocess.run(cmd, check=True, capture_output=True, timeout=60)
     im = read_exr(path)
     r = im.channel("R")

@@ -53,8 +53,9 @@ def test_fit_spans_strands_of_different_lengths():
     assert end[1] >= 3.0 - 1e-6
 
 
-@pytest.mark.parametrize("groom, clusters, least", [("sintel_lite.tfx", 6, 0.98),
-                                                         pytest.param("ratboy_mohawk.tfx", 12, 0.98, marks=pytest.mark.slow)])
+@pytest.mark.parametrize(
+    "groom, clusters, least", [("sintel_lite.tfx", 6, 0.98), pytest.param("ratboy_mohawk.tfx", 12, 0.98, marks=pytest.mark.slow)]
+)
 def test_fitted_clusters_hold_the_vendored_grooms(groom, clusters, least):
     """The vendored grooms with their scenes' cluster counts and no core (the ``[groom]`` default): at least 98 %
     of the strand length lies inside the fitted clusters (measured 98.4 % and 98.2 % at the default 95 % coverage,

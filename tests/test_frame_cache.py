@@ -9,7 +9,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from hairlut.render import strands_frame, render_strands, scene_camera
+from hairlut.render import render_strands, scene_camera, strands_frame
 from hairlut.scene import resolve_scene
 from tests.test_render_layered import TINY
 

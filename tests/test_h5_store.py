@@ -64,7 +64,9 @@ def test_same_recipe_gives_identical_bytes(tmp_path, monkeypatch):
 def test_periodic_axis_round_trips(tmp_path):
     phi = np.linspace(0, 2 * np.pi, 8, endpoint=False)
     write_table(
-        tmp_path / "p.h5", "kk_lobes", {"k": 1},
+        tmp_path / "p.h5",
+        "kk_lobes",
+        {"k": 1},
         [Axis("theta", phi, "rad", "azimuth", period=2 * np.pi), Axis("p", [1.0], "1", "p")],
         [Variable("diffuse", np.sin(phi), ("theta",), "1", "d"), Variable("specular", np.ones((1, 8)), ("p", "theta"), "1", "s")],
     )
@@ -287,9 +289,14 @@ def test_inspect_and_preview_use_table_names(tmp_path):
 def _write_schema_1(path, t):
     """``t`` (a Table) in the schema 1 layout: axes as scales in /axes, tables at their names."""
     with h5py.File(path, "w", libver=("earliest", "v110"), track_order=True) as f:
-        for key, value in {"hairlut_schema": np.int32(1), "kind": t.kind, "hairlut_version": t.version,
-                           "created": t.created, "recipe": json.dumps(t.recipe, sort_keys=True, separators=(",", ":")),
-                           "recipe_hash": t.recipe_hash}.items():
+        for key, value in {
+            "hairlut_schema": np.int32(1),
+            "kind": t.kind,
+            "hairlut_version": t.version,
+            "created": t.created,
+            "recipe": json.dumps(t.recipe, sort_keys=True, separators=(",", ":")),
+            "recipe_hash": t.recipe_hash,
+        }.items():
             f.attrs[key] = value
         scales, group = {}, f.create_group("axes", track_order=True)
         for ax in t.axes.values():

@@ -54,7 +54,7 @@ def _child(raw, probe_dir, offs, readers, w):  # pragma: no cover (runs in the f
                 res.append("ok")
             except errors.HairlutError:
                 res.append("typed")
-            except BaseException as exc:  # noqa: BLE001
+            except BaseException as exc:
                 res.append("".join(traceback.format_exception_only(exc)).strip()[-300:])
         probe.unlink()
         os.write(w, (json.dumps([off, res]) + "\n").encode())
@@ -120,18 +120,24 @@ def _outcomes_of_flips(path, readers, step, offsets=None):
         if bad is not None:
             alone, _, how_alone = _run_child(raw, probe_dir, [bad], readers) if len(got) else (got, None, how)
             outcomes[bad] = alone[bad] if bad in alone else [how_alone] * len(readers)
-            todo = batch[len(got) + 1:] + todo
+            todo = batch[len(got) + 1 :] + todo
     return {off: outcomes[off] for off in sorted(outcomes)}
 
 
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="needs fork")
-@pytest.mark.parametrize("which, step", [
-    ("table", 211), ("sh", 97), ("hrir", 397),
-    # denser sweeps, in CI: every 5th, 3rd and 3rd offset of the full sweeps (steps 11, 13, 41) once measured
-    # offline with 0 untyped outcomes; the full sweeps take ~20 minutes on 2 cores
-    pytest.param("table", 55, marks=pytest.mark.slow), pytest.param("sh", 39, marks=pytest.mark.slow),
-    pytest.param("hrir", 123, marks=pytest.mark.slow),
-])
+@pytest.mark.parametrize(
+    "which, step",
+    [
+        ("table", 211),
+        ("sh", 97),
+        ("hrir", 397),
+        # denser sweeps, in CI: every 5th, 3rd and 3rd offset of the full sweeps (steps 11, 13, 41) once measured
+        # offline with 0 untyped outcomes; the full sweeps take ~20 minutes on 2 cores
+        pytest.param("table", 55, marks=pytest.mark.slow),
+        pytest.param("sh", 39, marks=pytest.mark.slow),
+        pytest.param("hrir", 123, marks=pytest.mark.slow),
+    ],
+)
 def test_flipped_metadata_bits_give_typed_errors(tmp_path, which, step, sh_file, hrir_file):
     """Every flip that HDF5 survives gives ok or a hairlut error: no KeyError, OSError, ValueError ... tracebacks.
 

@@ -35,6 +35,7 @@ def test_non_numeric_datasets_are_refused(tmp_path, bad):
             f["extra"] = np.zeros(3, dtype=[("a", "f4"), ("b", "i4")])
         else:
             f.create_dataset("extra", (2,), dtype=h5py.vlen_dtype(np.float32))
+
     poke(path, add)
     for fn in (read_table, summarize):
         with pytest.raises(errors.CorruptAssetError, match="'extra' holds .* not numbers"):
@@ -49,6 +50,7 @@ def test_group_in_schema1_axes_and_group_for_a_dataset(tmp_path, sh_file):
         f.attrs["hairlut_schema"] = np.int32(1)
         g = f.create_group("axes")
         g.create_group("theta").create_dataset("x", data=[1.0])
+
     poke(path, to_schema1_with_group)
     for fn in (read_table, summarize):
         with pytest.raises(errors.HairlutError):
@@ -60,12 +62,13 @@ def test_group_in_schema1_axes_and_group_for_a_dataset(tmp_path, sh_file):
     def gaunt_as_group(f):
         del f["gaunt"]
         f.create_group("gaunt").create_dataset("x", data=np.zeros(3))
+
     poke(sh, gaunt_as_group)
     with pytest.raises(errors.MissingDatasetError, match="gaunt"):
         SHTables.load(sh)
 
 
-@pytest.mark.parametrize("text", ["{not json", "[1, 2]", "\"a string\"", "NaN"])
+@pytest.mark.parametrize("text", ["{not json", "[1, 2]", '"a string"', "NaN"])
 def test_recipe_that_is_not_a_json_object(tmp_path, text, sh_file):
     path = poke(lobes_table(tmp_path / "t.h5")[0], lambda f: set_recipe(f, text))
     for fn in (read_table, summarize):
@@ -77,7 +80,7 @@ def test_recipe_that_is_not_a_json_object(tmp_path, text, sh_file):
         SHTables.load(sh)
 
 
-@pytest.mark.parametrize("names", ["rho_st, rho_s", "[1, 2, 3]", "[\"a\", \"b\", \"c\"]"])
+@pytest.mark.parametrize("names", ["rho_st, rho_s", "[1, 2, 3]", '["a", "b", "c"]'])
 def test_feature_names_that_are_not_json_or_disagree(tmp_path, hrir_file, names):
     path = copy(hrir_file, tmp_path / "db.h5")
     poke(path, lambda f: f.attrs.__setitem__("feature_names", names))
@@ -145,6 +148,7 @@ def test_external_raw_storage_is_refused(tmp_path, secret, sh_file):
         raw.write_bytes(g.astype("<f8").tobytes())
         del f["gaunt"]
         f.create_dataset("gaunt", shape=g.shape, dtype="<f8", external=[(str(raw), 0, g.size * 8)])
+
     poke(sh, gaunt_external)
     with pytest.raises(errors.ForeignReferenceError, match="gaunt"):
         SHTables.load(sh)
@@ -157,6 +161,7 @@ def test_links_are_refused(tmp_path, link):
 
     def add(f):
         f["ext"] = h5py.ExternalLink(str(other), "/specular") if link == "external" else h5py.SoftLink("/specular")
+
     poke(path, add)
     for fn in _readers(path):
         with pytest.raises(errors.ForeignReferenceError, match=f"'/ext' is an? {link}"):
@@ -216,15 +221,18 @@ def _edit_recipe(path, **changes):
     return path
 
 
-@pytest.mark.parametrize("changes, table", [
-    ({"bands__light_specular": 9}, "gaunt"),
-    ({"bands__transmittance": 4}, "gaunt"),
-    ({"bands__light_diffuse": 5}, "gaunt"),
-    ({"bands__light_specular": 200}, "bands.light_specular"),
-    ({"kernel__p": -1.0}, "kernel.p"),
-    ({"kernel__diffuse": "yes"}, "kernel.diffuse"),
-    ({"bands": None}, "bands"),
-])
+@pytest.mark.parametrize(
+    "changes, table",
+    [
+        ({"bands__light_specular": 9}, "gaunt"),
+        ({"bands__transmittance": 4}, "gaunt"),
+        ({"bands__light_diffuse": 5}, "gaunt"),
+        ({"bands__light_specular": 200}, "bands.light_specular"),
+        ({"kernel__p": -1.0}, "kernel.p"),
+        ({"kernel__diffuse": "yes"}, "kernel.diffuse"),
+        ({"bands": None}, "bands"),
+    ],
+)
 def test_sh_tables_that_disagree_with_their_recipe(tmp_path, sh_file, changes, table):
     path = _edit_recipe(copy(sh_file, tmp_path / "sh.h5"), **changes)
     with pytest.raises(errors.CorruptAssetError) as info:
@@ -239,19 +247,23 @@ def test_sh_tables_whose_table_is_too_short(tmp_path, sh_file):
         d = f["kernel/diffuse_k"][()]
         del f["kernel/diffuse_k"]
         f.create_dataset("kernel/diffuse_k", data=d[:1])
+
     poke(path, shorten)
     with pytest.raises(errors.CorruptAssetError, match="'kernel/diffuse_k' has shape"):
         SHTables.load(path)
 
 
-@pytest.mark.parametrize("changes, table", [
-    ({"angles__views": 5}, "alpha"),
-    ({"angles__lights": 7}, "reflectance"),
-    ({"trace__pixels": 16}, "alpha"),
-    ({"sectors__grid": [8, 9]}, "density"),
-    ({"sectors__features": "moments"}, "feature_names"),
-    ({"angles__views": 0}, "angles.views"),
-])
+@pytest.mark.parametrize(
+    "changes, table",
+    [
+        ({"angles__views": 5}, "alpha"),
+        ({"angles__lights": 7}, "reflectance"),
+        ({"trace__pixels": 16}, "alpha"),
+        ({"sectors__grid": [8, 9]}, "density"),
+        ({"sectors__features": "moments"}, "feature_names"),
+        ({"angles__views": 0}, "angles.views"),
+    ],
+)
 def test_hrir_db_that_disagrees_with_its_recipe(tmp_path, hrir_file, changes, table):
     path = _edit_recipe(copy(hrir_file, tmp_path / "db.h5"), **changes)
     with pytest.raises(errors.CorruptAssetError) as info:
@@ -266,6 +278,7 @@ def test_hrir_db_with_nonpositive_feature_std(tmp_path, hrir_file):
         d = f["features_std"][()]
         d[0] = 0.0
         f["features_std"][...] = d
+
     poke(path, zero_std)
     with pytest.raises(errors.CorruptAssetError, match="features_std"):
         load_hrir_db(path)

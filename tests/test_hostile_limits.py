@@ -26,12 +26,15 @@ def _lights(s, n):
     s["lights"]["directions"] = [[0.0, 0.3, 1.0]] * n
 
 
-@pytest.mark.parametrize("change, field", [
-    (lambda s: s["strands"].update(count=1_000_000_000), "strands.count"),
-    (lambda s: s["render"].update(resolution=[8192, 8192]), "render.resolution"),
-    (lambda s: s["render"].update(preview_size=10**9), "render.preview_size"),
-    (lambda s: _lights(s, 100_000), "lights.directions"),
-])
+@pytest.mark.parametrize(
+    "change, field",
+    [
+        (lambda s: s["strands"].update(count=1_000_000_000), "strands.count"),
+        (lambda s: s["render"].update(resolution=[8192, 8192]), "render.resolution"),
+        (lambda s: s["render"].update(preview_size=10**9), "render.preview_size"),
+        (lambda s: _lights(s, 100_000), "lights.directions"),
+    ],
+)
 def test_scene_memory_bombs_are_refused_naming_the_key(change, field):
     s = scene()
     change(s)
@@ -55,11 +58,14 @@ def test_the_limit_is_configurable(monkeypatch):
             budget.parse_size(bad)
 
 
-@pytest.mark.parametrize("given, field", [
-    ({"sectors": {"space": {"strands": [100_000_000, 100_000_000]}}}, "sectors.space.strands"),
-    ({"sectors": {"grid": [512, 512]}, "trace": {"steps": 65536}}, "trace.steps"),
-    ({"trace": {"pixels": 8192}, "angles": {"views": 4096, "lights": 4096}}, "angles.views"),
-])
+@pytest.mark.parametrize(
+    "given, field",
+    [
+        ({"sectors": {"space": {"strands": [100_000_000, 100_000_000]}}}, "sectors.space.strands"),
+        ({"sectors": {"grid": [512, 512]}, "trace": {"steps": 65536}}, "trace.steps"),
+        ({"trace": {"pixels": 8192}, "angles": {"views": 4096, "lights": 4096}}, "angles.views"),
+    ],
+)
 def test_hrir_recipe_memory_bombs(given, field, monkeypatch):
     """Each recipe needs more than a 24 GiB machine's default budget (half its memory); the budget is pinned to that,
     since on the 126 GiB GPU machine the trace.steps case (between 12 and 63 GiB) fitted its default."""
@@ -148,12 +154,15 @@ def test_full_tmpfs(tmp_path):
 SMALL = {"sectors": {"count": 2, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3}, "trace": {"pixels": 8, "steps": 12}}
 
 
-@pytest.mark.parametrize("change, key", [
-    (lambda r: r["trace"].update(extinction=1e36), "trace.extinction"),  # σ_t = κ / r_strand beyond float32
-    (lambda r: r["trace"].update(extinction=1e32), "trace.extinction"),  # a ray's optical depth beyond float32
-    (lambda r: r["sectors"].update(density_scale=1e38), "sectors.density_scale"),  # the squared gradient beyond it
-    (lambda r: r.update(phong={"shininess": 1e39}), "phong.shininess"),  # infinite in float32: inf · log(1) = NaN
-])
+@pytest.mark.parametrize(
+    "change, key",
+    [
+        (lambda r: r["trace"].update(extinction=1e36), "trace.extinction"),  # σ_t = κ / r_strand beyond float32
+        (lambda r: r["trace"].update(extinction=1e32), "trace.extinction"),  # a ray's optical depth beyond float32
+        (lambda r: r["sectors"].update(density_scale=1e38), "sectors.density_scale"),  # the squared gradient beyond it
+        (lambda r: r.update(phong={"shininess": 1e39}), "phong.shininess"),  # infinite in float32: inf · log(1) = NaN
+    ],
+)
 def test_hrir_recipes_beyond_float32_are_refused_at_the_boundary(tmp_path, change, key):
     """Refused by the recipe's validation, naming the key, before anything is traced, so on every device alike
     (issue 29 m11: an H200 traced extinction 1e30 to finite values where the CPU gave NaN)."""
@@ -256,6 +265,7 @@ def test_inspect_json_is_strict_json_and_counts_non_finite(tmp_path):
 
     def refuse(token):
         raise AssertionError(f"not JSON: {token}")
+
     doc = json.loads(res.output, parse_constant=refuse)
     huge = next(d for d in doc["datasets"] if d["name"] == "huge")
     assert (huge["nan"], huge["inf"]) == (1, 1) and huge["mean"] == "Infinity"

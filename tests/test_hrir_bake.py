@@ -18,26 +18,28 @@ from hairlut.assets.parts import parts_dir
 from hairlut.bake.registry import merge
 from hairlut.hrir import bake, export_slice, load_hrir_db, resolve_recipe, sector_seed
 
-SMALL = {"sectors": {"count": 10, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3},
-         "trace": {"pixels": 8, "steps": 12}}
+SMALL = {"sectors": {"count": 10, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3}, "trace": {"pixels": 8, "steps": 12}}
 
 
 def _sha(path) -> str:
     return hashlib.sha256(open(path, "rb").read()).hexdigest()
 
 
-@pytest.mark.parametrize("given, field", [
-    ({"trace": {"stepz": 4}}, "trace.stepz"),
-    ({"trace": {"steps": 1}}, "trace.steps"),
-    ({"trace": {"self_shadow": "yes"}}, "trace.self_shadow"),
-    ({"angles": {"views": True}}, "angles.views"),
-    ({"phong": {"shininess": -1.0}}, "phong.shininess"),
-    ({"sectors": {"grid": [8]}}, "sectors.grid"),
-    ({"sectors": {"space": {"aspect": [0.5, 2.0]}}}, "sectors.space.aspect"),
-    ({"sectors": {"space": {"radius_rel": [0.1, 0.01]}}}, "sectors.space.radius_rel"),
-    ({"storage": {"dtype": "int8"}}, "storage.dtype"),
-    ({"sectors": 3}, "sectors"),
-])
+@pytest.mark.parametrize(
+    "given, field",
+    [
+        ({"trace": {"stepz": 4}}, "trace.stepz"),
+        ({"trace": {"steps": 1}}, "trace.steps"),
+        ({"trace": {"self_shadow": "yes"}}, "trace.self_shadow"),
+        ({"angles": {"views": True}}, "angles.views"),
+        ({"phong": {"shininess": -1.0}}, "phong.shininess"),
+        ({"sectors": {"grid": [8]}}, "sectors.grid"),
+        ({"sectors": {"space": {"aspect": [0.5, 2.0]}}}, "sectors.space.aspect"),
+        ({"sectors": {"space": {"radius_rel": [0.1, 0.01]}}}, "sectors.space.radius_rel"),
+        ({"storage": {"dtype": "int8"}}, "storage.dtype"),
+        ({"sectors": 3}, "sectors"),
+    ],
+)
 def test_bad_recipes_name_the_key(given, field):
     with pytest.raises(errors.ValidationError) as exc:
         resolve_recipe(given)
@@ -128,21 +130,24 @@ def test_cli_bake_merge_and_progress(tmp_path):
     from hairlut_cli.hrir import hrir_cmd, hrir_slice_cmd, merge_cmd
 
     recipe = tmp_path / "r.toml"
-    recipe.write_text('[sectors]\ncount = 6\ngrid = [8, 8]\n[angles]\nviews = 4\nlights = 2\n[trace]\npixels = 8\nsteps = 8\n')
+    recipe.write_text("[sectors]\ncount = 6\ngrid = [8, 8]\n[angles]\nviews = 4\nlights = 2\n[trace]\npixels = 8\nsteps = 8\n")
     runner = CliRunner()
     res = runner.invoke(hrir_cmd, ["--recipe", str(recipe), "--out", str(tmp_path / "a.h5"), "--block", "2", "--json"])
     assert res.exit_code == 0, res.output
     assert json.loads(res.stdout)["computed"] == 6
     assert "6/6 sectors" in res.stderr and "ETA" in res.stderr
     for k in range(2):
-        res = runner.invoke(hrir_cmd, ["--recipe", str(recipe), "--out", str(tmp_path / f"s{k}.h5"), "--shard", f"{k}/2",
-                                       "--block", "2", "--no-progress"])
+        res = runner.invoke(
+            hrir_cmd,
+            ["--recipe", str(recipe), "--out", str(tmp_path / f"s{k}.h5"), "--shard", f"{k}/2", "--block", "2", "--no-progress"],
+        )
         assert res.exit_code == 0, res.output
     res = runner.invoke(merge_cmd, [str(tmp_path / "s0.h5"), str(tmp_path / "s1.h5"), "--out", str(tmp_path / "m.h5")])
     assert res.exit_code == 0, res.output
     assert _sha(tmp_path / "a.h5") == _sha(tmp_path / "m.h5")
-    res = runner.invoke(hrir_slice_cmd, [str(tmp_path / "m.h5"), "--sector", "1", "--light", "0",
-                                         "--out", str(tmp_path / "x.exr")])
+    res = runner.invoke(
+        hrir_slice_cmd, [str(tmp_path / "m.h5"), "--sector", "1", "--light", "0", "--out", str(tmp_path / "x.exr")]
+    )
     assert res.exit_code == 0 and (tmp_path / "x.exr").exists()
     res = runner.invoke(hrir_cmd, ["--out", str(tmp_path / "b.h5"), "--set", "trace.steps=0"])
     assert res.exit_code != 0 and isinstance(res.exception, errors.ValidationError)
@@ -152,8 +157,9 @@ def test_cli_bake_merge_and_progress(tmp_path):
 def test_sigkill_and_rerun_gives_identical_bytes(tmp_path):
     """A real process killed with SIGKILL mid-bake; the same command finishes the job."""
     recipe = tmp_path / "r.toml"
-    recipe.write_text('[sectors]\ncount = 48\ngrid = [16, 16]\n[angles]\nviews = 16\nlights = 16\n'
-                      '[trace]\npixels = 32\nsteps = 48\n')
+    recipe.write_text(
+        "[sectors]\ncount = 48\ngrid = [16, 16]\n[angles]\nviews = 16\nlights = 16\n[trace]\npixels = 32\nsteps = 48\n"
+    )
     code = "import sys; from hairlut_cli.hrir import hrir_cmd; hrir_cmd(sys.argv[1:])"
     env = {**os.environ, "JAX_PLATFORMS": "cpu"}
 

@@ -15,8 +15,9 @@ PHONG = np.array([0.1, 0.6, 0.3, 20.0])
 
 
 def _recipe(**trace):
-    return resolve_recipe({"angles": {"views": 8, "lights": 6},
-                           "trace": {"pixels": 32, "steps": 48, "self_shadow": False, **trace}})
+    return resolve_recipe(
+        {"angles": {"views": 8, "lights": 6}, "trace": {"pixels": 32, "steps": 48, "self_shadow": False, **trace}}
+    )
 
 
 def _random(n=4, grid=(16, 16), seed=11, pixels=32, **override):
@@ -148,10 +149,8 @@ def test_opaque_strands_agree_with_the_numpy_reference_loop():
     rho, g, _ = _random(3, grid=(8, 8), seed=3, pixels=12)
     g[:, COL["sigma_t"]] *= 1e9
     V, L = np.arange(4) * 2 * np.pi / 4, np.arange(3) * 2 * np.pi / 3 + 0.1
-    a, re = trace_sectors(rho, g, resolve_recipe({"trace": {"pixels": 12, "steps": 12, "self_shadow": False}}),
-                          views=V, lights=L)
-    _, lit = trace_sectors(rho, g, resolve_recipe({"trace": {"pixels": 12, "steps": 12, "self_shadow": True}}),
-                           views=V, lights=L)
+    a, re = trace_sectors(rho, g, resolve_recipe({"trace": {"pixels": 12, "steps": 12, "self_shadow": False}}), views=V, lights=L)
+    _, lit = trace_sectors(rho, g, resolve_recipe({"trace": {"pixels": 12, "steps": 12, "self_shadow": True}}), views=V, lights=L)
     assert a.max() > 0.5 and np.isfinite(lit).all()
     for x in (re, lit):
         assert (x <= PHONG[:3].sum() * a[:, :, None] * (1 + 1e-5) + 1e-7).all()
@@ -178,8 +177,9 @@ def test_self_shadowing_agrees_with_marching_toward_the_light():
     V, L = np.array([0.0, 2.0]), np.array([0.5, 3.5])
     r = resolve_recipe({"trace": {"pixels": 24, "steps": 48, "self_shadow": True}})
     a, re = trace_sectors(rho, g, r, views=V, lights=L)
-    _, re0 = trace_sectors(rho, g, resolve_recipe({"trace": {"pixels": 24, "steps": 48, "self_shadow": False}}),
-                           views=V, lights=L)
+    _, re0 = trace_sectors(
+        rho, g, resolve_recipe({"trace": {"pixels": 24, "steps": 48, "self_shadow": False}}), views=V, lights=L
+    )
     assert (re <= re0 + 1e-6).all() and (re < re0 - 1e-3).any()  # shadows only darken
     for i in range(2):
         _, rr = reference_hrir(rho[i], g[i], V, L, PHONG, n_pix=24, n_steps=48, shadow=True)
@@ -200,8 +200,11 @@ def test_convergence_in_step_and_grid():
     for grid, steps in ((16, 48), (32, 96), (64, 192)):
         rho = sector_density(s.splats, (grid, grid))
         g = sector_geometry(s.params, kappa=2 / np.pi, n_pix=32)
-        a, re = trace_sectors(rho, g, resolve_recipe({"angles": {"views": 6, "lights": 4},
-                                                      "trace": {"pixels": 32, "steps": steps, "rays_per_pixel": 2}}))
+        a, re = trace_sectors(
+            rho,
+            g,
+            resolve_recipe({"angles": {"views": 6, "lights": 4}, "trace": {"pixels": 32, "steps": steps, "rays_per_pixel": 2}}),
+        )
         if prev is not None:
             d = np.concatenate([np.abs(a - prev[0]).ravel(), np.abs(re - prev[1]).ravel()])
             means.append(d.mean())

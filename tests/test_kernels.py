@@ -7,7 +7,8 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from hairlut import errors, kernels as kk
+from hairlut import errors
+from hairlut import kernels as kk
 from hairlut.stress._sh import kk_lobe_exact
 
 
@@ -22,8 +23,7 @@ def test_specular_is_the_design_formula(p):
     th, tv = np.meshgrid(np.linspace(0, np.pi, 91), np.linspace(0, np.pi, 83))
     want = np.maximum(np.cos(np.pi - th - tv), 0.0) ** p  # DESIGN.md, written out
     np.testing.assert_allclose(kk.specular(th, tv, p), want, rtol=1e-12, atol=1e-15)
-    np.testing.assert_allclose(np.asarray(jax.jit(kk.specular)(jnp.asarray(th), jnp.asarray(tv), p)), want,
-                               rtol=2e-5, atol=1e-6)
+    np.testing.assert_allclose(np.asarray(jax.jit(kk.specular)(jnp.asarray(th), jnp.asarray(tv), p)), want, rtol=2e-5, atol=1e-6)
     assert kk.specular(np.array([0.3]), np.array([np.pi - 0.3]), p)[0] == pytest.approx(1.0)  # the mirror cone
     assert kk.specular(np.array([0.3]), np.array([0.3]), p)[0] == 0.0  # far from it: clamped
 

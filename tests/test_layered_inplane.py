@@ -36,8 +36,9 @@ from hairlut.geometry import ClusterGeometry, ClusterSpec, build_sectors, genera
 def test_strands_rooted_on_the_end_planes_cross_every_cross_section():
     """Straight strands from the t = 0 plane to the t = 1 plane (generate_strands' roots and tips lie on them):
     each strand crosses every cross-section exactly once, the end ones included, at its own (x, y)."""
-    spec = ClusterSpec(trajectory=[[0.0, -0.4, 0.0], [0.0, 0.0, 0.0], [0.0, 0.4, 0.0]], half_axis_a=0.1, half_axis_b=0.1,
-                       s_t=4, s_u=8)
+    spec = ClusterSpec(
+        trajectory=[[0.0, -0.4, 0.0], [0.0, 0.0, 0.0], [0.0, 0.4, 0.0]], half_axis_a=0.1, half_axis_b=0.1, s_t=4, s_u=8
+    )
     geom = ClusterGeometry(spec)
     strands, _ = generate_strands(geom, 120, radius=0.01, seed=3)
     tab = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))
@@ -66,8 +67,9 @@ def _chord_integrals(tab, geom, spec, rho, section, offsets, z):
     cj = np.clip(((v - bounds[g]) / (bounds[g + 1] - bounds[g]) * n_r).astype(int), 0, n_r - 1)
     dens = np.where(inside, rho[tab.sector_id(0, section, g, k), ci, cj], 0.0)
     m = tab.t_index[tab.crossing_sector] == section
-    gauss = sum(np.exp(-((x - x0) ** 2 + (y - y0) ** 2) / r**2) for (x0, y0), r in zip(tab.crossing_xy[m],
-                                                                                          tab.crossing_radius[m]))
+    gauss = sum(
+        np.exp(-((x - x0) ** 2 + (y - y0) ** 2) / r**2) for (x0, y0), r in zip(tab.crossing_xy[m], tab.crossing_radius[m])
+    )
     dz = z[1] - z[0]
     return dens.sum(1) * dz, np.where(inside, gauss, 0.0).sum(1) * dz, gauss.sum(1) * dz
 
@@ -78,8 +80,9 @@ def test_sector_density_line_integrals_are_the_strands_cut_to_the_shells():
     lies beyond the outer layer or inside the core is lost, and only that)."""
     from hairlut.geometry import sector_density
 
-    spec = ClusterSpec(trajectory=[[0.0, -0.4, 0.0], [0.0, 0.0, 0.0], [0.0, 0.4, 0.0]], half_axis_a=0.1, half_axis_b=0.1,
-                       s_t=2, s_u=8)
+    spec = ClusterSpec(
+        trajectory=[[0.0, -0.4, 0.0], [0.0, 0.0, 0.0], [0.0, 0.4, 0.0]], half_axis_a=0.1, half_axis_b=0.1, s_t=2, s_u=8
+    )
     geom = ClusterGeometry(spec)
     strands, _ = generate_strands(geom, 80, radius=0.01, seed=5)
     tab = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))

@@ -52,7 +52,7 @@ def imports(name: str, path: Path, known) -> list[tuple[int, str]]:
         elif isinstance(node, ast.ImportFrom):
             base = node.module or ""
             if node.level:
-                parts = package.split(".")[:len(package.split(".")) - node.level + 1]
+                parts = package.split(".")[: len(package.split(".")) - node.level + 1]
                 base = ".".join(parts + ([base] if base else []))
             if base.split(".")[0] != "hairlut":
                 continue
@@ -89,8 +89,10 @@ def test_no_import_runs_up_a_floor():
             if there == here or here == "hairlut" or there == "hairlut":
                 continue  # inside a package; the root's lazy map names every package by string, not import
             if table[there] >= table[here]:  # (floor, place): a lower floor, or earlier on the same line
-                up.append(f"{path.relative_to(ROOT)}:{line}: {here} (floor {table[here][0]}) imports {target} "
-                          f"(floor {table[there][0]}{', later on the same line' if table[there][0] == table[here][0] else ''})")
+                up.append(
+                    f"{path.relative_to(ROOT)}:{line}: {here} (floor {table[here][0]}) imports {target} "
+                    f"(floor {table[there][0]}{', later on the same line' if table[there][0] == table[here][0] else ''})"
+                )
     assert not up, "imports that do not go down a floor:\n" + "\n".join(up)
 
 
@@ -122,7 +124,7 @@ def test_the_checks_can_fail(case, tmp_path, monkeypatch):
     fake = tmp_path / "fake.py"
     fake.write_text(source)
     found = imports("hairlut.geometry.fake", fake, known)
-    (line, target), = found
+    ((line, target),) = found
     if case == "up":
         assert table[top(target)][0] > table["geometry"][0]
     else:

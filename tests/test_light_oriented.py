@@ -94,15 +94,18 @@ def test_resolution_independence():
     assert rms[24] < 0.7 * rms[12]
     # ρ is per unit volume: scaling the scene by c with κ / c leaves Trans unchanged
     big = Strands.from_padded(3.0 * TUFT.points.reshape(TUFT.n_strands, -1, 3))
-    np.testing.assert_allclose(light_oriented_map(big, LIGHT, resolution=24, kappa=3 * KAPPA).at(3 * q), err[24] + ref,
-                               atol=1e-9)
+    np.testing.assert_allclose(light_oriented_map(big, LIGHT, resolution=24, kappa=3 * KAPPA).at(3 * q), err[24] + ref, atol=1e-9)
 
 
 def rotation(q):
     w, x, y, z = np.asarray(q) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 SMALL = tuft(seed=2, n=1500, v=6)
@@ -141,13 +144,24 @@ def test_reference_march_shadows_points_outside_the_grid():
     assert ray_march(np.stack([centre + 40.0 * LIGHT]), LIGHT, KAPPA, vol)[0] == 1.0  # ray leaves: lit
 
 
-@pytest.mark.parametrize("kwargs, field", [
-    ({"light": [0, 0, 0]}, "light"), ({"light": [np.nan, 0, 1]}, "light"),
-    ({"light": [0, 1]}, "light"), ({"resolution": 0}, "resolution"), ({"resolution": (8, 8)}, "resolution"),
-    ({"resolution": 8.0}, "resolution"), ({"resolution": True}, "resolution"), ({"resolution": (1024,) * 3}, "resolution"),
-    ({"kappa": -1.0}, "kappa"), ({"kappa": np.inf}, "kappa"), ({"padding": -1}, "padding"),
-    ({"strands": Strands(np.zeros((0, 3)), np.zeros(0, int))}, "strands"), ({"strands": np.zeros((4, 3))}, "strands"),
-])
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        ({"light": [0, 0, 0]}, "light"),
+        ({"light": [np.nan, 0, 1]}, "light"),
+        ({"light": [0, 1]}, "light"),
+        ({"resolution": 0}, "resolution"),
+        ({"resolution": (8, 8)}, "resolution"),
+        ({"resolution": 8.0}, "resolution"),
+        ({"resolution": True}, "resolution"),
+        ({"resolution": (1024,) * 3}, "resolution"),
+        ({"kappa": -1.0}, "kappa"),
+        ({"kappa": np.inf}, "kappa"),
+        ({"padding": -1}, "padding"),
+        ({"strands": Strands(np.zeros((0, 3)), np.zeros(0, int))}, "strands"),
+        ({"strands": np.zeros((4, 3))}, "strands"),
+    ],
+)
 def test_bad_inputs(kwargs, field):
     args = {"strands": SMALL, "light": LIGHT, "resolution": 8, "kappa": 1.0, **kwargs}
     with pytest.raises(errors.ValidationError) as info:

@@ -11,8 +11,8 @@ import pytest
 from hairlut import errors
 from hairlut.bake import registry
 from hairlut.hrir import trace_sectors
-from hairlut.scene import resolve_scene
 from hairlut.planner import map_method, plan, scene_maps_recipe
+from hairlut.scene import resolve_scene
 from hairlut.scenemaps import compress, fetch_rows, hrir_recipe, load_scene_maps, scene_inputs
 from hairlut.synth import prepare, render_view
 
@@ -49,8 +49,9 @@ def test_scene_table_fetch_equals_the_tracer_at_grid_angles(baked):
     live = np.flatnonzero(maps.row >= 0)
     assert live.size > 10 and report["total_units"] == live.size
     V, L = 8, 5
-    a_ref, r_ref = trace_sectors(dens[live], geom[live], full, views=2 * np.pi * np.arange(V) / V,
-                                 lights=2 * np.pi * np.arange(L) / L)
+    a_ref, r_ref = trace_sectors(
+        dens[live], geom[live], full, views=2 * np.pi * np.arange(V) / V, lights=2 * np.pi * np.arange(L) / L
+    )
     for v in range(V):
         tv = np.full(live.size, 2 * np.pi * v / V)
         tl = np.tile(2 * np.pi * np.arange(L) / L, (live.size, 1))
@@ -76,8 +77,10 @@ def _fetch_reference(alpha_t, ratio_t, row, tv, tl):
         i0, w = int(np.floor(f)) % V, f - np.floor(f)
         views = (i0, (i0 + 1) % V)
         for p in range(P):
-            a[s, p] = sum(wt * (alpha_t[row[s], i, p] if i < half else alpha_t[row[s], i - half, P - 1 - p])
-                          for wt, i in zip((1 - w, w), views))
+            a[s, p] = sum(
+                wt * (alpha_t[row[s], i, p] if i < half else alpha_t[row[s], i - half, P - 1 - p])
+                for wt, i in zip((1 - w, w), views)
+            )
         g = (tv[s] % (2 * np.pi)) * Vr / (2 * np.pi)
         j0, u = int(np.floor(g)) % Vr, g - np.floor(g)
         c = (1 - u) * ratio_t[row[s], j0].astype(np.float64) + u * ratio_t[row[s], (j0 + 1) % Vr]
@@ -101,8 +104,9 @@ def test_fetch_kernel_equals_an_elementwise_reference(dtype, step):
     tv = np.concatenate([rng.uniform(0, 2 * np.pi, S - 3), [0.0, np.pi, 2 * np.pi - 1e-3]])  # grid, mirror, wrap
     tl = rng.uniform(0, 2 * np.pi, (S, L))
     a, r = (np.asarray(x) for x in fetch_kernel(alpha_t, ratio_t, row, tv.astype(np.float32), tl.astype(np.float32)))
-    a_ref, r_ref = _fetch_reference(alpha_t, ratio_t, row, tv.astype(np.float32).astype(np.float64),
-                                    tl.astype(np.float32).astype(np.float64))
+    a_ref, r_ref = _fetch_reference(
+        alpha_t, ratio_t, row, tv.astype(np.float32).astype(np.float64), tl.astype(np.float32).astype(np.float64)
+    )
     np.testing.assert_allclose(a, a_ref, atol=2e-6, rtol=0)
     np.testing.assert_allclose(r, r_ref, atol=1e-5, rtol=0)
     assert not a[row < 0].any() and not r[row < 0].any()
@@ -120,8 +124,7 @@ def test_view_fetch_kernels_equal_the_reference_at_edge_angles():
     n, V, P, Q, K, L = 4, 8, 16, 4, 2, 2
     alpha_t = rng.random((n, V // 2, P)).astype("float16")
     ratio_t = (0.3 * rng.normal(size=(n, V // 2, Q, 2 * K + 1))).astype("float16")
-    tv = np.array([0.0, np.pi, 2 * np.pi - 1e-7, -1e-7, np.pi - 1e-6, 3 * np.pi / 4, -np.pi, 5.0, 2 * np.pi],
-                  np.float32)
+    tv = np.array([0.0, np.pi, 2 * np.pi - 1e-7, -1e-7, np.pi - 1e-6, 3 * np.pi / 4, -np.pi, 5.0, 2 * np.pi], np.float32)
     row = np.array([0, 1, 2, 3, -1, 1, 2, 0, 3], np.int32)
     tl = rng.uniform(0, 2 * np.pi, (len(tv), L)).astype(np.float32)
     index = index_kernel(jnp.asarray(row), jnp.asarray(tv), half=V // 2, views=V // 2)
@@ -139,9 +142,7 @@ def test_scene_view_kernel_equals_fetch_then_sweep(baked):
     import jax.numpy as jnp
 
     from hairlut.scenemaps import fetch_kernel
-    from hairlut.synth import params_kernel, sweep_sectors
-
-    from hairlut.synth import MapSource
+    from hairlut.synth import MapSource, params_kernel, sweep_sectors
 
     _, _, maps, _ = baked
     lit = scene("direct")
@@ -155,7 +156,8 @@ def test_scene_view_kernel_equals_fetch_then_sweep(baked):
     a, r = fetch_kernel(*dev, tv, tl)
     re_ref, a_ref = sweep_sectors(ix, a, r, cs)
     re_map, a_map, uniform = MapSource("scene", "", maps.pixels, maps=maps, device=dev).view(
-        ix, prep.scene.view, prep.scene.lights)
+        ix, prep.scene.view, prep.scene.lights
+    )
     assert not uniform.any() and float(jnp.max(a_ref)) > 0.1 and float(jnp.max(re_ref)) > 0.01
     np.testing.assert_allclose(np.asarray(a_map), np.asarray(a_ref), atol=1e-7, rtol=0)
     np.testing.assert_allclose(np.asarray(re_map), np.asarray(re_ref), atol=1e-7, rtol=0)
@@ -169,12 +171,11 @@ def test_compress_reconstructs_a_band_limited_ratio():
     tv = 2 * np.pi * np.arange(V) / V
     coef = rng.normal(size=(n, P, 2 * K + 1))
     d = tl[None, :] - tv[:, None]  # (V, L)
-    basis = np.concatenate([np.ones((V, L, 1)), np.stack([f(k * d) for k in range(1, K + 1) for f in (np.cos, np.sin)],
-                                                         -1)], -1)
+    basis = np.concatenate([np.ones((V, L, 1)), np.stack([f(k * d) for k in range(1, K + 1) for f in (np.cos, np.sin)], -1)], -1)
     ratio = np.einsum("npt,vlt->nvlp", coef, basis)
     half, got, _ = compress(alpha, alpha[:, :, None] * ratio, V, K, P)
     np.testing.assert_allclose(got, np.broadcast_to(coef[:, None], got.shape), atol=1e-10)
-    np.testing.assert_array_equal(half, alpha[:, :V // 2])
+    np.testing.assert_array_equal(half, alpha[:, : V // 2])
 
 
 def test_empty_sectors_are_zero_without_work(baked):
@@ -229,13 +230,18 @@ def test_geometry_keys_the_table():
     assert scene_maps_recipe(resolve_scene(moved))["geometry"] != a["geometry"]
 
 
-@pytest.mark.parametrize("render,field", [({"method": "fast"}, "render.method"),
-                                          ({"method": "direct", "views": 64}, "render.views"),
-                                          ({"method": "scene", "views": 63}, "render.views"),
-                                          ({"method": "scene", "precision": "int8"}, "render.precision"),
-                                          ({"method": "scene", "ratio_step": 0}, "render.ratio_step"),
-                                          ({"method": "direct", "ratio_step": 2}, "render.ratio_step"),
-                                          ({"rays": 0}, "render.rays")])
+@pytest.mark.parametrize(
+    "render,field",
+    [
+        ({"method": "fast"}, "render.method"),
+        ({"method": "direct", "views": 64}, "render.views"),
+        ({"method": "scene", "views": 63}, "render.views"),
+        ({"method": "scene", "precision": "int8"}, "render.precision"),
+        ({"method": "scene", "ratio_step": 0}, "render.ratio_step"),
+        ({"method": "direct", "ratio_step": 2}, "render.ratio_step"),
+        ({"rays": 0}, "render.rays"),
+    ],
+)
 def test_bad_method_or_knob_is_rejected_by_name(render, field):
     s = scene()
     s["render"] = {**s["render"], **render}

@@ -104,9 +104,13 @@ def test_opacity_is_independent_of_step_and_slice_count():
 @given(st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda q: np.linalg.norm(q) > 0.2))
 def test_rotating_hair_light_and_up_together_leaves_tau_unchanged(q):
     w, x, y, z = np.asarray(q) / np.linalg.norm(q)
-    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                  [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                  [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    R = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
     s = _hair(n=30, v=8)
     light, up = np.array([0.4, 1.0, -0.2]), np.array([0.0, 0.0, 1.0])
     kw = dict(n_slices=8, resolution=16, kappa=0.5)
@@ -161,22 +165,25 @@ def test_matches_brute_force_column_integral():
 
 
 # -- (6) validation --------------------------------------------------------------------------------
-@pytest.mark.parametrize("kwargs, field", [
-    (dict(light=[0, 0, 0]), "light"),
-    (dict(light=[np.nan, 1, 0]), "light"),
-    (dict(light=[1, 0]), "light"),
-    (dict(n_slices=0), "n_slices"),
-    (dict(n_slices=2.5), "n_slices"),
-    (dict(resolution=0), "resolution"),
-    (dict(resolution=True), "resolution"),
-    (dict(kappa=-1.0), "kappa"),
-    (dict(kappa=np.inf), "kappa"),
-    (dict(spacing=0.0), "spacing"),
-    (dict(width=-1.0), "width"),
-    (dict(up=[0, 2, 0]), "up"),
-    (dict(strands="hair"), "strands"),
-    (dict(strands=Strands(np.zeros((0, 3)), np.zeros(0, int))), "strands"),
-])
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        (dict(light=[0, 0, 0]), "light"),
+        (dict(light=[np.nan, 1, 0]), "light"),
+        (dict(light=[1, 0]), "light"),
+        (dict(n_slices=0), "n_slices"),
+        (dict(n_slices=2.5), "n_slices"),
+        (dict(resolution=0), "resolution"),
+        (dict(resolution=True), "resolution"),
+        (dict(kappa=-1.0), "kappa"),
+        (dict(kappa=np.inf), "kappa"),
+        (dict(spacing=0.0), "spacing"),
+        (dict(width=-1.0), "width"),
+        (dict(up=[0, 2, 0]), "up"),
+        (dict(strands="hair"), "strands"),
+        (dict(strands=Strands(np.zeros((0, 3)), np.zeros(0, int))), "strands"),
+    ],
+)
 def test_bad_inputs_name_the_field(kwargs, field):
     args = dict(strands=_hair(n=4, v=4), light=[0, 1, 0])
     args.update(kwargs)

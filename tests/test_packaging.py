@@ -31,9 +31,17 @@ def test_the_example_inputs_are_shipped():
     and nothing else there does (the baked tables in the default cache are not shipped)."""
     conf = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
     patterns = conf["package-data"]["hairlut.examples"]
-    tracked = {"hrir-default.toml", "sh-default.toml", "sh-paper.toml", "grooms/README.md", "grooms/LICENSE-sintel.txt",
-               "grooms/LICENSE-ratboy.txt", "grooms/sintel_lite.tfx", "grooms/ratboy_mohawk.tfx",
-               *(f"scenes/{p.name}" for p in (ROOT / "tables" / "scenes").glob("*.toml"))}
+    tracked = {
+        "hrir-default.toml",
+        "sh-default.toml",
+        "sh-paper.toml",
+        "grooms/README.md",
+        "grooms/LICENSE-sintel.txt",
+        "grooms/LICENSE-ratboy.txt",
+        "grooms/sintel_lite.tfx",
+        "grooms/ratboy_mohawk.tfx",
+        *(f"scenes/{p.name}" for p in (ROOT / "tables" / "scenes").glob("*.toml")),
+    }
     shipped = {p.relative_to(ROOT / "tables").as_posix() for pat in patterns for p in (ROOT / "tables").glob(pat)}
     assert shipped == tracked
     from hairlut.bench import example
@@ -46,8 +54,14 @@ def test_the_bench_runs_no_script_by_path():
     the only path it takes from its own location is where the example inputs are."""
     for path in (ROOT / "hairlut" / "bench").glob("*.py"):
         tree = ast.parse(path.read_text(), str(path))
-        docs = {id(n.body[0].value) for n in ast.walk(tree) if isinstance(n, (ast.Module, ast.FunctionDef, ast.ClassDef))
-                and n.body and isinstance(n.body[0], ast.Expr) and isinstance(n.body[0].value, ast.Constant)}
+        docs = {
+            id(n.body[0].value)
+            for n in ast.walk(tree)
+            if isinstance(n, (ast.Module, ast.FunctionDef, ast.ClassDef))
+            and n.body
+            and isinstance(n.body[0], ast.Expr)
+            and isinstance(n.body[0].value, ast.Constant)
+        }
         for node in ast.walk(tree):
             if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docs:
                 assert "benchmarks" not in node.value, f"{path.name}:{node.lineno}"
@@ -102,24 +116,48 @@ def test_an_installed_wheel_runs_every_bench_part(tmp_path):
     for d in (src, wheels, work):
         d.mkdir()
     pip = [sys.executable, "-m", "pip", "--disable-pip-version-check", "--no-input"]
-    subprocess.run([*pip, "wheel", "--no-deps", "--no-build-isolation", "--no-index", "-w", str(wheels),
-                    str(_build_tree(src))], check=True, capture_output=True, timeout=600)
+    subprocess.run(
+        [*pip, "wheel", "--no-deps", "--no-build-isolation", "--no-index", "-w", str(wheels), str(_build_tree(src))],
+        check=True,
+        capture_output=True,
+        timeout=600,
+    )
     (wheel,) = wheels.glob("hairlut-*.whl")
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(env_dir)], check=True, timeout=120)
     py = env_dir / "bin" / "python"
-    purelib = subprocess.run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], check=True,
-                             capture_output=True, text=True).stdout.strip()
+    purelib = subprocess.run(
+        [str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], check=True, capture_output=True, text=True
+    ).stdout.strip()
     (Path(purelib) / "_test_env.pth").write_text("\n".join(site.getsitepackages()) + "\n")
-    subprocess.run([*pip, "--python", str(py), "install", "--no-deps", "--no-index", str(wheel)], check=True,
-                   capture_output=True, timeout=600)
+    subprocess.run(
+        [*pip, "--python", str(py), "install", "--no-deps", "--no-index", str(wheel)],
+        check=True,
+        capture_output=True,
+        timeout=600,
+    )
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "HAIRLUT_CACHE")}
-    where = subprocess.run([str(py), "-c", "import hairlut, hairlut.bench; print(hairlut.__file__); "
-                            "print(hairlut.bench.example('grooms/sintel_lite.tfx'))"], cwd=work, env=env, check=True,
-                           capture_output=True, text=True).stdout.split()
+    where = subprocess.run(
+        [
+            str(py),
+            "-c",
+            "import hairlut, hairlut.bench; print(hairlut.__file__); print(hairlut.bench.example('grooms/sintel_lite.tfx'))",
+        ],
+        cwd=work,
+        env=env,
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.split()
     assert all(Path(w).is_relative_to(env_dir) for w in where), where
     out = work / "bench"
-    run = subprocess.run([str(env_dir / "bin" / "hairlut"), "bench", "--quick", "--out", str(out), "--no-progress"],
-                         cwd=work, env=env, capture_output=True, text=True, timeout=3600)
+    run = subprocess.run(
+        [str(env_dir / "bin" / "hairlut"), "bench", "--quick", "--out", str(out), "--no-progress"],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=3600,
+    )
     assert run.returncode == 0, run.stderr[-3000:]
     doc = json.loads((out / "results.json").read_text())
     one_core = len(os.sched_getaffinity(0)) < 2

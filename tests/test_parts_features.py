@@ -12,13 +12,13 @@ import h5py
 import numpy as np
 import pytest
 
+from hairlut.geometry.density import sector_density
 from hairlut.geometry.features import sector_features
 from hairlut.hrir import bake, resolve_recipe
 from hairlut.hrir._bake import sample_block
-from hairlut.march._geometry import sector_geometry
 from hairlut.hrir._io import FEATURE_CHUNK, _row_areas
 from hairlut.hrir._parts import part_features, part_index
-from hairlut.geometry.density import sector_density
+from hairlut.march._geometry import sector_geometry
 
 
 def _inputs(r, n):
@@ -42,8 +42,7 @@ def test_part_features_are_the_whole_databases_bit_for_bit(features, total, cuts
 
 def test_virtual_feature_index_is_the_copied_assets(tmp_path):
     """Parts of 48 sectors straddle the 256-sector feature chunks; the leader reads only their features."""
-    given = {"sectors": {"count": 300, "grid": [8, 8]}, "angles": {"views": 2, "lights": 2},
-             "trace": {"pixels": 4, "steps": 2}}
+    given = {"sectors": {"count": 300, "grid": [8, 8]}, "angles": {"views": 2, "lights": 2}, "trace": {"pixels": 4, "steps": 2}}
     copy = bake(given, tmp_path / "copy.h5", block=48)
     virtual = bake(given, tmp_path / "virtual.h5", block=48, distributed=True, merge="virtual")
     assert virtual["merge"] == "virtual" and copy["merge"] == "copy"

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from hairlut import errors
-from hairlut.bake import registry
 from hairlut.assets import Axis, Variable, write_table
 from hairlut.assets.bounds import ATOL, RTOL, check_bounds
+from hairlut.bake import registry
 from hairlut.bake.protocol import Baker, Bound
 
 from ._synth_fixtures import scene as base_scene
@@ -53,8 +53,11 @@ def test_a_bound_aligns_its_reference_by_dimension_name_and_allows_rounding():
     check_bounds("toy", (RE,), recipe, _tables(alpha.astype(np.float16), edge.astype(np.float16)))  # both rounded
     worse = edge.copy()
     worse[2, 1, 4, 3] = 0.7 * alpha[2, 1, 3] * (1 + 10 * RTOL) + 10 * ATOL
-    with pytest.raises(errors.BoundsError, match=r"toy: re breaks its bound 0 ≤ re ≤ k·α: 1 value beyond it .*index "
-                                                 r"\[2, 1, 4, 3\]\); the recipe drives it: k=0.7, depth.kappa=2.0"):
+    with pytest.raises(
+        errors.BoundsError,
+        match=r"toy: re breaks its bound 0 ≤ re ≤ k·α: 1 value beyond it .*index "
+        r"\[2, 1, 4, 3\]\); the recipe drives it: k=0.7, depth.kappa=2.0",
+    ):
         check_bounds("toy", (RE,), recipe, _tables(alpha, worse))
     low = edge / 2
     low[1, 2, 3, 0] = -1e-3
@@ -71,9 +74,20 @@ def bounded_toy():
     """A toy kind with one Bound in its Baker (and its shard kind), withdrawn from the kind table afterwards."""
     from hairlut.assets import KINDS
 
-    Baker(kind="bounded_toy", command="toy", description="a toy kind with a bound", required=("x",), schema={},
-          resolve_recipe=dict, bake=lambda recipe, out, **_: {}, load=None, estimate=None, shard_kind="bounded_toy_shard",
-          merge=lambda s, o: {}, bounds=(Bound("x", 0.0, 1.0, keys=("gain",)),))
+    Baker(
+        kind="bounded_toy",
+        command="toy",
+        description="a toy kind with a bound",
+        required=("x",),
+        schema={},
+        resolve_recipe=dict,
+        bake=lambda recipe, out, **_: {},
+        load=None,
+        estimate=None,
+        shard_kind="bounded_toy_shard",
+        merge=lambda s, o: {},
+        bounds=(Bound("x", 0.0, 1.0, keys=("gain",)),),
+    )
     yield ("bounded_toy", "bounded_toy_shard")
     for name in ("bounded_toy", "bounded_toy_shard"):
         dict.pop(KINDS, name, None)
@@ -119,14 +133,29 @@ def _brighter(alpha, refl):
     return alpha, refl
 
 
-@pytest.mark.parametrize("change, error, match", [
-    (_nan, errors.NonFiniteError, r"hrir_shard part-[^:]*: reflectance is not finite \(1 NaN/inf values\); the "
-                                  r"recipe drives it: trace\.extinction=0\.63.*phong\.shininess=20\.0"),
-    (_brighter, errors.BoundsError, r"hrir_shard part-[^:]*: reflectance breaks its bound 0 ≤ re ≤ α·\(k_a \+ k_d \+ "
-                                    r"k_s\): 1 value beyond it.*trace\.extinction=0\.63.*phong\.ambient=0\.1"),
-    (lambda a, r: (a + 0.5, r), errors.BoundsError, r"hrir_shard part-[^:]*: alpha breaks its bound 0 ≤ α ≤ 1: "
-                                                    r".*trace\.extinction"),
-])
+@pytest.mark.parametrize(
+    "change, error, match",
+    [
+        (
+            _nan,
+            errors.NonFiniteError,
+            r"hrir_shard part-[^:]*: reflectance is not finite \(1 NaN/inf values\); the "
+            r"recipe drives it: trace\.extinction=0\.63.*phong\.shininess=20\.0",
+        ),
+        (
+            _brighter,
+            errors.BoundsError,
+            r"hrir_shard part-[^:]*: reflectance breaks its bound 0 ≤ re ≤ α·\(k_a \+ k_d \+ "
+            r"k_s\): 1 value beyond it.*trace\.extinction=0\.63.*phong\.ambient=0\.1",
+        ),
+        (
+            lambda a, r: (a + 0.5, r),
+            errors.BoundsError,
+            r"hrir_shard part-[^:]*: alpha breaks its bound 0 ≤ α ≤ 1: "
+            r".*trace\.extinction",
+        ),
+    ],
+)
 def test_hrir_db_refuses_tables_beyond_their_bounds(tmp_path, monkeypatch, change, error, match):
     """NaN (no recipe inside the float32 bounds makes one now), re above α·(k_a + k_d + k_s), α above 1."""
     _traced_then(monkeypatch, change)
@@ -148,9 +177,12 @@ def test_scene_maps_refuse_a_ratio_above_the_phong_sum(tmp_path, monkeypatch):
 
     monkeypatch.setattr(_parts, "ratio_terms", brighter)
     sc = _scene()
-    with pytest.raises(errors.BoundsError, match=r"scene_shard part-[^:]*: ratio\[\.\.\., 0\] breaks its bound 0 ≤ c₀ "
-                                                 r"≤ k_a \+ k_d \+ k_s.*hrir\.trace\.extinction=0\.63.*"
-                                                 r"hrir\.phong\.ambient=0\.1"):
+    with pytest.raises(
+        errors.BoundsError,
+        match=r"scene_shard part-[^:]*: ratio\[\.\.\., 0\] breaks its bound 0 ≤ c₀ "
+        r"≤ k_a \+ k_d \+ k_s.*hrir\.trace\.extinction=0\.63.*"
+        r"hrir\.phong\.ambient=0\.1",
+    ):
         registry.bake("scene_maps", scene_maps_recipe(sc), tmp_path / "maps.h5", scene=sc)
     assert not (tmp_path / "maps.h5").exists()
 

@@ -1,22 +1,24 @@
 """The scene planner: one test per rule, reuse through the cache, re-bakes, bad scenes, the CLI."""
 
 import json
-import math
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from tests._synth_fixtures import scene as base_scene
 from hairlut import errors
 from hairlut.bake.cache import entries
-from hairlut.scene import grid_coverage, resolve_scene, scene_sectors
 from hairlut.planner import bake, find_assets, plan
+from hairlut.scene import grid_coverage, resolve_scene, scene_sectors
 from hairlut.shtables._bake import band_truncation_error, specular_band_rule
 from hairlut_cli.main import cli
+from tests._synth_fixtures import scene as base_scene
 
-TINY_HRIR = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 4, "lights": 4},
-             "trace": {"pixels": 8, "steps": 8, "self_shadow": False}}
+TINY_HRIR = {
+    "sectors": {"count": 12, "grid": [8, 8]},
+    "angles": {"views": 4, "lights": 4},
+    "trace": {"pixels": 8, "steps": 8, "self_shadow": False},
+}
 
 
 def scene(env=None, tables=None, **material):
@@ -82,14 +84,19 @@ def test_sector_space_fits_the_scene(tmp_path):
     ss = scene_sectors(sc)
     space = plan(sc, tmp_path).step("hrir_db").recipe["sectors"]["space"]
     assert space["s_u"] == [4, 4]
-    for key, values in (("aspect", ss.aspect), ("v_inner", ss.v_range[:, 0]),
-                        ("radial_extent", ss.v_range[:, 1] - ss.v_range[:, 0]), ("strands", ss.strands),
-                        ("radius_rel", ss.radius_rel[np.isfinite(ss.radius_rel)])):
+    for key, values in (
+        ("aspect", ss.aspect),
+        ("v_inner", ss.v_range[:, 0]),
+        ("radial_extent", ss.v_range[:, 1] - ss.v_range[:, 0]),
+        ("strands", ss.strands),
+        ("radius_rel", ss.radius_rel[np.isfinite(ss.radius_rel)]),
+    ):
         lo, hi = space[key]
         assert lo <= values.min() and values.max() <= hi, key
     unrestricted = plan(scene(tables={"restrict": False}), tmp_path).step("hrir_db").recipe["sectors"]["space"]
-    assert unrestricted["s_u"] == [4, 32] and "as given" in plan(scene(tables={"restrict": False}), tmp_path).step(
-        "hrir_db").reason
+    assert (
+        unrestricted["s_u"] == [4, 32] and "as given" in plan(scene(tables={"restrict": False}), tmp_path).step("hrir_db").reason
+    )
 
 
 def test_transmittance_only_with_environment_and_self_shadow(tmp_path):
@@ -134,21 +141,30 @@ def test_bake_then_nothing_new_and_one_parameter_change(tmp_path):
 
 
 def test_covering_database_is_reused(tmp_path):
-    space = {"strands": [0, 1000], "radius_rel": [1e-3, 10.0], "aspect": [1e-3, 1.0], "v_inner": [0.0, 0.9],
-             "radial_extent": [1e-3, 1.0], "s_u": [1, 64]}
+    space = {
+        "strands": [0, 1000],
+        "radius_rel": [1e-3, 10.0],
+        "aspect": [1e-3, 1.0],
+        "v_inner": [0.0, 0.9],
+        "radial_extent": [1e-3, 1.0],
+        "s_u": [1, 64],
+    }
     wide = scene(tables={"restrict": False, "hrir": {**TINY_HRIR, "sectors": {**TINY_HRIR["sectors"], "space": space}}})
     bake(plan(wide, tmp_path))
     step = plan(scene(), tmp_path).step("hrir_db")
     assert step.action == "reuse" and "contains the scene's" in step.reason
 
 
-@pytest.mark.parametrize("patch, field", [
-    ({"tables": {"hrir": {"sectors": {"count": -1}}}}, "tables.hrir.sectors.count"),
-    ({"tables": {"bogus": 1}}, "tables.bogus"),
-    ({"environment": {"bands": 0}}, "environment.bands"),
-    ({"environment": {"voxels": 4}}, "environment.voxels"),
-    ({"environment": {"up": "x"}}, "environment.up"),
-])
+@pytest.mark.parametrize(
+    "patch, field",
+    [
+        ({"tables": {"hrir": {"sectors": {"count": -1}}}}, "tables.hrir.sectors.count"),
+        ({"tables": {"bogus": 1}}, "tables.bogus"),
+        ({"environment": {"bands": 0}}, "environment.bands"),
+        ({"environment": {"voxels": 4}}, "environment.voxels"),
+        ({"environment": {"up": "x"}}, "environment.up"),
+    ],
+)
 def test_bad_scenes_name_the_key(tmp_path, patch, field):
     s = scene()
     for k, v in patch.items():
@@ -184,8 +200,11 @@ def _write_toml(path, mapping):
     lines = []
 
     def emit(prefix, table):
-        scalars = {k: v for k, v in table.items() if not isinstance(v, dict) and not (
-            isinstance(v, list) and v and isinstance(v[0], dict))}
+        scalars = {
+            k: v
+            for k, v in table.items()
+            if not isinstance(v, dict) and not (isinstance(v, list) and v and isinstance(v[0], dict))
+        }
         if prefix:
             lines.append(f"[{prefix}]")
         for k, v in scalars.items():
@@ -197,6 +216,7 @@ def _write_toml(path, mapping):
                 for item in v:
                     lines.append(f"[[{prefix + '.' if prefix else ''}{k}]]")
                     lines.extend(f"{kk} = {json.dumps(vv)}" for kk, vv in item.items())
+
     emit("", mapping)
     path.write_text("\n".join(lines) + "\n")
     return path

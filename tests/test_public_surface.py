@@ -36,8 +36,11 @@ def floor_table() -> dict[str, int]:
     """DESIGN.md's ``floor N  name name ...`` lines: top-level module or package → floor (read as
     tests/test_layering.py reads them)."""
     text = (ROOT / "DESIGN.md").read_text()
-    table = {name: int(n) for n, names in re.findall(r"^floor (\d+)\s+(.+)$", text, re.M)
-             for name in re.findall(r"[\w.]+", names.split("#")[0])}
+    table = {
+        name: int(n)
+        for n, names in re.findall(r"^floor (\d+)\s+(.+)$", text, re.M)
+        for name in re.findall(r"[\w.]+", names.split("#")[0])
+    }
     assert table, "DESIGN.md has no floor table"
     return table
 
@@ -67,12 +70,16 @@ def undocumented(value) -> bool:
 def test_all_is_written_out_sorted(package):
     """``__all__`` is a sorted list of names written in the package's ``__init__``, not derived from its lazy map."""
     tree = ast.parse((PACKAGE / package / "__init__.py").read_text())
-    assigned = [node.value for node in tree.body if isinstance(node, ast.Assign)
-                and any(isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets)]
+    assigned = [
+        node.value
+        for node in tree.body
+        if isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets)
+    ]
     assert len(assigned) == 1, f"hairlut.{package} assigns __all__ {len(assigned)} times"
-    value, = assigned
-    assert isinstance(value, ast.List) and all(isinstance(e, ast.Constant) and isinstance(e.value, str)
-                                               for e in value.elts), f"hairlut.{package}.__all__ is not a list of names"
+    (value,) = assigned
+    assert isinstance(value, ast.List) and all(isinstance(e, ast.Constant) and isinstance(e.value, str) for e in value.elts), (
+        f"hairlut.{package}.__all__ is not a list of names"
+    )
     names = [e.value for e in value.elts]
     assert names == sorted(set(names)), f"hairlut.{package}.__all__ is not sorted or repeats a name"
 
@@ -109,8 +116,9 @@ def test_the_root_lists_what_exists():
     modules = {n for n in names if isinstance(getattr(hairlut, n), types.ModuleType)}
     above = {unit for unit, floor in floor_table().items() if floor >= 1}
     extra = sorted(modules - above - {"errors"})
-    assert modules == above | {"errors"}, (f"hairlut.__all__'s modules differ from DESIGN.md's floors 1 and up: "
-                                           f"missing {sorted(above - modules)}, extra {extra}")
+    assert modules == above | {"errors"}, (
+        f"hairlut.__all__'s modules differ from DESIGN.md's floors 1 and up: missing {sorted(above - modules)}, extra {extra}"
+    )
     for unit in above:  # every unit of the floor table exists as a package or a module
         assert (PACKAGE / unit / "__init__.py").is_file() or (PACKAGE / f"{unit}.py").is_file(), unit
     assert isinstance(hairlut.__version__, str)
@@ -133,8 +141,9 @@ def test_the_surface_stays_narrow():
     counts = {m: len(module.__all__) for m, module in public_modules().items()}
     assert set(PACKAGES) <= set(counts), "a package is missing from hairlut.__all__"
     total = sum(counts.values())
-    assert total <= CAP, (f"{total} public names ({counts}) exceed the cap of {CAP}: list only what a user calls, "
-                          f"and import wiring from its module")
+    assert total <= CAP, (
+        f"{total} public names ({counts}) exceed the cap of {CAP}: list only what a user calls, and import wiring from its module"
+    )
 
 
 def test_the_docstring_check_can_fail():

@@ -10,7 +10,9 @@ from hairlut.assets import canonical_json, recipe_hash
 from hairlut.errors import ValidationError
 
 scalars = st.none() | st.booleans() | st.integers(-(2**53), 2**53) | st.floats(allow_nan=False, allow_infinity=False) | st.text()
-recipes = st.recursive(scalars, lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=4), max_leaves=20)
+recipes = st.recursive(
+    scalars, lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=4), max_leaves=20
+)
 
 
 @given(st.dictionaries(st.text(max_size=8), recipes, max_size=6))

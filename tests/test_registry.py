@@ -10,8 +10,8 @@ import pytest
 from click.testing import CliRunner
 
 from hairlut import errors
-from hairlut.bake import registry
 from hairlut.assets import read_table, stale_temporaries
+from hairlut.bake import registry
 from hairlut.bake.protocol import Baker
 from hairlut_cli.main import cli
 
@@ -168,8 +168,11 @@ def test_every_registered_kind_declares_the_protocol():
 
 SMALL = {
     "sh_tables": {"kernel": {"p": 16.0}},
-    "hrir_db": {"sectors": {"count": 16, "grid": [8, 8]}, "angles": {"views": 16, "lights": 16},
-                "trace": {"pixels": 32, "steps": 16}},
+    "hrir_db": {
+        "sectors": {"count": 16, "grid": [8, 8]},
+        "angles": {"views": 16, "lights": 16},
+        "trace": {"pixels": 32, "steps": 16},
+    },
 }
 
 
@@ -217,8 +220,19 @@ def test_sh_light_is_a_keyed_input(tmp_path):
     assert exc.value.field == "light"
     with pytest.raises(errors.ValidationError):  # and not another one
         b.resolve_recipe(r, light=sky_light(3))
-    res = run("bake", "sh", "--out", tmp_path / "s.h5", "--set", "kernel.p=4", "--set", "bands.transmittance=2",
-              "--light", "sky", "--json")
+    res = run(
+        "bake",
+        "sh",
+        "--out",
+        tmp_path / "s.h5",
+        "--set",
+        "kernel.p=4",
+        "--set",
+        "bands.transmittance=2",
+        "--light",
+        "sky",
+        "--json",
+    )
     assert res.exit_code == 0, res.output
     assert json.loads(res.stdout)["recipe"]["light"]["source_sha256"] == light.source_sha256
 
@@ -230,7 +244,7 @@ def test_hrir_through_the_registry_is_the_same_bake(tmp_path):
     small = {"sectors": {"count": 3, "grid": [8, 8]}, "angles": {"views": 4, "lights": 2}, "trace": {"pixels": 8, "steps": 8}}
     bake(small, tmp_path / "a.h5", block=2)
     rec = tmp_path / "r.toml"
-    rec.write_text('[sectors]\ncount = 3\ngrid = [8, 8]\n[angles]\nviews = 4\nlights = 2\n[trace]\npixels = 8\nsteps = 8\n')
+    rec.write_text("[sectors]\ncount = 3\ngrid = [8, 8]\n[angles]\nviews = 4\nlights = 2\n[trace]\npixels = 8\nsteps = 8\n")
     res = run("bake", "hrir", "--recipe", rec, "--out", tmp_path / "b.h5", "--block", "3", "--no-progress")
     assert res.exit_code == 0, res.output
     assert res.output.startswith(f"wrote {tmp_path / 'b.h5'} (hrir_db, sectors 0..2 of 3,")

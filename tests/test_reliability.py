@@ -25,7 +25,6 @@ from hairlut.assets import allowed_virtual_sources, read_table, summarize
 from ._synth_fixtures import scene, synthetic_db
 from ._tables import declare_rows, lobes_table, virtual_over
 
-
 # ----------------------------------------------------------------------------- item 4: HDF5_VDS_PREFIX
 
 
@@ -99,8 +98,8 @@ def test_empty_sectors_give_zero_alpha_on_the_view_path_and_the_reference(db, th
     HSV has two empty sectors has α = re = 0, an HSV with one empty end is never uniform (eq 7 fades
     to 0 towards it), and the per-view path equals the reference build_maps."""
     from hairlut.synth import prepare
-    from hairlut.synth._view import view_maps
     from hairlut.synth._maps import build_maps, sector_angles, texels
+    from hairlut.synth._view import view_maps
 
     given = scene(k_threshold=thr)
     given["strands"].update(count=6, profile="clumped", spread=0.05)
@@ -162,8 +161,10 @@ def test_sh_merge_refuses_a_part_holding_nan(tmp_path):
     """``bake sh_tables --shard K/N`` then ``merge``: a shard whose Rs holds NaN is refused, naming the file."""
     from hairlut.bake import registry
 
-    shards = [registry.bake("sh_tables", SH_DENSE, tmp_path / f"s{k}.h5", shard=f"{k}/2", options={"block": 40})["out"]
-              for k in range(2)]
+    shards = [
+        registry.bake("sh_tables", SH_DENSE, tmp_path / f"s{k}.h5", shard=f"{k}/2", options={"block": 40})["out"]
+        for k in range(2)
+    ]
     with h5py.File(shards[1], "r+") as f:
         rs = f["dense/rs"][()]
         rs[0, 0, 0, 0] = np.nan
@@ -177,8 +178,23 @@ def test_sh_merge_refuses_a_part_holding_nan(tmp_path):
 
 # ----------------------------------------------------------------------------- item 15: the key the user set is named
 
-BAD_VALUES = [-1, 0, 1e300, -1e300, float("nan"), float("inf"), "zzz", [], [1e300, 1e300, 1e300], True, {}, [0, 0, 0],
-              [-1, -1], [10**9, 10**9], 10**12]
+BAD_VALUES = [
+    -1,
+    0,
+    1e300,
+    -1e300,
+    float("nan"),
+    float("inf"),
+    "zzz",
+    [],
+    [1e300, 1e300, 1e300],
+    True,
+    {},
+    [0, 0, 0],
+    [-1, -1],
+    [10**9, 10**9],
+    10**12,
+]
 
 
 def _named(fn, key):
@@ -192,15 +208,14 @@ def _named(fn, key):
         return "named" if exc.field == key or exc.field.startswith((key + "[", key + ".")) else f"names {exc.field}: {exc}"
     except errors.AssetNotFoundError as exc:  # environment.map = 'zzz': the file it resolves to is named
         return "named" if "zzz" in str(exc) else repr(exc)
-    except Exception as exc:  # noqa: BLE001
+    except Exception as exc:
         return f"{type(exc).__name__}: {exc}"
 
 
 def test_every_bad_scene_key_is_named():
     from hairlut.scene import resolve_scene
-    from hairlut.scene._schema import CLUSTER, SCHEMA
-
     from hairlut.scene._camera import CAMERA
+    from hairlut.scene._schema import CLUSTER, SCHEMA
 
     faults = {}
     for section, fields in {**SCHEMA, "camera": CAMERA}.items():
@@ -309,8 +324,22 @@ def test_the_largest_exponent_renders_finite_without_warnings(db):
 
 # ----------------------------------------------------------------------------- items 8 and 10 at the command line
 
-TINY_HRIR = ["--set", "sectors.count=12", "--set", "sectors.grid=[8, 8]", "--set", "angles.views=4", "--set",
-             "angles.lights=3", "--set", "trace.pixels=8", "--set", "trace.steps=12", "--block", "2"]
+TINY_HRIR = [
+    "--set",
+    "sectors.count=12",
+    "--set",
+    "sectors.grid=[8, 8]",
+    "--set",
+    "angles.views=4",
+    "--set",
+    "angles.lights=3",
+    "--set",
+    "trace.pixels=8",
+    "--set",
+    "trace.steps=12",
+    "--block",
+    "2",
+]
 
 
 def _limit_file_size(nbytes):
@@ -318,6 +347,7 @@ def _limit_file_size(nbytes):
 
     def apply():
         resource.setrlimit(resource.RLIMIT_FSIZE, (nbytes, nbytes))
+
     return apply
 
 
@@ -330,8 +360,13 @@ def test_full_disk_during_a_cli_bake_is_one_line_and_exit_2(tmp_path, hairlut_ex
     import subprocess
 
     out = tmp_path / "X.h5"
-    res = subprocess.run([hairlut_exe, "bake", kind, *args, "--out", str(out)], capture_output=True, text=True,
-                         timeout=600, preexec_fn=_limit_file_size(24_000))
+    res = subprocess.run(
+        [hairlut_exe, "bake", kind, *args, "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        preexec_fn=_limit_file_size(24_000),
+    )
     assert res.returncode == 2 and res.returncode != -signal.SIGSEGV, res.stderr[-3000:]
     lines = [ln for ln in res.stderr.splitlines() if ln.startswith("hairlut: error:")]
     assert len(lines) == 1 and "Traceback" not in res.stderr and "cannot write" in lines[0], res.stderr[-3000:]
@@ -382,6 +417,7 @@ def test_sh_compact_tables_that_are_not_finite_are_refused(tmp_path, monkeypatch
         gaunt = np.array(tables.gaunt)
         gaunt[0, 0, 0] = np.nan
         return SHTables(tables.bands, tables.p, tables.kd_l, tables.ks_cheb, gaunt, tables.recipe), info
+
     monkeypatch.setattr(sh_bake, "bake_compact", poisoned)
     sh_bake._compact.cache_clear()
     try:

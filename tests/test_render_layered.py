@@ -4,7 +4,6 @@ eq 14 between layers, depth order between clusters, the camera in the EXR, and t
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 import OpenEXR
@@ -18,8 +17,19 @@ from hairlut.scene import Camera
 
 def camera(projection="orthographic", res=(64, 48), eye=(0.0, 0.0, 5.0), extent=2.0, fov=40.0):
     back = np.array([0.0, 0.0, 1.0])
-    return Camera(projection, np.asarray(eye, float), np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]), back,
-                  res[0], res[1], extent, fov, 0.5 if projection == "perspective" else 0.0, 20.0)
+    return Camera(
+        projection,
+        np.asarray(eye, float),
+        np.array([1.0, 0.0, 0.0]),
+        np.array([0.0, 1.0, 0.0]),
+        back,
+        res[0],
+        res[1],
+        extent,
+        fov,
+        0.5 if projection == "perspective" else 0.0,
+        20.0,
+    )
 
 
 def quad(corners, rows=4, cols=5):
@@ -246,7 +256,7 @@ def test_cli_render_layered(tmp_path):
     out = tmp_path / "f.exr"
     r = CliRunner().invoke(cli, ["render", str(scene), "--out", str(out), "--png", "--json"])
     assert r.exit_code == 0, r.output
-    rep = json.loads(r.output[r.output.index("{"):])
+    rep = json.loads(r.output[r.output.index("{") :])
     assert rep["method"] == "layered" and rep["map_method"] == "direct"
     assert set(rep["seconds"]) >= {"maps", "raster", "raster_first"}
     f = read_frame(out)
@@ -319,7 +329,7 @@ def test_oblique_path_and_lengthen_follow_beer_lambert():
     assert p[0] == pytest.approx(np.sqrt(2.0))
     rgba = np.array([[0.2, 0.1, 0.05, 0.4], [0.0, 0.0, 0.0, 0.0], [0.5, 0.5, 0.5, 1.0]], np.float32)
     out = lengthen(rgba, np.array([2.0, 3.0, 2.0]))
-    assert out[0, 3] == pytest.approx(1 - 0.6 ** 2, abs=1e-6)
+    assert out[0, 3] == pytest.approx(1 - 0.6**2, abs=1e-6)
     assert np.allclose(out[0, :3] / out[0, 3], rgba[0, :3] / rgba[0, 3], atol=1e-6)
     assert np.all(out[1] == 0) and out[2, 3] == 1.0 and np.allclose(out[2, :3], 0.5)
     assert np.allclose(lengthen(rgba, np.ones(3)), rgba, atol=1e-7)
@@ -333,10 +343,18 @@ def test_two_pass_frame_equals_the_one_pass_reference(projection):
     from hairlut.geometry import ClusterGeometry, ClusterSpec
     from hairlut.render import draw_plan, layout
 
-    specs = [ClusterSpec(trajectory=np.array([[0.05 * c, 0.3, 0.02 * c], [0.04 + 0.03 * c, 0.0, 0.05],
-                                              [0.05 - 0.02 * c, -0.3, 0.04 * c]]),
-                         half_axis_a=0.06, half_axis_b=0.045, layer_radii=np.array([0.4, 0.7, 1.0]),
-                         s_t=6, s_u=6, twist=np.array([0.0, 0.3 * c])) for c in range(3)]
+    specs = [
+        ClusterSpec(
+            trajectory=np.array([[0.05 * c, 0.3, 0.02 * c], [0.04 + 0.03 * c, 0.0, 0.05], [0.05 - 0.02 * c, -0.3, 0.04 * c]]),
+            half_axis_a=0.06,
+            half_axis_b=0.045,
+            layer_radii=np.array([0.4, 0.7, 1.0]),
+            s_t=6,
+            s_u=6,
+            twist=np.array([0.0, 0.3 * c]),
+        )
+        for c in range(3)
+    ]
     geometry = ClusterGeometry(specs)
     cam = camera(projection, res=(72, 64), eye=(0.02, 0.05, 1.5), extent=0.8, fov=35.0)
     meshes, tile, origins, _ = layout(cam, geometry, edge_pixels=6.0)
@@ -371,5 +389,4 @@ def test_camera_pass_refuses_above_the_memory_budget():
     cam = camera(res=(64, 48))
     v, uv, tri = quad([(-0.5, -0.5, 0), (0.5, -0.5, 0), (-0.5, 0.5, 0), (0.5, 0.5, 0)])
     with pytest.raises(errors.BudgetError, match="camera.resolution"):
-        plan_fragments(cam, v[None, None], tri, uv, (1, 1, 4, 4), tile=(48, 64), origins=np.zeros((1, 2), np.int32),
-                       limit=1000)
+        plan_fragments(cam, v[None, None], tri, uv, (1, 1, 4, 4), tile=(48, 64), origins=np.zeros((1, 2), np.int32), limit=1000)

@@ -46,8 +46,7 @@ import pytest
 from hairlut import errors
 from hairlut.geometry import Strands
 from hairlut.recipes import resolve
-from hairlut.render import render_level, segments_of
-from hairlut.render import crossing_depth, lengthen, strand_path
+from hairlut.render import crossing_depth, lengthen, render_level, segments_of, strand_path
 from hairlut.scene import CAMERA, make_camera
 
 OPAQUE = 2 / math.pi  # the tracer's κ: a strand seen side-on has optical depth κ √π = 1.13 on its axis
@@ -85,19 +84,30 @@ def _transmittance(strands, kappa, psi_deg, y_view=3.0, res=(16, 512)):
     y over [−y_view/2, y_view/2]: every ray crosses the whole slab."""
     psi = math.radians(psi_deg)
     view = [math.cos(psi), 0.0, math.sin(psi)]
-    cam = make_camera(resolve(CAMERA, {"view": view, "up": [0.0, 1.0, 0.0], "look_at": [0.0, 0.0, 0.5],
-                                       "extent": y_view, "resolution": list(res), "position": [3 * view[0], 0.0, 3 * view[2] + 0.5]},
-                              "camera."), np.array([[-1.0, -y_view, 0.0], [1.0, y_view, 1.0]]))  # the frame's box
+    cam = make_camera(
+        resolve(
+            CAMERA,
+            {
+                "view": view,
+                "up": [0.0, 1.0, 0.0],
+                "look_at": [0.0, 0.0, 0.5],
+                "extent": y_view,
+                "resolution": list(res),
+                "position": [3 * view[0], 0.0, 3 * view[2] + 0.5],
+            },
+            "camera.",
+        ),
+        np.array([[-1.0, -y_view, 0.0], [1.0, y_view, 1.0]]),
+    )  # the frame's box
     # (an orthographic ray is the whole line: the strands' far ends behind the eye still count)
     segs = segments_of(strands, kappa)
-    img = render_level(segs, cam, jnp.ones((segs.n, 1, 3), jnp.float32), np.array([[0.0, 0.0, 1.0]]), level=0,
-                       shadows=False)
+    img = render_level(segs, cam, jnp.ones((segs.n, 1, 3), jnp.float32), np.array([[0.0, 0.0, 1.0]]), level=0, shadows=False)
     return 1.0 - img[..., 3].astype(np.float64)
 
 
 def _row_depths(y_strands, r, a, y_rows):
     """Σ_k a·exp(−(y − y_k)²/r²) per row: the optical depth across straight strands along x at right angles."""
-    return (a * np.exp(-((y_rows[:, None] - y_strands[None, :]) / r) ** 2)).sum(1)
+    return (a * np.exp(-(((y_rows[:, None] - y_strands[None, :]) / r) ** 2))).sum(1)
 
 
 @pytest.mark.parametrize("psi", [90.0, 45.0, 30.0])

@@ -40,9 +40,8 @@ import pytest
 
 from hairlut import errors
 from hairlut.hrir import resolve_recipe
-from hairlut.march import GEOM, sector_geometry
+from hairlut.march import GEOM, direct_sector_maps, sector_geometry
 from hairlut.render import strand_path
-from hairlut.march import direct_sector_maps
 from tests.test_direct_maps import _one_strand_sector, _random
 from tests.test_render_layered import TINY
 
@@ -58,13 +57,12 @@ def test_one_strand_alpha_is_the_chord_integral_over_sin_psi(psi):
     views = np.array([0.0, 0.7, 2.0, 4.5])
     n, path = len(views), 1.0 / math.sin(math.radians(psi))
     rec = resolve_recipe({"trace": {"pixels": pixels, "steps": 1024, "smooth": False}})
-    alpha, _ = direct_sector_maps(np.repeat(rho, n, 0), np.repeat(g, n, 0), views, np.zeros((n, 0)), rec,
-                                  path=np.full(n, path))
+    alpha, _ = direct_sector_maps(np.repeat(rho, n, 0), np.repeat(g, n, 0), views, np.zeros((n, 0)), rec, path=np.full(n, path))
     R = g[0, COL["extent"]]
     t = -R + (np.arange(pixels) + 0.5) * 2 * R / pixels
     for i, th in enumerate(views):
         dist = o @ np.array([-np.sin(th), np.cos(th)]) - t
-        line = np.sqrt(2 * np.pi) * sigma * np.exp(-dist**2 / (2 * sigma**2))
+        line = np.sqrt(2 * np.pi) * sigma * np.exp(-(dist**2) / (2 * sigma**2))
         np.testing.assert_allclose(alpha[i], -np.expm1(-sigma_t * line * path), atol=1e-4, rtol=0)
     assert alpha.max() > (0.6 if psi == 90 else 0.75)  # the peak (0.68 side-on) darkens with the path: not vacuous
 
@@ -76,8 +74,7 @@ def test_factor_one_gives_the_in_plane_maps_exactly():
     rec = resolve_recipe({"trace": {"pixels": 32, "steps": 48}})
     for lookup in ("grid", "march"):  # the last, march (the default), is compared below
         a0, r0 = direct_sector_maps(rho, g, tv, tl, rec, shadow_lookup=lookup)
-        a1, r1 = direct_sector_maps(rho, g, tv, tl, rec, shadow_lookup=lookup, path=np.ones(3),
-                                    light_path=np.ones((3, 2)))
+        a1, r1 = direct_sector_maps(rho, g, tv, tl, rec, shadow_lookup=lookup, path=np.ones(3), light_path=np.ones((3, 2)))
         assert np.array_equal(a0, a1) and np.array_equal(r0, r1)
     # a longer light path darkens re only (self-shadow); a longer view path raises α
     a2, r2 = direct_sector_maps(rho, g, tv, tl, rec, path=np.ones(3), light_path=np.full((3, 2), 2.0))
@@ -89,8 +86,12 @@ def test_factor_one_gives_the_in_plane_maps_exactly():
 def test_bad_paths_name_the_argument():
     rho, g = _random(n=2)
     rec = resolve_recipe({"trace": {"pixels": 32, "steps": 48}})
-    for kw, field in (({"path": [1.0]}, "path"), ({"path": [1.0, np.nan]}, "path"), ({"path": [1.0, 0.0]}, "path"),
-                      ({"light_path": np.ones((2, 2))}, "light_path")):
+    for kw, field in (
+        ({"path": [1.0]}, "path"),
+        ({"path": [1.0, np.nan]}, "path"),
+        ({"path": [1.0, 0.0]}, "path"),
+        ({"light_path": np.ones((2, 2))}, "light_path"),
+    ):
         with pytest.raises(errors.ValidationError) as e:
             direct_sector_maps(rho, g, [0.1, 0.2], np.zeros((2, 1)), rec, **kw)
         assert e.value.field == field
@@ -100,8 +101,13 @@ def _clumped_sector(centres, r, pixels, n_s=512, n_r=384):
     """The annular sector of ``_one_strand_sector`` (v ∈ [1, 2], Δu = π/4) holding Gaussian tubes of radius r at
     ``centres`` (ellipse frame): ρ = Σ exp(−d²/r²) at the cell centres, σ_t = κ / r (``hairlut.render._strands``:
     optical depth κ √π e^{−b²/r²} at impact b, at right angles).  Returns (ρ, geometry row, centres in the local frame)."""
-    params = {"phase": np.array([0.3]), "s_u": np.array([8]), "v_range": np.array([[1.0, 2.0]]),
-              "aspect": np.array([1.0]), "radius_rel": np.array([0.05])}
+    params = {
+        "phase": np.array([0.3]),
+        "s_u": np.array([8]),
+        "v_range": np.array([[1.0, 2.0]]),
+        "aspect": np.array([1.0]),
+        "radius_rel": np.array([0.05]),
+    }
     g = sector_geometry(params, kappa=1.0, n_pix=pixels)
     g[:, COL["sigma_t"]] = OPAQUE / r
     phi = 0.3 + np.pi / 4 * (np.arange(n_s) + 0.5) / n_s
@@ -134,15 +140,16 @@ def test_clumped_strands_follow_the_rays_law_not_campbell():
     rng = np.random.default_rng(5)
     errs = {}
     for name in ("random", "clumped"):
-        centres = _inside(rng, 240) if name == "random" else (
-            np.repeat(_inside(rng, 20), 12, 0) + rng.normal(0.0, 1.2 * r, (240, 2)))
+        centres = (
+            _inside(rng, 240) if name == "random" else (np.repeat(_inside(rng, 20), 12, 0) + rng.normal(0.0, 1.2 * r, (240, 2)))
+        )
         rho, g, o = _clumped_sector(centres, r, P)
         a_in, _ = direct_sector_maps(rho, g, [theta], np.zeros((1, 0)), rec)
         a_rays, _ = direct_sector_maps(rho, g, [theta], np.zeros((1, 0)), rec, path=[path])
         R, sub = g[0, COL["extent"]], 128
         t = -R + (np.arange(P * sub) + 0.5) * 2 * R / (P * sub)
         b = (o @ np.array([-np.sin(theta), np.cos(theta)]))[None, :] - t[:, None]
-        tau = (OPAQUE * math.sqrt(math.pi) * np.exp(-(b / r) ** 2)).sum(1)
+        tau = (OPAQUE * math.sqrt(math.pi) * np.exp(-((b / r) ** 2))).sum(1)
         truth = -np.expm1(-tau * path).reshape(P, sub).mean(1)
         campbell = 1 - (1 - a_in[0].astype(np.float64)) ** float(strand_path(path, OPAQUE))
         errs[name] = (a_rays[0].mean() / truth.mean() - 1, campbell.mean() / truth.mean() - 1)
@@ -152,9 +159,11 @@ def test_clumped_strands_follow_the_rays_law_not_campbell():
     assert errs["clumped"][1] > errs["random"][1] + 0.004  # and more than it does random strands
 
 
-STRAIGHT = (TINY.replace("view = [0.0, 0.2, 1.0]", "view = [0.0, 0.8660254037844386, 0.5]")  # 30° to the axis
-            .replace("[[0.0, 0.3, 0.0], [0.03, 0.0, 0.05], [0.05, -0.3, 0.04]]", "[[0.0, 0.3, 0.0], [0.0, 0.0, 0.0], [0.0, -0.3, 0.0]]")
-            .replace("directions = [[0.4, 0.6, 1.0]]", "directions = [[0.0, 0.0, 1.0], [0.0, 1.0, 1.0]]"))
+STRAIGHT = (
+    TINY.replace("view = [0.0, 0.2, 1.0]", "view = [0.0, 0.8660254037844386, 0.5]")  # 30° to the axis
+    .replace("[[0.0, 0.3, 0.0], [0.03, 0.0, 0.05], [0.05, -0.3, 0.04]]", "[[0.0, 0.3, 0.0], [0.0, 0.0, 0.0], [0.0, -0.3, 0.0]]")
+    .replace("directions = [[0.4, 0.6, 1.0]]", "directions = [[0.0, 0.0, 1.0], [0.0, 1.0, 1.0]]")
+)
 
 
 @pytest.mark.slow
@@ -202,13 +211,24 @@ def test_clumped_cylinder_against_the_strand_render():
     ratios = {}
     for psi in (90.0, 30.0):
         p = math.radians(psi)
-        sc = resolve_scene({
-            "render": {"resolution": [16, 16], "method": "direct", "layer_reads": "track"},
-            "camera": {"view": [0.0, math.cos(p), math.sin(p)], "resolution": [96, 96]},
-            "lights": {"directions": [[0.3, 0.5, 1.0]]}, "shadows": {"method": "none"},
-            "strands": {"count": 120, "radius": 0.01, "profile": "clumped", "spread": 0.03, "seed": 3},
-            "clusters": [{"trajectory": [[0.0, 0.4, 0.0], [0.0, 0.0, 0.0], [0.0, -0.4, 0.0]], "half_axis_a": 0.1,
-                          "half_axis_b": 0.1, "s_t": 4, "s_u": 8}]})
+        sc = resolve_scene(
+            {
+                "render": {"resolution": [16, 16], "method": "direct", "layer_reads": "track"},
+                "camera": {"view": [0.0, math.cos(p), math.sin(p)], "resolution": [96, 96]},
+                "lights": {"directions": [[0.3, 0.5, 1.0]]},
+                "shadows": {"method": "none"},
+                "strands": {"count": 120, "radius": 0.01, "profile": "clumped", "spread": 0.03, "seed": 3},
+                "clusters": [
+                    {
+                        "trajectory": [[0.0, 0.4, 0.0], [0.0, 0.0, 0.0], [0.0, -0.4, 0.0]],
+                        "half_axis_a": 0.1,
+                        "half_axis_b": 0.1,
+                        "s_t": 4,
+                        "s_u": 8,
+                    }
+                ],
+            }
+        )
         ref = render_strands(sc, levels=[0])
         prep = prepare(sc)
         for law in ("rays", "strands") if psi < 90 else ("rays",):

@@ -9,9 +9,9 @@ import pytest
 
 from hairlut import errors
 from hairlut.geometry import Strands
+from hairlut.recipes import resolve
 from hairlut.render import crossings, render_level, segments_of
 from hairlut.scene import CAMERA, make_camera
-from hairlut.recipes import resolve
 
 
 def _camera(points, **keys):
@@ -32,9 +32,9 @@ def test_straight_strand_alpha_is_the_chord_integral():
     strands = Strands(pts, np.array([len(x)]), thickness=np.full(len(x), 2 * r))
     cam = _camera(pts, look_at=[0.0, 0.0, 0.0], extent=2.0, resolution=[64, 48])
     img, _ = _render(strands, cam, kappa)
-    rows = (np.arange(48) + 0.5)
+    rows = np.arange(48) + 0.5
     d = np.abs((1 - 2 * rows / 48) * 1.0)  # world y of each pixel row's centre
-    expected = 1 - np.exp(-(kappa / r) * r * math.sqrt(math.pi) * np.exp(-d**2 / r**2))
+    expected = 1 - np.exp(-(kappa / r) * r * math.sqrt(math.pi) * np.exp(-(d**2) / r**2))
     alpha = img[:, 8:56, 3]  # columns well inside the strand (x in [-1, 1])
     assert np.abs(alpha - expected[:, None]).max() < 1e-4
     assert expected.max() > 0.6 and expected.min() < 1e-6  # the test spans the whole profile
@@ -104,13 +104,16 @@ def test_cli_render_strands(tmp_path):
     from tests.test_render_layered import TINY
 
     scene = tmp_path / "tiny.toml"
-    scene.write_text(TINY.replace("resolution = [48, 40]", "resolution = [24, 20]").replace("radius = 0.006", "radius = 0.025")
-                     + '[shadows]\nmethod = "none"\n')
+    scene.write_text(
+        TINY.replace("resolution = [48, 40]", "resolution = [24, 20]").replace("radius = 0.006", "radius = 0.025")
+        + '[shadows]\nmethod = "none"\n'
+    )
     out = tmp_path / "strands.exr"
-    r = CliRunner().invoke(cli, ["render", str(scene), "--strands", "--bound", "0.05", "--max-level", "1",
-                                 "--out", str(out), "--json"])
+    r = CliRunner().invoke(
+        cli, ["render", str(scene), "--strands", "--bound", "0.05", "--max-level", "1", "--out", str(out), "--json"]
+    )
     assert r.exit_code == 0, r.output
-    rep = json.loads(r.output[r.output.index("{"):])
+    rep = json.loads(r.output[r.output.index("{") :])
     assert rep["method"] == "strands" and rep["converged"], rep["levels"] and rep["bound"] == 0.05
     f = OpenEXR.File(str(out), separate_channels=True)
     assert sorted(f.channels()) == ["A", "B", "G", "R", "Z"]
@@ -136,8 +139,10 @@ def test_cli_render_strands_without_a_bound_reports_the_scene_default(tmp_path):
     from tests.test_render_layered import TINY
 
     scene = tmp_path / "tiny.toml"
-    scene.write_text(TINY.replace("resolution = [48, 40]", "resolution = [16, 12]").replace("radius = 0.006", "radius = 0.025")
-                     + '[shadows]\nmethod = "none"\n')
+    scene.write_text(
+        TINY.replace("resolution = [48, 40]", "resolution = [16, 12]").replace("radius = 0.006", "radius = 0.025")
+        + '[shadows]\nmethod = "none"\n'
+    )
     assert "strands_bound" not in scene.read_text()
     out = tmp_path / "ref.exr"
     r = CliRunner().invoke(cli, ["render", str(scene), "--strands", "--max-level", "1", "--out", str(out)])
@@ -149,13 +154,15 @@ def test_cli_render_strands_without_a_bound_reports_the_scene_default(tmp_path):
 @pytest.mark.slow
 def test_strands_bound_holds_one_level_finer(tmp_path):
     """``verify``: the converged image against one more refinement changes by less than the bound too."""
-    from hairlut.render import render_strands
-    from hairlut.scene import resolve_scene
     import tomllib
 
+    from hairlut.render import render_strands
+    from hairlut.scene import resolve_scene
     from tests.test_render_layered import TINY
 
-    cfg = tomllib.loads(TINY.replace("resolution = [48, 40]", "resolution = [24, 20]").replace("radius = 0.006", "radius = 0.025"))
+    cfg = tomllib.loads(
+        TINY.replace("resolution = [48, 40]", "resolution = [24, 20]").replace("radius = 0.006", "radius = 0.025")
+    )
     cfg["shadows"] = {"method": "none"}
     cfg.setdefault("render", {})["strands_bound"] = 0.05  # the scene's own bound, as the Ratboy scene sets it
     f = render_strands(resolve_scene(cfg, None), max_level=1, verify=True)
@@ -167,9 +174,9 @@ def test_strands_bound_holds_one_level_finer(tmp_path):
 
 @pytest.mark.parametrize("bad", [0.0, -0.01, float("nan"), 2.0, "tight"])
 def test_a_bad_strands_bound_is_refused_naming_the_key(bad):
-    from hairlut.scene import resolve_scene
     import tomllib
 
+    from hairlut.scene import resolve_scene
     from tests.test_render_layered import TINY
 
     cfg = tomllib.loads(TINY)
@@ -180,9 +187,9 @@ def test_a_bad_strands_bound_is_refused_naming_the_key(bad):
 
 def test_the_old_reference_bound_key_is_refused_naming_the_new_one():
     """``[render] reference_bound`` was renamed ``strands_bound`` ("reference" means an oracle only)."""
-    from hairlut.scene import resolve_scene
     import tomllib
 
+    from hairlut.scene import resolve_scene
     from tests.test_render_layered import TINY
 
     cfg = tomllib.loads(TINY)
@@ -214,8 +221,11 @@ def test_inside_clusters_splits_strand_length_by_where_the_sectors_see_it():
 
 def _slab(r=0.25, h=0.2, n_z=6, half=4.0):
     """Parallel strands along x, spaced ``h`` in y and z: n_z layers from z = 0 up, y in [−half, half]."""
-    lines = [np.stack([np.linspace(-6.0, 6.0, 7), np.full(7, y), np.full(7, k * h)], 1)
-             for k in range(n_z) for y in np.arange(-half, half + 1e-9, h)]
+    lines = [
+        np.stack([np.linspace(-6.0, 6.0, 7), np.full(7, y), np.full(7, k * h)], 1)
+        for k in range(n_z)
+        for y in np.arange(-half, half + 1e-9, h)
+    ]
     return Strands.from_list(lines, thickness=[np.full(7, 2 * r)] * len(lines))
 
 
@@ -324,15 +334,23 @@ def _dense_oracle(segs, cam, lit, light, level, lattice):
 
     ss, steps = 1 << level, 2 << level
     tiles = np.stack(np.meshgrid(np.arange(cam.width // 8), np.arange(cam.height // 8), indexing="ij"), -1).reshape(-1, 2)
-    o, d = camera_rays(jnp.asarray(tiles, jnp.int32), jnp.asarray(camera_array(cam), jnp.float32), tile=8, ss=ss,
-                       perspective=False, lattice=lattice)
+    o, d = camera_rays(
+        jnp.asarray(tiles, jnp.int32),
+        jnp.asarray(camera_array(cam), jnp.float32),
+        tile=8,
+        ss=ss,
+        perspective=False,
+        lattice=lattice,
+    )
     o, d = np.asarray(o).reshape(-1, 3), np.asarray(d).reshape(-1, 3)
     r = np.arange(64 * ss * ss)
     py = (tiles[:, 1, None] * 8 + r // (8 * ss * ss)).reshape(-1)
     px = (tiles[:, 0, None] * 8 + (r // (ss * ss)) % 8).reshape(-1)
     dev = segs.device()
-    tau, s = (np.asarray(a, np.float64) for a in crossings(jnp.asarray(o)[:, None], jnp.asarray(d)[:, None],
-                                                              *(a[None] for a in dev), -1e20, steps))
+    tau, s = (
+        np.asarray(a, np.float64)
+        for a in crossings(jnp.asarray(o)[:, None], jnp.asarray(d)[:, None], *(a[None] for a in dev), -1e20, steps)
+    )
     seg = np.broadcast_to(np.arange(segs.n)[None, :, None], tau.shape).reshape(len(o), -1)
     tau, s = tau.reshape(len(o), -1), s.reshape(len(o), -1)
     order = np.argsort(s, axis=1, kind="stable")

@@ -12,8 +12,8 @@ import pytest
 from hairlut import errors
 from hairlut.geometry import sector_features
 from hairlut.hrir import resolve_recipe, sector_projections
-from hairlut.march import GEOM, sector_geometry
 from hairlut.hrir._projection import BINS, COMPONENTS, CUMULATIVE, DIRECTIONS, SUB, fit_projection, profile
+from hairlut.march import GEOM, sector_geometry
 
 from .test_direct_maps import _one_strand_sector
 
@@ -43,14 +43,14 @@ def _local_to_ellipse(g):
 def _chord(p0, d, v0, v1, phase, du, R):
     """Length of {z ∈ [−R, R] : p0 + z d in the annular wedge v0 ≤ |p| ≤ v1, phase ≤ φ ≤ phase + du}
     (du < π, so the wedge is two half-planes), by exact interval arithmetic."""
+
     def disc(v):  # z interval with |p0 + z d| ≤ v (d is a unit vector)
         b, c = p0 @ d, p0 @ p0 - v * v
         disc_ = b * b - c
-        return (None if disc_ < 0 else (-b - np.sqrt(disc_), -b + np.sqrt(disc_)))
+        return None if disc_ < 0 else (-b - np.sqrt(disc_), -b + np.sqrt(disc_))
 
     lo, hi = -R, R
-    for u, sign in ((np.array([np.cos(phase), np.sin(phase)]), 1.0),
-                    (np.array([np.cos(phase + du), np.sin(phase + du)]), -1.0)):
+    for u, sign in ((np.array([np.cos(phase), np.sin(phase)]), 1.0), (np.array([np.cos(phase + du), np.sin(phase + du)]), -1.0)):
         # sign · cross(u, p) ≥ 0, linear in z: a + b z ≥ 0
         a, b = sign * (u[0] * p0[1] - u[1] * p0[0]), sign * (u[0] * d[1] - u[1] * d[0])
         if abs(b) < 1e-15:
@@ -68,8 +68,13 @@ def _chord(p0, d, v0, v1, phase, du, R):
 
 
 def test_uniform_slab_profile_is_the_exact_chord_integral():
-    params = {"phase": np.array([0.3]), "s_u": np.array([8]), "v_range": np.array([[1.0, 2.0]]),
-              "aspect": np.array([1.0]), "radius_rel": np.array([0.05])}
+    params = {
+        "phase": np.array([0.3]),
+        "s_u": np.array([8]),
+        "v_range": np.array([[1.0, 2.0]]),
+        "aspect": np.array([1.0]),
+        "radius_rel": np.array([0.05]),
+    }
     g = sector_geometry(params, kappa=1.0, n_pix=64)[0]
     sigma_t, rho0, steps = 0.8, 1.5, 4096
     g[COL["sigma_t"]] = sigma_t
@@ -96,7 +101,7 @@ def test_one_strand_profile_is_the_gaussian_line_integral():
     want = []
     for th in _views():
         e = np.array([-np.sin(th), np.cos(th)])
-        line = np.sqrt(2 * np.pi) * sigma * np.exp(-(o @ e - _lanes(R)) ** 2 / (2 * sigma**2))  # ∫ρ ds, peak 1
+        line = np.sqrt(2 * np.pi) * sigma * np.exp(-((o @ e - _lanes(R)) ** 2) / (2 * sigma**2))  # ∫ρ ds, peak 1
         want.append(1 - np.exp(-sigma_t * line))
     np.testing.assert_allclose(got, _bins(np.array(want)), atol=1e-4, rtol=0)
     assert got.max() > 0.3 and (got < 1e-3).sum() > DIRECTIONS * BINS // 2
@@ -125,22 +130,32 @@ def _scene_db(tmp_path):
     """A scene (method satf, k = 1) and an hrir_db whose records are that scene's own sectors, traced."""
     from hairlut.hrir._bake import trace_sectors
     from hairlut.hrir._io import PARAMS, assemble
+    from hairlut.march import scene_sector_inputs
     from hairlut.scene import resolve_scene
     from hairlut.synth import prepare
-    from hairlut.march import scene_sector_inputs
 
     from ._synth_fixtures import scene
 
     given = scene()
     given["render"] = {**given["render"], "method": "direct"}
     pr = prepare(resolve_scene(given))
-    recipe = resolve_recipe({"sectors": {"grid": [8, 8], "features": "projection"},
-                             "angles": {"views": 8, "lights": 4}, "trace": {"pixels": 16, "steps": 32}})
+    recipe = resolve_recipe(
+        {
+            "sectors": {"grid": [8, 8], "features": "projection"},
+            "angles": {"views": 8, "lights": 4},
+            "trace": {"pixels": 16, "steps": 32},
+        }
+    )
     parts = [scene_sector_inputs(pc.table, recipe, extent=pc.frames.extent) for pc in pr.clusters]
     dens, geom = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
     alpha, refl = trace_sectors(dens, geom, recipe)
-    data = {"alpha": np.asarray(alpha), "reflectance": np.asarray(refl), "density": dens.astype(np.float32),
-            "geometry": geom, "params": {p: np.zeros(len(dens)) for p in PARAMS}}
+    data = {
+        "alpha": np.asarray(alpha),
+        "reflectance": np.asarray(refl),
+        "density": dens.astype(np.float32),
+        "geometry": geom,
+        "params": {p: np.zeros(len(dens)) for p in PARAMS},
+    }
     path = assemble(tmp_path / "own.h5", recipe, data)
     given["render"] = {**given["render"], "method": "satf", "neighbours": 1}
     given["tables"] = {"hrir": {"sectors": {"grid": [8, 8], "features": "projection"}}}

@@ -12,8 +12,12 @@ from hairlut.bake import registry
 from hairlut.bake.sharding import held
 
 #: issue 16's production database: 65,536 sectors, 64 × 64 angles, 64 px, float16 (34.9 GB stored)
-PRODUCTION = {"sectors": {"count": 65_536}, "angles": {"views": 64, "lights": 64}, "trace": {"pixels": 64},
-              "storage": {"dtype": "float16"}}
+PRODUCTION = {
+    "sectors": {"count": 65_536},
+    "angles": {"views": 64, "lights": 64},
+    "trace": {"pixels": 64},
+    "storage": {"dtype": "float16"},
+}
 TABLES = 65_536 * 64 * 64 * 65 * 4  # α and reflectance of every sector as float32, what a copy holds (69.8 GB)
 
 
@@ -93,13 +97,12 @@ def test_leader_assembles_from_share_files_and_falls_back_to_parts(tmp_path, mon
     """A leader writes the same virtual asset from share files (opening none of the parts they cover) as from the
     parts themselves; a foreign share file, or a part rewritten since it was indexed, is read from the part."""
     from hairlut.assets import canonical_json, recipe_hash
-    from hairlut.bake.devices import Process
-    from hairlut.hrir import bake, resolve_recipe
     from hairlut.assets.parts import part_name, parts_dir, share_name, stamp, write_share
+    from hairlut.bake.devices import Process
     from hairlut.bake.sharding import blocks_of, finish
+    from hairlut.hrir import bake, resolve_recipe
 
-    small = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3},
-             "trace": {"pixels": 8, "steps": 4}}
+    small = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3}, "trace": {"pixels": 8, "steps": 4}}
     out = tmp_path / "db.h5"
     bake(small, out, block=4, merge="virtual")  # one process: its indexes in memory
     reference = _data(out)

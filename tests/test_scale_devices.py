@@ -30,8 +30,14 @@ def test_one_and_two_local_devices_bake_the_same_data(kind, tmp_path):
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     for d in (1, 2):
         env = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_NUM_CPU_DEVICES": str(d)}
-        run = subprocess.run([sys.executable, "-c", BAKE, kind, str(tmp_path / f"d{d}.h5"), str(d)], cwd=root, env=env,
-                             capture_output=True, text=True, timeout=600)
+        run = subprocess.run(
+            [sys.executable, "-c", BAKE, kind, str(tmp_path / f"d{d}.h5"), str(d)],
+            cwd=root,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
         assert run.returncode == 0, run.stderr[-2000:]
     _assert_same_data(tmp_path / "d1.h5", tmp_path / "d2.h5")
 
@@ -62,8 +68,17 @@ def test_two_processes_on_loopback_bake_the_scene_table_of_one(tmp_path):
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env = {**os.environ, "JAX_PLATFORMS": "cpu", "JAX_NUM_CPU_DEVICES": "2"}
     port, out = _free_port(), tmp_path / "maps.h5"
-    procs = [subprocess.Popen([sys.executable, "-c", DIST, "scene_maps", str(out), str(port), str(k)], cwd=root, env=env,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for k in range(2)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", DIST, "scene_maps", str(out), str(port), str(k)],
+            cwd=root,
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for k in range(2)
+    ]
     outs = [p.communicate(timeout=600) for p in procs]
     assert all(p.returncode == 0 for p in procs), [o[1][-2000:] for o in outs]
     ranges = [next(line.split()[1:] for line in o[0].splitlines() if line.startswith("RANGE")) for o in outs]

@@ -10,8 +10,8 @@ import pytest
 from click.testing import CliRunner
 
 from hairlut import errors
-from hairlut.bake import registry
 from hairlut.assets.parts import parts_dir
+from hairlut.bake import registry
 from hairlut.bake.cache import is_valid
 from hairlut_cli.main import cli
 
@@ -114,8 +114,14 @@ def test_a_killed_bake_resumes_to_the_same_data(kind, cases, tmp_path):
     recipe, options, _ = cases[kind]
     out = tmp_path / "db.h5"
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    run = subprocess.run([sys.executable, "-c", KILL, kind, str(out)], cwd=root, capture_output=True, text=True,
-                         env={**os.environ, "JAX_PLATFORMS": "cpu"}, timeout=600)
+    run = subprocess.run(
+        [sys.executable, "-c", KILL, kind, str(out)],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        env={**os.environ, "JAX_PLATFORMS": "cpu"},
+        timeout=600,
+    )
     assert run.returncode == -signal.SIGKILL, run.stderr[-2000:]
     assert not out.exists() and len(_parts(out)) == 2
     rep = registry.bake(kind, recipe, out, options=options)

@@ -6,15 +6,15 @@ from pathlib import Path
 
 import numpy as np
 
-from hairlut.scene import load_scene, scene_clusters
-from hairlut.scene import _clusters
+from hairlut.scene import _clusters, load_scene, scene_clusters
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def _same(a, b):
     return len(a) == len(b) and all(
-        sa == sb and np.array_equal(x.points, y.points) and np.array_equal(x.counts, y.counts) for (sa, x), (sb, y) in zip(a, b))
+        sa == sb and np.array_equal(x.points, y.points) and np.array_equal(x.counts, y.counts) for (sa, x), (sb, y) in zip(a, b)
+    )
 
 
 def test_remembered_clusters_are_the_built_ones_and_independent(monkeypatch):

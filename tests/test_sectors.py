@@ -7,19 +7,43 @@ import pytest
 from scipy.spatial import cKDTree
 
 from hairlut.errors import ValidationError
-from hairlut.geometry import (ClusterGeometry, ClusterSpec, FeatureStats, SectorSpace, Strands, assign_strands,
-                              build_sectors, generate_strands, groom_sectors, read_strands, sample_sectors,
-                              sector_density, sector_features)
+from hairlut.geometry import (
+    ClusterGeometry,
+    ClusterSpec,
+    FeatureStats,
+    SectorSpace,
+    Strands,
+    assign_strands,
+    build_sectors,
+    generate_strands,
+    groom_sectors,
+    read_strands,
+    sample_sectors,
+    sector_density,
+    sector_features,
+)
 
 from .conftest import groom_path
-
 
 WAVY = np.array([[0, 0, 0], [1, 0.5, 1.5], [2, 0, 3], [3, -0.5, 4.5], [4, 0, 6]], float)
 
 
 def cylinder(**kw) -> ClusterGeometry:
-    spec = dict(trajectory=[[0, 0, 0], [0, 0, 1], [0, 0, 2], [0, 0, 4]], half_axis_a=2.0, half_axis_b=1.0, twist=0.3,
-                layer_radii=(0.5, 1.0), core_radius=0.25, s_t=2, s_v=2, s_u=4, normal0=[1, 0, 0]) | kw
+    spec = (
+        dict(
+            trajectory=[[0, 0, 0], [0, 0, 1], [0, 0, 2], [0, 0, 4]],
+            half_axis_a=2.0,
+            half_axis_b=1.0,
+            twist=0.3,
+            layer_radii=(0.5, 1.0),
+            core_radius=0.25,
+            s_t=2,
+            s_v=2,
+            s_u=4,
+            normal0=[1, 0, 0],
+        )
+        | kw
+    )
     return ClusterGeometry(ClusterSpec(**spec))
 
 
@@ -61,14 +85,16 @@ def test_crossings_keep_the_nearest_in_shell_point():
     np.testing.assert_allclose(tab.crossing_sr[first][0], [0.7 / (np.pi / 2), (0.6 - 0.5) / 0.25], atol=1e-12)
     second = tab.crossing_strand == 1
     np.testing.assert_allclose(tab.crossing_vu[second][:, 0], 0.6, atol=1e-12)
-    np.testing.assert_allclose(tab.crossing_point[second][:, 2], [0.0, 2.0, 4.0][:int(second.sum())], atol=1e-12)
+    np.testing.assert_allclose(tab.crossing_point[second][:, 2], [0.0, 2.0, 4.0][: int(second.sum())], atol=1e-12)
 
 
 # -- strand generation and assignment --------------------------------------------------------------------
 @pytest.mark.parametrize("profile", ["uniform", "gaussian", "clumped"])
 def test_generated_strands_are_deterministic_and_inside_their_cluster(profile):
-    specs = [ClusterSpec(WAVY + [3.0 * i, 0, 0], [0.5, 0.7, 0.6], [0.4, 0.3], [0.0, 2.0], layer_radii=(0.5, 0.8, 1.0),
-                         core_radius=0.2) for i in range(2)]
+    specs = [
+        ClusterSpec(WAVY + [3.0 * i, 0, 0], [0.5, 0.7, 0.6], [0.4, 0.3], [0.0, 2.0], layer_radii=(0.5, 0.8, 1.0), core_radius=0.2)
+        for i in range(2)
+    ]
     geom = ClusterGeometry(specs)
     kw = dict(radius=(0.002, 0.004), profile=profile, spread=0.2, jitter=0.05, points=16)
     a, cl = generate_strands(geom, [40, 25], seed=7, **kw)
@@ -101,8 +127,13 @@ def test_assignment_rejects_far_strands_and_bad_generation_input():
     geom = cylinder()
     far = polylines([[50, 0, 0], [50, 0, 4]], [[0.5, 0, 0], [0.5, 0, 4]])
     np.testing.assert_array_equal(assign_strands(far, geom, max_distance=5.0), [-1, 0])
-    for kw, field in ((dict(profile="curly"), "profile"), (dict(radius=-1.0), "radius"), (dict(points=1), "points"),
-                      (dict(seed=-1), "seed"), (dict(jitter=-0.1), "jitter")):
+    for kw, field in (
+        (dict(profile="curly"), "profile"),
+        (dict(radius=-1.0), "radius"),
+        (dict(points=1), "points"),
+        (dict(seed=-1), "seed"),
+        (dict(jitter=-0.1), "jitter"),
+    ):
         with pytest.raises(ValidationError) as exc:
             generate_strands(geom, 5, **kw)
         assert exc.value.field == field

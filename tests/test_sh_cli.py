@@ -6,9 +6,8 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from hairlut.assets import read_exr, read_table
+from hairlut.assets import read_exr, read_table, write_exr
 from hairlut.demo import sky
-from hairlut.assets import write_exr
 from hairlut.shtables import SHTables
 from hairlut_cli.main import cli
 
@@ -43,9 +42,22 @@ def test_project_prints_and_writes(tmp_path, env):
 
 def test_bake_with_recipe_overrides_light_and_textures(tmp_path, env):
     recipe = tmp_path / "r.toml"
-    recipe.write_text('[kernel]\np = 16.0\n[dense]\nt_resolution = 4\ntheta_v_steps = 5\n')
-    res = run("bake", "sh", "--recipe", recipe, "--out", tmp_path / "sh.h5", "--set", "bands.transmittance=2",
-              "--light", env, "--textures", tmp_path / "tex.exr", "--json")
+    recipe.write_text("[kernel]\np = 16.0\n[dense]\nt_resolution = 4\ntheta_v_steps = 5\n")
+    res = run(
+        "bake",
+        "sh",
+        "--recipe",
+        recipe,
+        "--out",
+        tmp_path / "sh.h5",
+        "--set",
+        "bands.transmittance=2",
+        "--light",
+        env,
+        "--textures",
+        tmp_path / "tex.exr",
+        "--json",
+    )
     assert res.exit_code == 0, res.output
     doc = json.loads(res.output)
     assert doc["recipe"]["kernel"]["p"] == 16.0 and doc["recipe"]["bands"]["transmittance"] == 2

@@ -11,14 +11,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from hairlut.errors import ValidationError
-from hairlut.sh import gaunt, gaunt_sparse, index_lm, lm_arrays, n_coeffs, real_sh_reference
-from hairlut.sh import gaunt_quadrature, selection_mask
+from hairlut.sh import gaunt, gaunt_quadrature, gaunt_sparse, index_lm, lm_arrays, n_coeffs, real_sh_reference, selection_mask
 
 F = math.factorial
 INV_2_SQRT_PI = 1.0 / (2.0 * math.sqrt(math.pi))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def wigner_3j(j1, j2, j3, m1, m2, m3) -> float:
     """Racah's formula, summed exactly in rationals (integer j only)."""
     if m1 + m2 + m3 != 0 or not abs(j1 - j2) <= j3 <= j1 + j2 or max(abs(m1) - j1, abs(m2) - j2, abs(m3) - j3) > 0:

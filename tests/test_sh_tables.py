@@ -2,7 +2,6 @@
 
 import math
 
-import jax
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -134,8 +133,10 @@ def test_exponents_from_1_to_1000(p, rng):
 
 def test_band_rule_and_truncation_error_fall_with_more_bands():
     assert [specular_band_rule(p) for p in (1, 4, 49, 50, 1000)] == [2, 3, 8, 9, 33]
-    errs = [bake_sh({"kernel": {"p": 49.0, "diffuse": False}, "bands": {"light_specular": n}})["info"]["truncation_error"]
-            for n in (4, 8, 12)]
+    errs = [
+        bake_sh({"kernel": {"p": 49.0, "diffuse": False}, "bands": {"light_specular": n}})["info"]["truncation_error"]
+        for n in (4, 8, 12)
+    ]
     assert errs[0] > errs[1] > errs[2]
 
 

@@ -9,8 +9,8 @@ import hairlut.shadows
 import hairlut.synth._shading
 from hairlut import errors
 from hairlut.geometry import Strands
-from hairlut.scene import SHADOW_METHODS, resolve_scene
 from hairlut.planner import plan
+from hairlut.scene import SHADOW_METHODS, resolve_scene
 from hairlut.shadows import LIGHT_METHODS, light_transmittance
 from hairlut.synth import prepare, render_view, shade_lights
 
@@ -45,8 +45,9 @@ def slab(n=400, seed=0):
     rng = np.random.default_rng(seed)
     y, z = rng.uniform(-0.5, 0.5, n), rng.uniform(-0.1, 0.1, n)
     x = np.linspace(-0.5, 0.5, 8)
-    pts = np.stack([np.broadcast_to(x, (n, 8)), np.broadcast_to(y[:, None], (n, 8)),
-                    np.broadcast_to(z[:, None], (n, 8))], -1).reshape(-1, 3)
+    pts = np.stack(
+        [np.broadcast_to(x, (n, 8)), np.broadcast_to(y[:, None], (n, 8)), np.broadcast_to(z[:, None], (n, 8))], -1
+    ).reshape(-1, 3)
     return Strands(pts, np.full(n, 8), thickness=np.full(len(pts), 0.004))
 
 
@@ -74,21 +75,24 @@ def test_smap_is_the_default_and_renders_exactly_as_before(views, db):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
 
 
-@pytest.mark.parametrize("shadows, key", [
-    ({"method": "raytrace"}, "shadows.method"),
-    ({"method": 3}, "shadows.method"),
-    ({"method": "light_oriented", "kappa": -0.1}, "shadows.kappa"),
-    ({"method": "light_oriented", "kappa": "thick"}, "shadows.kappa"),
-    ({"method": "opacity_maps", "kappa": 0}, "shadows.kappa"),
-    ({"method": "opacity_maps", "slices": 0}, "shadows.slices"),
-    ({"method": "light_oriented", "resolution": 1}, "shadows.resolution"),
-    ({"method": "light_oriented", "resolution": 8.5}, "shadows.resolution"),
-    ({"method": "light_oriented", "padding": -1}, "shadows.padding"),
-    ({"method": "light_oriented", "slices": 8}, "shadows.slices"),  # a key the method does not read
-    ({"method": "smap", "kappa": 0.1}, "shadows.kappa"),
-    ({"method": "none", "resolution": 16}, "shadows.resolution"),
-    ({"method": "opacity_maps", "sharpness": 2}, "shadows.sharpness"),
-])
+@pytest.mark.parametrize(
+    "shadows, key",
+    [
+        ({"method": "raytrace"}, "shadows.method"),
+        ({"method": 3}, "shadows.method"),
+        ({"method": "light_oriented", "kappa": -0.1}, "shadows.kappa"),
+        ({"method": "light_oriented", "kappa": "thick"}, "shadows.kappa"),
+        ({"method": "opacity_maps", "kappa": 0}, "shadows.kappa"),
+        ({"method": "opacity_maps", "slices": 0}, "shadows.slices"),
+        ({"method": "light_oriented", "resolution": 1}, "shadows.resolution"),
+        ({"method": "light_oriented", "resolution": 8.5}, "shadows.resolution"),
+        ({"method": "light_oriented", "padding": -1}, "shadows.padding"),
+        ({"method": "light_oriented", "slices": 8}, "shadows.slices"),  # a key the method does not read
+        ({"method": "smap", "kappa": 0.1}, "shadows.kappa"),
+        ({"method": "none", "resolution": 16}, "shadows.resolution"),
+        ({"method": "opacity_maps", "sharpness": 2}, "shadows.sharpness"),
+    ],
+)
 def test_bad_method_or_parameters_name_the_key(shadows, key):
     with pytest.raises(errors.ValidationError) as exc:
         resolve_scene(with_shadows(**shadows))

@@ -81,13 +81,21 @@ def test_sparse_samples_with_gradient_beat_plain_average_on_sintel():
     vol = voxelize(read_strands(path), 32)
     ref = transmittance(vol, kappa=0.5, stride=1)
     m = ref.valid & (vol.density > 0)
-    err = {g: np.abs(transmittance(vol, kappa=0.5, stride=2, use_gradient=g).coeffs[m] - ref.coeffs[m]).mean()
-           for g in (True, False)}
+    err = {
+        g: np.abs(transmittance(vol, kappa=0.5, stride=2, use_gradient=g).coeffs[m] - ref.coeffs[m]).mean() for g in (True, False)
+    }
     assert err[True] < err[False]
 
 
-@pytest.mark.parametrize("kwargs, field", [({"kappa": -1.0}, "kappa"), ({"kappa": 1.0, "stride": 0}, "stride"),
-                                           ({"kappa": 1.0, "step": 0.0}, "step"), ({"kappa": 1.0, "lmax": 4, "order": 2}, "order")])
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        ({"kappa": -1.0}, "kappa"),
+        ({"kappa": 1.0, "stride": 0}, "stride"),
+        ({"kappa": 1.0, "step": 0.0}, "step"),
+        ({"kappa": 1.0, "lmax": 4, "order": 2}, "order"),
+    ],
+)
 def test_bad_parameters(kwargs, field):
     vol, _ = _box(n=8, half=2)
     with pytest.raises(errors.ValidationError) as info:

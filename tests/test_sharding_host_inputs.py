@@ -30,8 +30,11 @@ def _per_sector(seeds, space):
     return splats, params
 
 
-@pytest.mark.parametrize("space", [SectorSpace(), SectorSpace(strands=(0, 6), clumps=(1, 3)),
-                                   SectorSpace(profile_weights=(0.0, 0.0, 1.0))], ids=["default", "few", "clumped"])
+@pytest.mark.parametrize(
+    "space",
+    [SectorSpace(), SectorSpace(strands=(0, 6), clumps=(1, 3)), SectorSpace(profile_weights=(0.0, 0.0, 1.0))],
+    ids=["default", "few", "clumped"],
+)
 def test_sample_each_is_per_sector_sampling_bit_for_bit(space):
     seeds = [sector_seed(5, i) for i in range(160)]
     splats, params = _per_sector(seeds, space)
@@ -60,9 +63,14 @@ def _density_one_call_each(splats, grid, scale):
     out = []
     for i in range(len(splats.mask)):
         w = _width(int(splats.mask[i].sum()))
-        args = [_columns(splats.center[i:i + 1], w, 0.0), _columns(splats.sigma[i:i + 1], w, 1.0),
-                _columns(splats.radius[i:i + 1], w, 0.0), _columns(splats.mask[i:i + 1], w, False),
-                splats.area_scale[i:i + 1], splats.v_range[i:i + 1]]
+        args = [
+            _columns(splats.center[i : i + 1], w, 0.0),
+            _columns(splats.sigma[i : i + 1], w, 1.0),
+            _columns(splats.radius[i : i + 1], w, 0.0),
+            _columns(splats.mask[i : i + 1], w, False),
+            splats.area_scale[i : i + 1],
+            splats.v_range[i : i + 1],
+        ]
         arrs = [jnp.asarray(x, dtype=np.float32 if x.dtype.kind == "f" else None) for x in args]
         out.append(np.asarray(density_kernel(*arrs, jnp.asarray(scale, np.float32), n_s=grid[0], n_r=grid[1])))
     return np.concatenate(out)
@@ -101,13 +109,18 @@ def test_storage_error_in_float32_is_the_float64_one():
 
     rng = np.random.default_rng(4)
     f16 = np.finfo(np.float16)
-    pools = [rng.random(5000), rng.random(5000) * 6e-5, rng.random(5000) * 1e-7, 65504 - rng.random(5000) * 40,
-             np.array([0.0, 1e-45, 2.0**-25, 2.0**-24 * 1.5, float(f16.max), float(f16.max) + 15.0, 65519.99])]
+    pools = [
+        rng.random(5000),
+        rng.random(5000) * 6e-5,
+        rng.random(5000) * 1e-7,
+        65504 - rng.random(5000) * 40,
+        np.array([0.0, 1e-45, 2.0**-25, 2.0**-24 * 1.5, float(f16.max), float(f16.max) + 15.0, 65519.99]),
+    ]
     recipe = {"storage": {"dtype": "float16"}}
     for pool in pools:
         x = (pool * rng.choice([-1.0, 1.0], pool.size)).astype(np.float32)
         for i in range(0, x.size, 997):
-            part = x[i:i + 997]
+            part = x[i : i + 997]
             got = storage_errors(recipe, {"alpha": part, "reflectance": part[::-1].copy()})
             ref = float(np.max(np.abs(part.astype(np.float16).astype(np.float64) - part)))
             assert got["alpha"] == ref and got["reflectance"] == ref

@@ -15,7 +15,8 @@ import click
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from hypothesis import HealthCheck, given, settings, strategies as st
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from hairlut import errors
 from hairlut.atomic import stale_temporaries
@@ -23,9 +24,12 @@ from hairlut.geometry import Strands, read_strands, write_strands
 from hairlut_cli.main import Group
 from hairlut_cli.strands import strands_group
 
-from .conftest import GROOMS as GROOM_DIR, groom_path as groom
+from .conftest import GROOMS as GROOM_DIR
+from .conftest import groom_path as groom
 
-needs_pxr = pytest.mark.skipif(importlib.util.find_spec("pxr") is None, reason="usd-core (pxr) is not installed; USD support is an optional extra")
+needs_pxr = pytest.mark.skipif(
+    importlib.util.find_spec("pxr") is None, reason="usd-core (pxr) is not installed; USD support is an optional extra"
+)
 
 
 # file: (strands, vertices per strand, bbox min, bbox max), as documented in tables/grooms/README.md
@@ -34,11 +38,17 @@ GROOMS = {
     "sintel_lite.tfx": (228, 32, (-10.6, 20.7, -13.0), (9.8, 47.7, 11.7)),
 }
 
+
 def random_strands(rng: np.random.Generator, n: int = 7, equal: int | None = None) -> Strands:
     counts = np.full(n, equal) if equal else rng.integers(2, 12, n)
     p = int(counts.sum())
-    return Strands(rng.normal(size=(p, 3)).astype(np.float32), counts, thickness=rng.uniform(0, 2, p).astype(np.float32),
-                   transparency=rng.uniform(0, 1, p).astype(np.float32), color=rng.uniform(0, 1, (p, 3)).astype(np.float32))
+    return Strands(
+        rng.normal(size=(p, 3)).astype(np.float32),
+        counts,
+        thickness=rng.uniform(0, 2, p).astype(np.float32),
+        transparency=rng.uniform(0, 1, p).astype(np.float32),
+        color=rng.uniform(0, 1, (p, 3)).astype(np.float32),
+    )
 
 
 def assert_same(a: Strands, b: Strands, names=("thickness", "transparency", "color", "uv", "movable"), atol=0.0) -> None:
@@ -66,17 +76,20 @@ def test_strands_helpers_on_a_known_polyline():
     assert Strands.from_padded(padded).points.dtype == np.float32
 
 
-@pytest.mark.parametrize("kwargs, field", [
-    (dict(points=np.zeros((4, 3)), counts=[2, 3]), "counts"),
-    (dict(points=np.zeros((4, 3)), counts=[1, 3]), "counts"),
-    (dict(points=np.zeros((4, 2)), counts=[4]), "points"),
-    (dict(points=np.array([[0, 0, 0], [0, np.nan, 0]]), counts=[2]), "points"),
-    (dict(points=np.zeros((2, 3)), counts=[2], thickness=[1.0, -0.5]), "thickness"),
-    (dict(points=np.zeros((2, 3)), counts=[2], transparency=[0.0, 1.5]), "transparency"),
-    (dict(points=np.zeros((2, 3)), counts=[2], color=np.zeros((3, 3))), "color"),
-    (dict(points=np.zeros((2, 3)), counts=[2], uv=np.zeros((2, 2))), "uv"),
-    (dict(points=np.zeros((2, 3)), counts=[2.0]), "counts"),
-])
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        (dict(points=np.zeros((4, 3)), counts=[2, 3]), "counts"),
+        (dict(points=np.zeros((4, 3)), counts=[1, 3]), "counts"),
+        (dict(points=np.zeros((4, 2)), counts=[4]), "points"),
+        (dict(points=np.array([[0, 0, 0], [0, np.nan, 0]]), counts=[2]), "points"),
+        (dict(points=np.zeros((2, 3)), counts=[2], thickness=[1.0, -0.5]), "thickness"),
+        (dict(points=np.zeros((2, 3)), counts=[2], transparency=[0.0, 1.5]), "transparency"),
+        (dict(points=np.zeros((2, 3)), counts=[2], color=np.zeros((3, 3))), "color"),
+        (dict(points=np.zeros((2, 3)), counts=[2], uv=np.zeros((2, 2))), "uv"),
+        (dict(points=np.zeros((2, 3)), counts=[2.0]), "counts"),
+    ],
+)
 def test_strands_validation_names_the_field(kwargs, field):
     with pytest.raises(errors.ValidationError) as info:
         Strands(**kwargs)
@@ -193,8 +206,15 @@ def test_hair_without_segments_uses_header_defaults(tmp_path):
 def test_usd_round_trip(tmp_path, suffix):
     rng = np.random.default_rng(3)
     s = random_strands(rng, n=20)
-    s = Strands(s.points, s.counts, thickness=s.thickness, transparency=s.transparency, color=s.color,
-                uv=rng.uniform(0, 1, (20, 2)).astype(np.float32), movable=rng.integers(0, 2, s.n_points).astype(bool))
+    s = Strands(
+        s.points,
+        s.counts,
+        thickness=s.thickness,
+        transparency=s.transparency,
+        color=s.color,
+        uv=rng.uniform(0, 1, (20, 2)).astype(np.float32),
+        movable=rng.integers(0, 2, s.n_points).astype(bool),
+    )
     write_strands(tmp_path / f"a{suffix}", s)
     assert_same(read_strands(tmp_path / f"a{suffix}"), s, atol=1e-6)
     assert [p.name for p in tmp_path.iterdir()] == [f"a{suffix}"]
@@ -358,9 +378,11 @@ def strand_sets(draw, equal_pow2: bool = False):
         return np.array(draw(st.lists(st.tuples(*elements), min_size=n, max_size=n)), np.float32).reshape(n, len(elements))
 
     coord = st.floats(-1e4, 1e4, width=32)
-    opt = {name: rows(p, *[elem] * k)[:, 0 if k == 1 else slice(None)]
-           for name, elem, k in (("thickness", st.floats(0, 10, width=32), 1), ("transparency", unit, 1), ("color", unit, 3))
-           if draw(st.booleans())}
+    opt = {
+        name: rows(p, *[elem] * k)[:, 0 if k == 1 else slice(None)]
+        for name, elem, k in (("thickness", st.floats(0, 10, width=32), 1), ("transparency", unit, 1), ("color", unit, 3))
+        if draw(st.booleans())
+    }
     if equal_pow2 and draw(st.booleans()):
         opt["uv"] = rows(s, unit, unit)
     return Strands(rows(p, coord, coord, coord), np.array(counts, dtype=np.int64), **opt)

@@ -39,8 +39,14 @@ def small_db(tmp_path_factory):
     from hairlut.hrir import bake
 
     out = tmp_path_factory.mktemp("synthdb") / "db.h5"
-    bake({"sectors": {"count": 16, "grid": [8, 8]}, "angles": {"views": 4, "lights": 4},
-          "trace": {"pixels": 8, "steps": 8, "self_shadow": False}}, out)
+    bake(
+        {
+            "sectors": {"count": 16, "grid": [8, 8]},
+            "angles": {"views": 4, "lights": 4},
+            "trace": {"pixels": 8, "steps": 8, "self_shadow": False},
+        },
+        out,
+    )
     return out
 
 

@@ -6,8 +6,8 @@ from click.testing import CliRunner
 
 from hairlut import errors
 from hairlut.assets import read_exr, write_exr
-from hairlut.scene import resolve_scene
 from hairlut.planner import bake, find_assets, plan
+from hairlut.scene import resolve_scene
 from hairlut.synth import prepare, render_view, synthesize
 from hairlut_cli.main import cli
 from tests.test_plan import TINY_HRIR, _write_toml, scene
@@ -86,8 +86,17 @@ def test_synth_cli_finds_assets_in_cache(tmp_path):
 
 def test_demo_cold_then_warm(tmp_path):
     path = _write_toml(tmp_path / "scene.toml", scene({"map": "sky"}) | {"tables": {"hrir": TINY_HRIR}})
-    args = ["demo", "--scene", str(path), "--cache", str(tmp_path / "cache"), "--out", str(tmp_path / "d"),
-            "--no-progress", "--json"]
+    args = [
+        "demo",
+        "--scene",
+        str(path),
+        "--cache",
+        str(tmp_path / "cache"),
+        "--out",
+        str(tmp_path / "d"),
+        "--no-progress",
+        "--json",
+    ]
     import json
 
     cold = json.loads(CliRunner().invoke(cli, args).output)
@@ -114,6 +123,6 @@ def test_self_shadowed_term_is_the_quadrature_of_its_own_light(tmp_path):
     e, clamped = env.rgb(view)
     assert clamped == 0.0
     a = environment_light(resolve_scene(s)).coeffs
-    assert env.light_diffuse ** 2 == len(a)  # Rd reads the light's chosen bands
+    assert env.light_diffuse**2 == len(a)  # Rd reads the light's chosen bands
     ref = env.reference(a, view, height=96)
-    assert np.sqrt(np.mean((e - ref) ** 2) / np.mean(ref ** 2)) < 1e-3
+    assert np.sqrt(np.mean((e - ref) ** 2) / np.mean(ref**2)) < 1e-3

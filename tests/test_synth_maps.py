@@ -86,8 +86,15 @@ def test_maps_bounded(db, setup):
 
 def test_eq6_distance_wraps_angles(db):
     f = db.features[:2]
-    d = param_distance(db, f, np.array([0.01, 1.0]), np.array([[0.0], [0.0]]),
-                       f, np.array([2 * np.pi - 0.01, 1.0]), np.array([[0.0], [2 * np.pi]]))
+    d = param_distance(
+        db,
+        f,
+        np.array([0.01, 1.0]),
+        np.array([[0.0], [0.0]]),
+        f,
+        np.array([2 * np.pi - 0.01, 1.0]),
+        np.array([[0.0], [2 * np.pi]]),
+    )
     np.testing.assert_allclose(d, [0.02 / (2 * np.pi / 8), 0.0], atol=1e-9)
 
 

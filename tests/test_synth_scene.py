@@ -28,25 +28,28 @@ def _bad(mutate):
     return exc.value.field
 
 
-@pytest.mark.parametrize("mutate, field", [
-    (lambda g: g["material"].update(foo=1), "material.foo"),
-    (lambda g: g.update(camera_typo={}), "camera_typo"),
-    (lambda g: g["camera"].pop("view"), "camera.view"),
-    (lambda g: g.pop("lights"), "lights.directions"),
-    (lambda g: g["material"].update(kd=-0.1), "material.kd"),
-    (lambda g: g["material"].update(p_I=0.0), "material.p_I"),
-    (lambda g: g["material"].update(shadow_form="cubic"), "material.shadow_form"),
-    (lambda g: g["material"].update(hair_color=[1.2, 0, 0]), "material.hair_color"),
-    (lambda g: g["render"].update(resolution=[1, 8]), "render.resolution"),
-    (lambda g: g["lights"].update(directions=[[0, 0, 0]]), "lights.directions[0]"),
-    (lambda g: g["effects"].update(shadow="yes"), "effects.shadow"),
-    (lambda g: g["clusters"][1].pop("trajectory"), "clusters[1].trajectory"),
-    (lambda g: g["clusters"][1].update(layer_radii=[0.9, 0.5]), "clusters[1].layer_radii"),
-    (lambda g: g["clusters"][0].update(s_v=2), "clusters[0].s_v"),
-    (lambda g: g["clusters"][0].update(colour=1), "clusters[0].colour"),
-    (lambda g: g["clusters"][1].update(s_t=5), "clusters[1]"),
-    (lambda g: g.update(groom={"path": "x.tfx"}), "clusters"),
-])
+@pytest.mark.parametrize(
+    "mutate, field",
+    [
+        (lambda g: g["material"].update(foo=1), "material.foo"),
+        (lambda g: g.update(camera_typo={}), "camera_typo"),
+        (lambda g: g["camera"].pop("view"), "camera.view"),
+        (lambda g: g.pop("lights"), "lights.directions"),
+        (lambda g: g["material"].update(kd=-0.1), "material.kd"),
+        (lambda g: g["material"].update(p_I=0.0), "material.p_I"),
+        (lambda g: g["material"].update(shadow_form="cubic"), "material.shadow_form"),
+        (lambda g: g["material"].update(hair_color=[1.2, 0, 0]), "material.hair_color"),
+        (lambda g: g["render"].update(resolution=[1, 8]), "render.resolution"),
+        (lambda g: g["lights"].update(directions=[[0, 0, 0]]), "lights.directions[0]"),
+        (lambda g: g["effects"].update(shadow="yes"), "effects.shadow"),
+        (lambda g: g["clusters"][1].pop("trajectory"), "clusters[1].trajectory"),
+        (lambda g: g["clusters"][1].update(layer_radii=[0.9, 0.5]), "clusters[1].layer_radii"),
+        (lambda g: g["clusters"][0].update(s_v=2), "clusters[0].s_v"),
+        (lambda g: g["clusters"][0].update(colour=1), "clusters[0].colour"),
+        (lambda g: g["clusters"][1].update(s_t=5), "clusters[1]"),
+        (lambda g: g.update(groom={"path": "x.tfx"}), "clusters"),
+    ],
+)
 def test_bad_keys_name_their_path(mutate, field):
     assert _bad(mutate) == field
 

@@ -33,7 +33,7 @@ def test_eq14_blending_order():
     a = np.array([0.5, 0.25, 0.6]).reshape(3, 1)
     bk = np.array([0.1, 0.2, 0.3])
     out, alpha = blend(rgb, a, bk)
-    want = (bk * 0.5 * 0.75 * 0.4 + rgb[0, 0] * 0.5 * 0.75 * 0.4 + rgb[1, 0] * 0.25 * 0.4 + rgb[2, 0] * 0.6)
+    want = bk * 0.5 * 0.75 * 0.4 + rgb[0, 0] * 0.5 * 0.75 * 0.4 + rgb[1, 0] * 0.25 * 0.4 + rgb[2, 0] * 0.6
     np.testing.assert_allclose(np.asarray(out)[0], want, rtol=1e-6)
     np.testing.assert_allclose(np.asarray(alpha)[0], 1 - 0.5 * 0.75 * 0.4, rtol=1e-6)
 
@@ -59,9 +59,14 @@ def _rand_unit(rng, n):
 
 def _args(rng, n=256, lights=3):
     t, nrm = _rand_unit(rng, n), _rand_unit(rng, n)
-    return (jnp.asarray(t, jnp.float32), jnp.asarray(nrm, jnp.float32), jnp.asarray(_rand_unit(rng, 1)[0], jnp.float32),
-            jnp.asarray(_rand_unit(rng, lights), jnp.float32), jnp.ones((lights, 3), jnp.float32),
-            jnp.asarray(rng.uniform(size=n), jnp.float32))
+    return (
+        jnp.asarray(t, jnp.float32),
+        jnp.asarray(nrm, jnp.float32),
+        jnp.asarray(_rand_unit(rng, 1)[0], jnp.float32),
+        jnp.asarray(_rand_unit(rng, lights), jnp.float32),
+        jnp.ones((lights, 3), jnp.float32),
+        jnp.asarray(rng.uniform(size=n), jnp.float32),
+    )
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -84,8 +89,18 @@ def test_diffuse_eq9_and_specular_peak():
     th = 0.7
     l = jnp.asarray([[np.cos(th), np.sin(th), 0.0]])
     mat = jnp.asarray([1.0, 0.0, 0.0, 1, 1, 0, 1, 0, 0], jnp.float32)
-    out = lighting_kernel(t, jnp.asarray([[0.0, 0.0, 1.0]]), jnp.asarray([0.0, 1.0, 0.0]), l, jnp.ones((1, 3)),
-                          jnp.zeros(1), mat, jnp.eye(3), primary=False, secondary=False)
+    out = lighting_kernel(
+        t,
+        jnp.asarray([[0.0, 0.0, 1.0]]),
+        jnp.asarray([0.0, 1.0, 0.0]),
+        l,
+        jnp.ones((1, 3)),
+        jnp.zeros(1),
+        mat,
+        jnp.eye(3),
+        primary=False,
+        secondary=False,
+    )
     np.testing.assert_allclose(np.asarray(out)[0, 0], [np.sin(th), 0, 0], rtol=1e-5)
     # mirror cone θ + θ′ = π: l at θ from t, v at π − θ from t → kernel 1 (shift 0)
     v = jnp.asarray([np.cos(np.pi - th), np.sin(np.pi - th), 0.0])

@@ -29,7 +29,7 @@ def _disc(s_u, core=0.0, n_u=1024, reads="track"):
     return geometry_index(table, fr, len(RADII), (n_u, 2), reads), alpha, cs
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _disc_rows(s_u, core):
     """The disc's sector frames, table layout, α rows and view per sector (:func:`_disc`), made once per
     (s_u, core): the pair and track reads of a test read the same rows."""
@@ -44,8 +44,20 @@ def _disc_rows(s_u, core):
     centre = np.stack([vm * np.cos(phi), vm * np.sin(phi)], 1)
     ex = np.stack([np.cos(phi), np.sin(phi)], 1)
     ey = np.stack([-ex[:, 1], ex[:, 0]], 1)
-    fr = SectorFrames(np.zeros((S, 1)), centre, ex, ey, np.full(S, EXTENT), np.ones((S, 2)), np.zeros(S), v1,
-                      np.tile([1.0, 0, 0], (S, 1)), np.tile([0, 1.0, 0], (S, 1)), np.ones(S, bool), v0)
+    fr = SectorFrames(
+        np.zeros((S, 1)),
+        centre,
+        ex,
+        ey,
+        np.full(S, EXTENT),
+        np.ones((S, 2)),
+        np.zeros(S),
+        v1,
+        np.tile([1.0, 0, 0], (S, 1)),
+        np.tile([0, 1.0, 0], (S, 1)),
+        np.ones(S, bool),
+        v0,
+    )
     top = (np.arange(G)[:, None] * s_u + np.arange(s_u)).ravel()
     table = SimpleNamespace(shape=(1, n_i, G, s_u), hsv_sectors=np.stack([top, top + G * s_u], 1))
     view = np.array([0.0, 1.0])  # toward the eye, in the normal plane
@@ -61,7 +73,7 @@ def _disc_rows(s_u, core):
         r, ph = np.hypot(px, py), np.mod(np.arctan2(py, px), 2 * np.pi)
         inside = (r >= v0[s]) & (r < v1[s]) & (np.minimum((ph // du).astype(int), s_u - 1) == k[s])
         alpha[s] = 1 - np.exp(-RHO * inside.sum(1) * dt)
-    alpha[G * s_u:] = alpha[:G * s_u]  # cross-section 1 is the same
+    alpha[G * s_u :] = alpha[: G * s_u]  # cross-section 1 is the same
     return fr, table, alpha.astype(np.float32), cs.astype(np.float32)
 
 
@@ -134,8 +146,8 @@ def test_satf_track_read_sweeps_every_sectors_own_fetch():
     """The ``satf`` path with the track read (every HSV fetched as non-uniform) gives the maps of every sector's own
     row fetched by the reference k-NN lookup (``_maps.fetch``) swept by ``sweep_sectors``."""
     from hairlut.synth import params_kernel, prepare
-    from hairlut.synth._view import view_maps
     from hairlut.synth._maps import fetch, sector_angles
+    from hairlut.synth._view import view_maps
 
     from ._synth_fixtures import synthetic_db
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from hairlut.synth import prepare, render_view
-from hairlut.synth._view import view_maps
 from hairlut.synth._maps import build_maps, sector_angles, texels
+from hairlut.synth._view import view_maps
 
 from ._synth_fixtures import scene, synthetic_db
 

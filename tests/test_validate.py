@@ -5,13 +5,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hairlut import errors, validate as v
+from hairlut import errors
+from hairlut import validate as v
 from hairlut.recipes import Field, resolve
 
 
 @settings(max_examples=80, deadline=None)
-@given(st.lists(st.lists(st.floats(-1e6, 1e6), min_size=3, max_size=3).filter(lambda x: np.linalg.norm(x) > 1e-6),
-                min_size=1, max_size=5))
+@given(
+    st.lists(
+        st.lists(st.floats(-1e6, 1e6), min_size=3, max_size=3).filter(lambda x: np.linalg.norm(x) > 1e-6), min_size=1, max_size=5
+    )
+)
 def test_directions_are_normalised_and_parallel(vecs):
     d = v.directions(vecs, "lights")
     a = np.asarray(vecs, np.float64)
@@ -19,10 +23,18 @@ def test_directions_are_normalised_and_parallel(vecs):
     np.testing.assert_allclose(d * np.linalg.norm(a, axis=-1, keepdims=True), a, rtol=1e-9, atol=1e-9)
 
 
-@pytest.mark.parametrize("bad, words", [
-    ([0, 0, 0], "zero vector"), ([1, np.nan, 0], "non-finite"), ([1, 2], "3"), ([True, False, True], "real"),
-    (["a", "b", "c"], "real"), ([[1, 0, 0], [0, 0, 0]], "zero vector"), ([[1, 0, 0, 1]], "3"),
-])
+@pytest.mark.parametrize(
+    "bad, words",
+    [
+        ([0, 0, 0], "zero vector"),
+        ([1, np.nan, 0], "non-finite"),
+        ([1, 2], "3"),
+        ([True, False, True], "real"),
+        (["a", "b", "c"], "real"),
+        ([[1, 0, 0], [0, 0, 0]], "zero vector"),
+        ([[1, 0, 0, 1]], "3"),
+    ],
+)
 def test_bad_direction_names_the_field(bad, words):
     with pytest.raises(errors.ValidationError) as info:
         v.direction(bad, "camera.view") if np.ndim(bad) == 1 else v.directions(bad, "camera.view")
@@ -47,9 +59,16 @@ def test_points():
 def test_argument_checks():
     assert v.check_int(np.int64(5), "n", 1, 8) == 5 and isinstance(v.check_int(np.int64(5), "n"), int)
     assert v.check_real(np.float32(0.5), "k", 0, 1) == 0.5
-    for call in (lambda: v.check_int(True, "n"), lambda: v.check_int(2.0, "n"), lambda: v.check_int(0, "n", 1),
-                 lambda: v.check_int(9, "n", 1, 8), lambda: v.check_real(0.0, "n", 0, lo_open=True),
-                 lambda: v.check_real(float("nan"), "n"), lambda: v.check_real("1", "n"), lambda: v.check_real(2, "n", hi=1)):
+    for call in (
+        lambda: v.check_int(True, "n"),
+        lambda: v.check_int(2.0, "n"),
+        lambda: v.check_int(0, "n", 1),
+        lambda: v.check_int(9, "n", 1, 8),
+        lambda: v.check_real(0.0, "n", 0, lo_open=True),
+        lambda: v.check_real(float("nan"), "n"),
+        lambda: v.check_real("1", "n"),
+        lambda: v.check_real(2, "n", hi=1),
+    ):
         with pytest.raises(errors.ValidationError) as info:
             call()
         assert info.value.field == "n"

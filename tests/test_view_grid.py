@@ -10,10 +10,10 @@ import pytest
 
 from hairlut import errors
 from hairlut.hrir import resolve_recipe, trace_sectors
-from hairlut.scene import resolve_scene
-from hairlut.planner import scene_maps_recipe
-from hairlut.scenemaps import hrir_recipe, scene_inputs
 from hairlut.march import bake_view_grid, trace_view_grid
+from hairlut.planner import scene_maps_recipe
+from hairlut.scene import resolve_scene
+from hairlut.scenemaps import hrir_recipe, scene_inputs
 
 from ._synth_fixtures import scene as base_scene
 
@@ -60,8 +60,10 @@ def test_bad_grids_are_rejected(sectors):
 def _binned(a, re, step, bins):
     """The reference's per-bin α and re on every ``step``-th view."""
     n, V, P = a.shape
-    return (a[:, ::step].reshape(n, -1, bins, P // bins).sum(-1),
-            re[:, ::step].reshape(n, -1, re.shape[2], bins, P // bins).sum(-1))
+    return (
+        a[:, ::step].reshape(n, -1, bins, P // bins).sum(-1),
+        re[:, ::step].reshape(n, -1, re.shape[2], bins, P // bins).sum(-1),
+    )
 
 
 @pytest.mark.parametrize("V, step", [(8, 2), (8, 4), (6, 2)])  # kept views mirrored (8/2, 8/4) or not (6/2: 3 is odd)
@@ -74,7 +76,7 @@ def test_bake_grid_shading_equals_the_tracer(sectors, V, step):
     ab_ref, rb_ref = _binned(a, re, step, Q)
     half, ab, rb = bake_view_grid(dens, geom, full, views=V, lights=L, ratio_step=step, bins=Q, alpha_grid=0)
     assert half.shape == (len(dens), V // 2, 8) and ab.shape == ab_ref.shape and rb.shape == rb_ref.shape
-    np.testing.assert_allclose(half, a[:, :V // 2], atol=2e-6, rtol=0)  # alpha_grid 0: the tracer's march
+    np.testing.assert_allclose(half, a[:, : V // 2], atol=2e-6, rtol=0)  # alpha_grid 0: the tracer's march
     np.testing.assert_allclose(ab, ab_ref, atol=1e-5, rtol=0)
     np.testing.assert_allclose(rb, rb_ref, atol=1e-5, rtol=0)
     assert rb_ref.max() > 0.05
@@ -91,7 +93,7 @@ def test_bake_grid_alpha_converges_to_the_tracer(sectors):
     err = {}
     for m in (16, 64):
         half, _, _ = bake_view_grid(dens, geom, full, views=V, lights=1, bins=1, alpha_grid=m)
-        err[m] = (np.abs(half - a[:, :V // 2]).max(), np.linalg.norm(half - a[:, :V // 2]) / np.linalg.norm(a))
+        err[m] = (np.abs(half - a[:, : V // 2]).max(), np.linalg.norm(half - a[:, : V // 2]) / np.linalg.norm(a))
     assert err[64][0] < 0.07 and err[64][1] < 0.05, err
     assert err[64][1] < 0.5 * err[16][1], err
     assert a.max() > 0.1
@@ -105,8 +107,9 @@ def test_bake_grid_coarse_shading_is_the_coarse_tracer(sectors):
     V, L, Q = 8, 3, 2
     a, re = trace_view_grid(dens, geom, coarse, views=V, lights=L)
     ab_ref, rb_ref = _binned(a, re, 2, Q)
-    _, ab, rb = bake_view_grid(dens, geom, full, views=V, lights=L, ratio_step=2, bins=Q, alpha_grid=16, shade_rays=1,
-                               shade_steps=6)
+    _, ab, rb = bake_view_grid(
+        dens, geom, full, views=V, lights=L, ratio_step=2, bins=Q, alpha_grid=16, shade_rays=1, shade_steps=6
+    )
     np.testing.assert_allclose(ab, ab_ref, atol=1e-5, rtol=0)
     np.testing.assert_allclose(rb, rb_ref, atol=1e-5, rtol=0)
 
@@ -139,16 +142,24 @@ def test_shading_of_the_live_samples_is_the_dense_contraction(sectors):
     live = int(((w > 0) | (w_m > 0)).sum())
     assert 0 < live < w.size  # some samples are skipped
     for chunk in (7, live + 100):
-        got = jax.jit(lambda *a: _shade_weighted(fields, jnp.max(rho), g, views, lights, phong, *a, power=20,
-                                                 chunk=chunk))(w, w_m, depth)
+        got = jax.jit(lambda *a: _shade_weighted(fields, jnp.max(rho), g, views, lights, phong, *a, power=20, chunk=chunk))(
+            w, w_m, depth
+        )
         for x, y in zip(got, want):
             np.testing.assert_allclose(np.asarray(x), y, atol=2e-6, rtol=0)
 
 
 def test_bake_grid_rejects_bad_layouts(sectors):
     dens, geom, full = sectors
-    for kw, field in ((dict(ratio_step=3), "ratio_step"), (dict(bins=3), "bins"), (dict(alpha_grid=1), "alpha_grid"), (dict(alpha_grid=-1), "alpha_grid"),
-                      (dict(views=7), "views"), (dict(shade_steps=1), "shade_steps"), (dict(shadow_grid=1), "shadow_grid")):
+    for kw, field in (
+        (dict(ratio_step=3), "ratio_step"),
+        (dict(bins=3), "bins"),
+        (dict(alpha_grid=1), "alpha_grid"),
+        (dict(alpha_grid=-1), "alpha_grid"),
+        (dict(views=7), "views"),
+        (dict(shade_steps=1), "shade_steps"),
+        (dict(shadow_grid=1), "shadow_grid"),
+    ):
         args = {"views": 8, "lights": 3, "bins": 4, "alpha_grid": 16, **kw}
         with pytest.raises(errors.ValidationError) as exc:
             bake_view_grid(dens, geom, full, **args)

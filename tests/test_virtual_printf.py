@@ -8,13 +8,14 @@ import subprocess
 import h5py
 import numpy as np
 import pytest
-from ._tables import RECIPE, declare_rows, lobes_table
 
 from hairlut import errors
 from hairlut.assets import Axis, Variable, read_table
-from hairlut.hrir import bake, load_hrir_db
 from hairlut.assets.parts import open_folder, part_name, parts_dir, stamp
 from hairlut.assets.virtual_write import check_virtual, write_virtual
+from hairlut.hrir import bake, load_hrir_db
+
+from ._tables import RECIPE, declare_rows, lobes_table
 
 NT, NV = 3, 2
 
@@ -44,15 +45,17 @@ def _parts(out, total: int, block: int, recipe=RECIPE) -> tuple[list, np.ndarray
 def _write(out, parts, total: int):
     with h5py.File(parts[0][0], "r") as f:
         theta, theta_v, diffuse = f["theta"][()], f["theta_v"][()], f["diffuse"][()]
-    axes = [Axis("theta", theta, "rad", "angle(light, tangent)"), Axis("theta_v", theta_v, "rad", "angle(tangent, view)",
-                                                                    period=None),
-            Axis("exponent", np.arange(1.0, total + 1), "1", "specular exponent")]
-    return write_virtual(out, "kk_lobes", RECIPE, "exponent", parts, axes,
-                         [Variable("diffuse", diffuse, ("theta",), "1", "sin theta")])
+    axes = [
+        Axis("theta", theta, "rad", "angle(light, tangent)"),
+        Axis("theta_v", theta_v, "rad", "angle(tangent, view)", period=None),
+        Axis("exponent", np.arange(1.0, total + 1), "1", "specular exponent"),
+    ]
+    return write_virtual(
+        out, "kk_lobes", RECIPE, "exponent", parts, axes, [Variable("diffuse", diffuse, ("theta",), "1", "sin theta")]
+    )
 
 
-@pytest.mark.parametrize("parts_count,block,short", [pytest.param(4096, 2, 1, marks=pytest.mark.slow), (64, 2, 1),
-                                                     (4, 3, 0)])
+@pytest.mark.parametrize("parts_count,block,short", [pytest.param(4096, 2, 1, marks=pytest.mark.slow), (64, 2, 1), (4, 3, 0)])
 def test_one_mapping_for_every_whole_block_reads_back(tmp_path, parts_count, block, short):
     total = parts_count * block - short
     out = tmp_path / "t.h5"
@@ -71,8 +74,12 @@ def test_one_mapping_for_every_whole_block_reads_back(tmp_path, parts_count, blo
         got = read_table(out, kind="kk_lobes")
         assert got["specular"].dtype == np.float32 and got["specular"].tobytes() == whole.tobytes()
     if shutil.which("h5dump"):
-        dump = subprocess.run(["h5dump", "-d", "/specular", "-s", f"{total - 1},0,0", "-c", "1,1,2", str(out)],
-                              capture_output=True, text=True, timeout=120)
+        dump = subprocess.run(
+            ["h5dump", "-d", "/specular", "-s", f"{total - 1},0,0", "-c", "1,1,2", str(out)],
+            capture_output=True,
+            text=True,
+            timeout=120,
+        )
         assert dump.returncode == 0 and f"DATASPACE  SIMPLE {{ ( {total}, {NT}, {NV} )" in dump.stdout
         assert f"{whole[-1, 0, 0]:g}, {whole[-1, 0, 1]:g}" in dump.stdout
 
@@ -121,13 +128,11 @@ def test_a_percent_sign_in_the_asset_name_is_literal(tmp_path):
 
 
 def test_a_short_last_block_of_a_real_bake_matches_one_process(tmp_path):
-    small = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3},
-             "trace": {"pixels": 8, "steps": 4}}
+    small = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3}, "trace": {"pixels": 8, "steps": 4}}
     ref = bake(small, tmp_path / "ref.h5")
     out = tmp_path / "db.h5"
     bake(small, out, block=5, merge="virtual")
-    assert sorted(p.name for p in parts_dir(out).glob("part-*.h5")) == ["part-12x5-0.h5", "part-12x5-1.h5",
-                                                                         "part-12x5-2-last.h5"]
+    assert sorted(p.name for p in parts_dir(out).glob("part-*.h5")) == ["part-12x5-0.h5", "part-12x5-1.h5", "part-12x5-2-last.h5"]
     a, b = load_hrir_db(ref["out"]), load_hrir_db(out)
     assert a.reflectance.tobytes() == b.reflectance.tobytes() and a.alpha.tobytes() == b.alpha.tobytes()
     with h5py.File(out, "r") as f:
@@ -141,8 +146,7 @@ def test_each_part_is_opened_once_per_asset_and_again_only_when_its_stamp_change
 
     from hairlut.assets import sources
 
-    small = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 2, "lights": 2},
-             "trace": {"pixels": 4, "steps": 4}}
+    small = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 2, "lights": 2}, "trace": {"pixels": 4, "steps": 4}}
     out = tmp_path / "db.h5"
     bake(small, out, block=5, merge="virtual")
     parts = sorted(parts_dir(out).glob("part-*.h5"))

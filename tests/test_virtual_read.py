@@ -9,14 +9,14 @@ import pytest
 from click.testing import CliRunner
 
 from hairlut import errors
-from hairlut.assets import h5 as store, read_table, summarize
+from hairlut.assets import h5 as store
+from hairlut.assets import read_table, summarize
 from hairlut.assets.layout import layout
-from hairlut.hrir import bake, load_hrir_db
 from hairlut.assets.parts import parts_dir
+from hairlut.hrir import bake, load_hrir_db
 from hairlut_cli.main import cli
 
-SMALL = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 3, "lights": 2},
-         "trace": {"pixels": 4, "steps": 4}}
+SMALL = {"sectors": {"count": 12, "grid": [8, 8]}, "angles": {"views": 3, "lights": 2}, "trace": {"pixels": 4, "steps": 4}}
 
 
 @pytest.fixture(scope="module")
@@ -127,9 +127,9 @@ def test_a_table_hdf5_must_fill_is_left_to_hdf5(tmp_path):
     declare_rows(part, 0, spec.shape[0])
     with h5py.File(path, "r+") as f:
         lay = h5py.VirtualLayout(shape=(spec.shape[0] + 3, *spec.shape[1:]), dtype=spec.dtype)
-        lay[:spec.shape[0]] = h5py.VirtualSource("t.h5.parts/part-0.h5", "specular", shape=spec.shape)
+        lay[: spec.shape[0]] = h5py.VirtualSource("t.h5.parts/part-0.h5", "specular", shape=spec.shape)
         f.create_virtual_dataset("ext", lay, fillvalue=7).dims[0].label = "exponent"
     with store.open_table(path) as f:
         assert store.read_virtual(path, f, layout(f)[1]) == {}
     got = read_table(path)["ext"]
-    assert got[:spec.shape[0]].tobytes() == spec.tobytes() and np.all(got[spec.shape[0]:] == 7)
+    assert got[: spec.shape[0]].tobytes() == spec.tobytes() and np.all(got[spec.shape[0] :] == 7)

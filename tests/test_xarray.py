@@ -16,10 +16,10 @@ from click.testing import CliRunner
 
 from hairlut.assets import read_table, write_exr
 from hairlut.assets.h5 import disk_name
-from hairlut.bake import registry
 from hairlut.assets.kinds import SCHEMA
-from hairlut.scene import resolve_scene
+from hairlut.bake import registry
 from hairlut.planner import scene_maps_recipe
+from hairlut.scene import resolve_scene
 
 from ._synth_fixtures import scene as base_scene
 
@@ -48,14 +48,35 @@ def assets(tmp_path_factory):
     recipe = d / "sh.toml"
     recipe.write_text("[kernel]\np = 8.0\n[dense]\nt_resolution = 2\ntheta_v_steps = 3\n")
     _cli("bake", "sh", "--recipe", recipe, "--out", d / "sh.h5", "--set", "bands.transmittance=2", "--light", d / "sky.exr")
-    _cli("bake", "sh", "--recipe", recipe, "--out", d / "shp.h5", "--set", "bands.transmittance=2", "--light",
-         d / "sky.exr", "--shard", "0/2", "--block", "8")
+    _cli(
+        "bake",
+        "sh",
+        "--recipe",
+        recipe,
+        "--out",
+        d / "shp.h5",
+        "--set",
+        "bands.transmittance=2",
+        "--light",
+        d / "sky.exr",
+        "--shard",
+        "0/2",
+        "--block",
+        "8",
+    )
     sc = resolve_scene(_tiny_scene())
     registry.bake("scene_maps", scene_maps_recipe(sc), d / "maps.h5", scene=sc)
     registry.bake("scene_maps", scene_maps_recipe(sc), d / "mapsp.h5", scene=sc, shard="1/2", options={"block": 16})
-    return {"hrir_db": d / "db.h5", "hrir_db_float16": d / "db16.h5", "hrir_shard": d / "shard.h5",
-            "sh_light": d / "light.h5", "sh_tables": d / "sh.h5", "sh_shard": d / "shp.h5", "scene_maps": d / "maps.h5",
-            "scene_shard": d / "mapsp.h5"}
+    return {
+        "hrir_db": d / "db.h5",
+        "hrir_db_float16": d / "db16.h5",
+        "hrir_shard": d / "shard.h5",
+        "sh_light": d / "light.h5",
+        "sh_tables": d / "sh.h5",
+        "sh_shard": d / "shp.h5",
+        "scene_maps": d / "maps.h5",
+        "scene_shard": d / "mapsp.h5",
+    }
 
 
 def _tiny_scene() -> dict:

@@ -46,7 +46,7 @@ def _all(tree: ast.Module, namespace: dict[str, object]) -> list[str] | None:
     for node in tree.body:
         if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "__all__" for t in node.targets):
             code = compile(ast.Expression(node.value), "__all__", "eval")
-            return list(eval(code, {"__builtins__": {}, "sorted": sorted}, dict(namespace)))  # noqa: S307
+            return list(eval(code, {"__builtins__": {}, "sorted": sorted}, dict(namespace)))
     return None
 
 
@@ -99,8 +99,12 @@ class MissingDocstrings(griffe.Extension):
                     _need_doc(target, seen)
                     if target.kind is griffe.Kind.CLASS:
                         for method in target.members.values():
-                            if not method.is_alias and method.kind is griffe.Kind.FUNCTION and method.is_public \
-                                    and not method.name.startswith("__"):
+                            if (
+                                not method.is_alias
+                                and method.kind is griffe.Kind.FUNCTION
+                                and method.is_public
+                                and not method.name.startswith("__")
+                            ):
                                 _need_doc(method, seen)
 
 

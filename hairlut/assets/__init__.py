@@ -10,13 +10,24 @@ virtual-asset parts are wiring for the bakers, imported from their modules (and 
 from ..atomic import atomic_path, atomic_write_bytes, check_writable, stale_temporaries
 from .exr import ExrImage, ExrPart, read_exr, write_exr
 from .h5 import Axis, Table, Variable, open_table, read_table, write_table
-from .preview import encode_png, parse_slice, preview, tonemap
-from .summary import array_stats, sniff, summarize
 from .kinds import KINDS, SCHEMA, register_kind
+from .preview import encode_png, parse_slice, preview, tonemap
 from .recipe import canonical_json, recipe_hash
 from .sources import allowed_virtual_sources
+from .summary import array_stats, sniff, summarize
 
 __all__ = [
-    "Axis", "ExrImage", "ExrPart", "Table", "Variable", "open_table", "preview", "read_exr", "read_table",
-    "recipe_hash", "summarize", "write_exr", "write_table",
+    "Axis",
+    "ExrImage",
+    "ExrPart",
+    "Table",
+    "Variable",
+    "open_table",
+    "preview",
+    "read_exr",
+    "read_table",
+    "recipe_hash",
+    "summarize",
+    "write_exr",
+    "write_table",
 ]

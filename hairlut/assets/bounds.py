@@ -89,12 +89,13 @@ def _refuse(where: str, b: Bound, recipe: Mapping, v: np.ndarray, edge: np.ndarr
     idx = np.unravel_index(int(np.argmax(excess)), excess.shape)
     at = [int(i) + (s if k == 0 else 0) for k, i in enumerate(idx)]
     n = int(np.count_nonzero(excess > 0))
-    raise errors.BoundsError(f"{where} breaks its bound {b.describe()}: {n} value{'s' if n > 1 else ''} beyond it "
-                             f"(worst {v[idx]:.6g} against {edge[idx]:.6g}, at index {at}); {_drivers(recipe, b.keys)}")
+    raise errors.BoundsError(
+        f"{where} breaks its bound {b.describe()}: {n} value{'s' if n > 1 else ''} beyond it "
+        f"(worst {v[idx]:.6g} against {edge[idx]:.6g}, at index {at}); {_drivers(recipe, b.keys)}"
+    )
 
 
-def check_bounds(kind: str, bounds, recipe: Mapping, tables: Mapping[str, tuple[np.ndarray, tuple]],
-                 file: str = "") -> None:
+def check_bounds(kind: str, bounds, recipe: Mapping, tables: Mapping[str, tuple[np.ndarray, tuple]], file: str = "") -> None:
     """Raise unless every table of ``tables`` (name → (data, dims)) lies in the ``bounds`` declared for it.
 
     NonFiniteError for NaN or infinity, BoundsError for a finite value beyond a bound (with the tolerance of the
@@ -116,11 +117,12 @@ def _check(where: str, b: Bound, recipe: Mapping, tables: Mapping, data, dims) -
     ref = None if b.of is None else _aligned(np.asarray(tables[b.of][0], np.float64), tables[b.of][1], dims)
     step = max(1, SLAB // max(1, int(np.prod(data.shape[1:], dtype=np.int64))))
     for s in range(0, len(data), step):
-        v = data[s:s + step].astype(np.float64)
+        v = data[s : s + step].astype(np.float64)
         if not np.isfinite(v).all():
-            raise errors.NonFiniteError(f"{where} is not finite ({int(np.count_nonzero(~np.isfinite(v)))} NaN/inf "
-                                        f"values); {_drivers(recipe, b.keys)}")
-        r = u if ref is None else u * (ref[s:s + step] if ref.shape[0] == len(data) else ref)
+            raise errors.NonFiniteError(
+                f"{where} is not finite ({int(np.count_nonzero(~np.isfinite(v)))} NaN/inf values); {_drivers(recipe, b.keys)}"
+            )
+        r = u if ref is None else u * (ref[s : s + step] if ref.shape[0] == len(data) else ref)
         for limit, sign in ((b.lo, -1.0), (b.hi, 1.0)):
             if limit is not None:
                 edge = np.broadcast_to(limit * np.asarray(r, np.float64), v.shape)

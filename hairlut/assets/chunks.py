@@ -84,7 +84,7 @@ def fletcher32(raw: bytes) -> int:
     n = w.size
     s1 = s2 = 0
     for lo in range(0, n, _FLETCHER_BLOCK):  # exact integer sums, one int64 pass per block
-        part = w[lo:lo + _FLETCHER_BLOCK].astype(np.int64)
+        part = w[lo : lo + _FLETCHER_BLOCK].astype(np.int64)
         total = int(part.sum())
         # word i of the block enters sum2 once per word from i to the block's end, after the earlier blocks' sum1
         s2 += part.size * (s1 + total) - int(np.dot(part, np.arange(part.size, dtype=np.int64)))

@@ -94,16 +94,22 @@ class ExrImage:
             return found[0]
         if not found:
             have = {p.name or f"part {i}": sorted(p.channels) for i, p in enumerate(self.parts)}
-            raise errors.MissingDatasetError(self.path, f"no part has channels {', '.join(want)} "
-                                                        f"({len(self.parts)} part(s): {have})")
-        raise errors.FormatError(self.path, f"{len(found)} of its {len(self.parts)} parts hold channels {', '.join(want)} "
-                                            f"({', '.join(repr(p.name) for p in found)}): which one is meant is ambiguous")
+            raise errors.MissingDatasetError(
+                self.path, f"no part has channels {', '.join(want)} ({len(self.parts)} part(s): {have})"
+            )
+        raise errors.FormatError(
+            self.path,
+            f"{len(found)} of its {len(self.parts)} parts hold channels {', '.join(want)} "
+            f"({', '.join(repr(p.name) for p in found)}): which one is meant is ambiguous",
+        )
 
     def channel(self, name: str, part: str | None = None) -> np.ndarray:
         """The pixels of channel ``name`` (e.g. ``layer0.A``) of a part, as a (height, width) array."""
         p = self.part(part)
         if name not in p.channels:
-            raise errors.MissingDatasetError(self.path, f"no channel {name!r} in part {p.name!r} (channels: {sorted(p.channels)})")
+            raise errors.MissingDatasetError(
+                self.path, f"no channel {name!r} in part {p.name!r} (channels: {sorted(p.channels)})"
+            )
         return p.channels[name]
 
 
@@ -154,7 +160,9 @@ def _prepare(parts: list[ExrPart], pixel_type: str | None) -> list[ExrPart]:
             if not np.issubdtype(arr.dtype, np.floating):
                 raise errors.ValidationError(f"{field_name}.dtype", str(arr.dtype), "EXR channels here are float32 or half")
             if shape is not None and arr.shape != shape:
-                raise errors.ValidationError(f"{field_name}.shape", arr.shape, f"other channels of this part are {shape}; use parts")
+                raise errors.ValidationError(
+                    f"{field_name}.shape", arr.shape, f"other channels of this part are {shape}; use parts"
+                )
             shape = arr.shape
             target = PIXEL_TYPES[pixel_type] if pixel_type else (np.float16 if arr.dtype == np.float16 else np.float32)
             channels[name] = np.ascontiguousarray(arr, dtype=target)
@@ -228,8 +236,9 @@ def _write_fault(path, exc: Exception) -> errors.AssetError:
     msg = str(exc)
     code = getattr(exc, "errno", None)
     if code in FULL_ERRNOS or "No space left" in msg or "File too large" in msg or "quota" in msg.lower():
-        return errors.DiskFullError(path, f"cannot write the image: {msg.splitlines()[0] if msg else 'disk full'}; "
-                                          "nothing was left under this name")
+        return errors.DiskFullError(
+            path, f"cannot write the image: {msg.splitlines()[0] if msg else 'disk full'}; nothing was left under this name"
+        )
     return errors.AssetError(path, f"cannot write the image ({msg.splitlines()[0] if msg else type(exc).__name__})")
 
 

@@ -50,8 +50,8 @@ import numpy as np
 
 from .. import errors
 from .._version import __version__
-from ..files import regular_file
 from ..atomic import atomic_path, ensure_space, write_bytes
+from ..files import regular_file
 from .bounds import check_bounds
 from .chunks import ChunkWriter
 from .kinds import KINDS, SCHEMA, SUPPORTED_SCHEMAS
@@ -117,7 +117,7 @@ class Table:
 
 def _created() -> str:
     epoch = os.environ.get("SOURCE_DATE_EPOCH")
-    when = _dt.datetime.fromtimestamp(int(epoch), _dt.timezone.utc) if epoch else _dt.datetime.now(_dt.timezone.utc)
+    when = _dt.datetime.fromtimestamp(int(epoch), _dt.UTC) if epoch else _dt.datetime.now(_dt.UTC)
     return when.replace(microsecond=0).isoformat()
 
 
@@ -165,7 +165,9 @@ def _validate(axes: Iterable[Axis], variables: Iterable[Variable]) -> tuple[dict
                 raise errors.ValidationError(f"{var.name}.dims[{i}]", dim, "no such axis")
             if len(by_name[dim].values) != data.shape[i]:
                 raise errors.ValidationError(
-                    f"{var.name}.dims[{i}]", dim, f"axis has {len(by_name[dim].values)} values, table dimension has {data.shape[i]}"
+                    f"{var.name}.dims[{i}]",
+                    dim,
+                    f"axis has {len(by_name[dim].values)} values, table dimension has {data.shape[i]}",
                 )
         if var.chunks is not None and (len(var.chunks) != data.ndim or any(c < 1 for c in var.chunks)):
             raise errors.ValidationError(f"{var.name}.chunks", var.chunks, f"need {data.ndim} positive chunk sizes")
@@ -272,7 +274,9 @@ def _open(path: Path) -> h5py.File:
         msg = str(exc)
         if "truncated" in msg:
             raise errors.TruncatedAssetError(path, "truncated HDF5 file (shorter than its superblock says)") from None
-        raise errors.CorruptAssetError(path, f"cannot open HDF5 file ({msg.splitlines()[0] if msg else 'unknown error'})") from None
+        raise errors.CorruptAssetError(
+            path, f"cannot open HDF5 file ({msg.splitlines()[0] if msg else 'unknown error'})"
+        ) from None
 
 
 def _validate_root(path: Path, f: h5py.File, kind: str | None, required: Iterable[str]) -> None:
@@ -378,8 +382,11 @@ def _virtual_dims(ds: h5py.Dataset) -> tuple[str, ...]:
     labels = ds.attrs["DIMENSION_LABELS"] if "DIMENSION_LABELS" in ds.attrs else [b""] * rank
     scales = ds.attrs["DIMENSION_LIST"] if "DIMENSION_LIST" in ds.attrs else [()] * rank
     if len(labels) != rank or len(scales) != rank:
-        raise errors.CorruptAssetError(ds.file.filename, f"dataset {ds.name.lstrip('/')!r} has dimension scales for "
-                                       f"{len(scales)} and labels for {len(labels)} of its {rank} dimensions")
+        raise errors.CorruptAssetError(
+            ds.file.filename,
+            f"dataset {ds.name.lstrip('/')!r} has dimension scales for "
+            f"{len(scales)} and labels for {len(labels)} of its {rank} dimensions",
+        )
     names = []
     for i in range(rank):
         scale = ds.file[scales[i][0]].name.rsplit("/", 1)[-1] if len(scales[i]) else ""
@@ -390,8 +397,14 @@ def _virtual_dims(ds: h5py.Dataset) -> tuple[str, ...]:
 _DIMENSION_ATTRS = {"units", "long_name", "DIMENSION_LIST", "DIMENSION_LABELS"}  # stored by the store itself
 
 
-def read_table(path: str | os.PathLike, kind: str | None = None, required: Iterable[str] = (), *,
-               finite: bool = True, memory_limit: int | None = None) -> Table:
+def read_table(
+    path: str | os.PathLike,
+    kind: str | None = None,
+    required: Iterable[str] = (),
+    *,
+    finite: bool = True,
+    memory_limit: int | None = None,
+) -> Table:
     """Read and validate a whole table file.
 
     Every dataset is read, so every fletcher32 checksum is verified.  Raises a

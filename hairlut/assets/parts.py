@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import errors
-from . import atomic_path
 from ..files import regular_file
+from . import atomic_path
 
 MARKER = ".hairlut-parts"
 MARKER_TEXT = "hairlut parts folder: finished blocks of a bake; hairlut deletes only its own files here\n"
@@ -76,14 +76,20 @@ def open_folder(out) -> Path:
             if exc.errno not in (errno.EEXIST, errno.ENOTEMPTY):
                 raise
     if folder.is_symlink():
-        raise errors.ValidationError("out", str(out), f"{folder} is a symlink; hairlut does not write through symlinks "
-                                     "(remove it or choose another --out)")
+        raise errors.ValidationError(
+            "out", str(out), f"{folder} is a symlink; hairlut does not write through symlinks (remove it or choose another --out)"
+        )
     if not folder.is_dir():
-        raise errors.ValidationError("out", str(out), f"{folder} exists and is not a folder hairlut made; "
-                                     "move it away or choose another --out")
+        raise errors.ValidationError(
+            "out", str(out), f"{folder} exists and is not a folder hairlut made; move it away or choose another --out"
+        )
     if not _is_ours(folder):
-        raise errors.ValidationError("out", str(out), f"{folder} exists but was not made by hairlut (no {MARKER} "
-                                     "marker); hairlut will not write into or delete it: move it away or choose another --out")
+        raise errors.ValidationError(
+            "out",
+            str(out),
+            f"{folder} exists but was not made by hairlut (no {MARKER} "
+            "marker); hairlut will not write into or delete it: move it away or choose another --out",
+        )
     return folder
 
 
@@ -216,9 +222,11 @@ def write_share(path, digest: str, total: int, blocks: dict) -> Path:
     arrays joined along their first axis, with each block's length."""
     spans = sorted(blocks)
     keys = sorted(blocks[spans[0]][1]) if spans else []
-    arrays = {"spans": np.array(spans, np.int64).reshape(-1, 2), "stamps": np.array([blocks[b][0] for b in spans],
-                                                                                    np.int64).reshape(-1, 3),
-              "head": np.array([digest, str(int(total)), json.dumps(keys)])}
+    arrays = {
+        "spans": np.array(spans, np.int64).reshape(-1, 2),
+        "stamps": np.array([blocks[b][0] for b in spans], np.int64).reshape(-1, 3),
+        "head": np.array([digest, str(int(total)), json.dumps(keys)]),
+    }
     for i, k in enumerate(keys):
         parts = [np.asarray(blocks[b][1][k]) for b in spans]
         arrays[f"rows{i}"] = np.array([len(a) for a in parts], np.int64)

@@ -107,8 +107,9 @@ def _look(candidate: Path, st: tuple | None, recipe_hash: str, dsets=(), axes=()
         return _Part(f"is {not_regular(st[5])} (symlinks are not followed)")
     key = (str(candidate), st, recipe_hash)
     part = _PARTS.get(key)
-    if part is not None and (part.fault is not None or (all(d in part.datasets for d in dsets)
-                                                         and all(a in part.ranges for a in axes))):
+    if part is not None and (
+        part.fault is not None or (all(d in part.datasets for d in dsets) and all(a in part.ranges for a in axes))
+    ):
         return part
     try:
         with open(candidate, "rb") as fh:
@@ -166,18 +167,24 @@ def _row_axis(ds: h5py.Dataset) -> str:
     return first.decode("utf-8", "replace") if isinstance(first, bytes) else str(first)
 
 
-def slot_fault(asset: Path, name: str, src: "Source", axis: str, rows) -> errors.CorruptAssetError | None:
+def slot_fault(asset: Path, name: str, src: Source, axis: str, rows) -> errors.CorruptAssetError | None:
     """The error naming part ``src`` and both ranges when the rows it declares along ``axis`` are not its slot
     ``rows`` (:func:`_slots`) in virtual table ``name`` of ``asset``; None when they are."""
     declared = src.ranges.get(axis)
     if rows is not None and declared == tuple(rows):
         return None
-    said = f"declares {axis} [{declared[0]}, {declared[1]})" if declared else (
-        f"declares no {axis} range (integer root attributes {axis}_start and {axis}_stop)")
+    said = (
+        f"declares {axis} [{declared[0]}, {declared[1]})"
+        if declared
+        else (f"declares no {axis} range (integer root attributes {axis}_start and {axis}_stop)")
+    )
     slot = f"to {axis} [{rows[0]}, {rows[1]})" if rows is not None else "to rows that are not one block"
-    return errors.CorruptAssetError(src.path, f"part of {asset} {said}, but virtual dataset {name.lstrip('/')!r} maps "
-                                    f"it {slot}; a part is read only into its own slot (renamed or swapped parts are "
-                                    "refused: rebake, or put each part back under its own name)")
+    return errors.CorruptAssetError(
+        src.path,
+        f"part of {asset} {said}, but virtual dataset {name.lstrip('/')!r} maps "
+        f"it {slot}; a part is read only into its own slot (renamed or swapped parts are "
+        "refused: rebake, or put each part back under its own name)",
+    )
 
 
 def _folder_fault(asset: Path, candidate: Path) -> str | None:
@@ -229,7 +236,7 @@ def redirected_source(asset, where: str) -> Path | None:
     origin = os.path.dirname(os.path.abspath(asset))
     for entry in prefix.split(":"):
         if entry.startswith("${ORIGIN}"):
-            entry = origin + entry[len("${ORIGIN}"):]
+            entry = origin + entry[len("${ORIGIN}") :]
         if entry and os.path.lexists(os.path.join(entry, where)):
             return Path(entry) / where
     return None
@@ -261,8 +268,11 @@ def printf_blocks(ds: h5py.Dataset, src) -> int:
     part cannot shrink it.  (HDF5 sets the extent of such a dataset from the blocks whose files it finds.)"""
     start, stride, count, block = src.vspace.get_regular_hyperslab()
     axis = ([i for i, c in enumerate(count) if c == h5py.h5s.UNLIMITED] or [0])[0]
-    after = [int(other.vspace.get_select_bounds()[0][axis]) for other in ds.virtual_sources()
-             if not (is_printf(other.file_name) or is_printf(other.dset_name))]
+    after = [
+        int(other.vspace.get_select_bounds()[0][axis])
+        for other in ds.virtual_sources()
+        if not (is_printf(other.file_name) or is_printf(other.dset_name))
+    ]
     after = [lo for lo in after if lo >= start[axis]]
     limit = min(after) if after else int(ds.shape[axis])  # the extent only without a fixed mapping after the blocks
     return max(0, (limit - int(start[axis]) - int(block[axis])) // int(stride[axis]) + 1)
@@ -393,16 +403,20 @@ def check_virtual_dataset(path: Path, name: str, ds: h5py.Dataset, recipe_hash: 
         src = found.files[where]
         if src.fault is not None:
             raise errors.ForeignReferenceError(
-                path, f"dataset {name!r} is virtual with source {where}:{dset}, which {src.fault}; "
-                      "only the asset's own parts (<asset>.parts/, same recipe hash) may be sources")
+                path,
+                f"dataset {name!r} is virtual with source {where}:{dset}, which {src.fault}; "
+                "only the asset's own parts (<asset>.parts/, same recipe hash) may be sources",
+            )
         if src.redirect is not None and os.path.realpath(src.redirect) != os.path.realpath(src.path):
             raise errors.ForeignReferenceError(
-                path, f"dataset {name!r} is virtual with source {where}:{dset}, which "
-                      f"{VDS_PREFIX_ENV}={os.environ.get(VDS_PREFIX_ENV)!r} redirects to {src.redirect}; hairlut reads "
-                      f"a virtual asset's parts only from beside it: unset {VDS_PREFIX_ENV}")
+                path,
+                f"dataset {name!r} is virtual with source {where}:{dset}, which "
+                f"{VDS_PREFIX_ENV}={os.environ.get(VDS_PREFIX_ENV)!r} redirects to {src.redirect}; hairlut reads "
+                f"a virtual asset's parts only from beside it: unset {VDS_PREFIX_ENV}",
+            )
         if src.datasets.get(dset) is None:
             raise errors.ForeignReferenceError(
-                path, f"dataset {name!r} is virtual with source {where}:{dset}, "
-                      "which is not a plain dataset of that part")
+                path, f"dataset {name!r} is virtual with source {where}:{dset}, which is not a plain dataset of that part"
+            )
     if ds.name in found.slots:
         raise found.slots[ds.name]

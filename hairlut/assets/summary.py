@@ -150,7 +150,12 @@ def _summarize_exr(path: Path) -> dict:
     for part in image.parts:
         header = {k: v for k, v in part.header.items() if not k.startswith("hairlut:")}
         channels = [
-            {"name": name, "shape": list(arr.shape), "dtype": "half" if arr.dtype == np.float16 else str(arr.dtype), **array_stats(arr)}
+            {
+                "name": name,
+                "shape": list(arr.shape),
+                "dtype": "half" if arr.dtype == np.float16 else str(arr.dtype),
+                **array_stats(arr),
+            }
             for name, arr in sorted(part.channels.items())
         ]
         parts.append({"name": part.name, "shape": list(part.shape), "header": header, "channels": channels})

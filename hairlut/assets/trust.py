@@ -45,8 +45,18 @@ PARTS_SUFFIX = ".parts"
 #: HDF5's environment variable that redirects the relative sources of virtual datasets.
 VDS_PREFIX_ENV = "HDF5_VDS_PREFIX"
 
-_H5_FAULTS = (KeyError, OSError, ValueError, RuntimeError, AttributeError, TypeError, IndexError, UnicodeError,
-              MemoryError, OverflowError)
+_H5_FAULTS = (
+    KeyError,
+    OSError,
+    ValueError,
+    RuntimeError,
+    AttributeError,
+    TypeError,
+    IndexError,
+    UnicodeError,
+    MemoryError,
+    OverflowError,
+)
 
 
 def _first_line(exc: BaseException) -> str:
@@ -80,7 +90,9 @@ def check_links(path, f: h5py.File) -> None:
             link = group.get(key, getlink=True)
             if isinstance(link, h5py.ExternalLink):
                 raise errors.ForeignReferenceError(
-                    path, f"{name!r} is an external link to {link.filename}:{link.path}; table files never reach outside themselves")
+                    path,
+                    f"{name!r} is an external link to {link.filename}:{link.path}; table files never reach outside themselves",
+                )
             if isinstance(link, h5py.SoftLink):
                 raise errors.ForeignReferenceError(path, f"{name!r} is a soft link to {link.path!r}; table files hold no links")
             obj = group.get(key)
@@ -148,7 +160,8 @@ def check_dataset(path, name: str, ds: h5py.Dataset, recipe_hash: str) -> None:
     if ds.external:
         files = ", ".join(str(e[0].decode() if isinstance(e[0], bytes) else e[0]) for e in ds.external)
         raise errors.ForeignReferenceError(
-            path, f"dataset {name!r} keeps its data in external file(s) {files}; table files never reach outside themselves")
+            path, f"dataset {name!r} keeps its data in external file(s) {files}; table files never reach outside themselves"
+        )
     if ds.dtype.kind not in NUMERIC_KINDS or ds.dtype.names is not None or ds.dtype.subdtype is not None:
         raise errors.CorruptAssetError(path, f"dataset {name!r} holds {ds.dtype} values, not numbers")
     if ds.is_virtual:  # first: the extent of a printf-style mapping is set from the files HDF5 finds
@@ -165,11 +178,14 @@ def check_dataset(path, name: str, ds: h5py.Dataset, recipe_hash: str) -> None:
         have = ds.id.get_num_chunks()
         if have < want:
             raise errors.CorruptAssetError(
-                path, f"dataset {name!r} declares shape {ds.shape} in {want} chunks but stores {have} "
-                      "(unallocated chunks; hairlut writes every chunk)")
+                path,
+                f"dataset {name!r} declares shape {ds.shape} in {want} chunks but stores {have} "
+                "(unallocated chunks; hairlut writes every chunk)",
+            )
     elif nbytes and ds.id.get_storage_size() < nbytes and not math.isclose(ds.id.get_storage_size(), nbytes):
         raise errors.CorruptAssetError(
-            path, f"dataset {name!r} declares {budget.describe(nbytes)} but stores {ds.id.get_storage_size()} bytes")
+            path, f"dataset {name!r} declares {budget.describe(nbytes)} but stores {ds.id.get_storage_size()} bytes"
+        )
 
 
 def check_readable(path, sizes: dict[str, h5py.Dataset], limit: int | None = None) -> None:
@@ -185,9 +201,11 @@ def check_readable(path, sizes: dict[str, h5py.Dataset], limit: int | None = Non
     if total > cap:
         ds = sizes[biggest]
         raise errors.AssetTooLargeError(
-            path, f"declares {budget.describe(total)} of tables (the largest, {biggest!r}, is {ds.shape} {ds.dtype}: "
-                  f"{budget.describe(declared_nbytes(ds))}), above the memory limit of {budget.describe(cap)} "
-                  f"({'the limit= argument' if limit is not None else budget.source()})")
+            path,
+            f"declares {budget.describe(total)} of tables (the largest, {biggest!r}, is {ds.shape} {ds.dtype}: "
+            f"{budget.describe(declared_nbytes(ds))}), above the memory limit of {budget.describe(cap)} "
+            f"({'the limit= argument' if limit is not None else budget.source()})",
+        )
 
 
 def data_fault(path, ds: h5py.Dataset, exc: Exception) -> errors.CorruptAssetError:

@@ -60,8 +60,13 @@ def _plan(ds: h5py.Dataset, found) -> list | None:
         for b in range(n):
             where, dset, _, _ = next(sources)
             src = found.files.get(where)
-            if where == "." or src is None or src.fault is not None or src.redirect is not None \
-                    or src.datasets.get(dset) != whole:
+            if (
+                where == "."
+                or src is None
+                or src.fault is not None
+                or src.redirect is not None
+                or src.datasets.get(dset) != whole
+            ):
                 return None
             plan.append((src.path, src.stamp, dset, int(start[0]) + b * int(stride[0]), whole[0]))
     plan.sort(key=lambda p: p[3])
@@ -117,6 +122,7 @@ def virtual_blocks(path: Path, f: h5py.File, ds: h5py.Dataset):
             block = np.empty((rows, *rest), dtype=ds.dtype)
             _read_part(path, part, st, [(block, dset, 0, rows)])
             yield block
+
     return blocks()
 
 
@@ -138,7 +144,7 @@ def _read_part(path: Path, part: Path, checked: tuple, reads: list) -> None:
             for arr, dset, row, rows in reads:
                 did = h5py.h5d.open(fid, dset.encode())
                 try:  # rows [row, row + rows) of a C-ordered array: contiguous, the part dataset's shape
-                    did.read(h5py.h5s.ALL, h5py.h5s.ALL, arr[row:row + rows])
+                    did.read(h5py.h5s.ALL, h5py.h5s.ALL, arr[row : row + rows])
                 except OSError as exc:
                     raise data_fault(part, h5py.Dataset(did), exc) from None
                 finally:

@@ -26,13 +26,13 @@ import numpy as np
 
 from .. import errors
 from .._version import __version__
+from ..files import not_regular, regular_file
 from . import Axis, Variable, atomic_path, canonical_json, open_table, recipe_hash
 from .h5 import LIBVER, dims_of, disk_name
 from .kinds import SCHEMA
 from .layout import attr_text, layout
-from .sources import check_sources, printf_escape
-from ..files import not_regular, regular_file
 from .parts import part_name, part_pattern, parts_dir
+from .sources import check_sources, printf_escape
 
 ATTR = "hairlut_parts"  # root attribute of a virtual asset: its parts (JSON: folder, block, total, part count)
 _SKIP_ATTRS = {"DIMENSION_LIST", "DIMENSION_LABELS", "REFERENCE_LIST", "CLASS", "NAME"}
@@ -41,18 +41,32 @@ _SKIP_ATTRS = {"DIMENSION_LIST", "DIMENSION_LABELS", "REFERENCE_LIST", "CLASS", 
 def _created(first_part: Path) -> str:
     epoch = os.environ.get("SOURCE_DATE_EPOCH")
     if epoch:
-        return _dt.datetime.fromtimestamp(int(epoch), _dt.timezone.utc).replace(microsecond=0).isoformat()
+        return _dt.datetime.fromtimestamp(int(epoch), _dt.UTC).replace(microsecond=0).isoformat()
     with h5py.File(first_part, "r") as f:
         return attr_text(f.attrs.get("created", ""))
 
 
 def _kwargs(chunks) -> dict:
-    return dict(chunks=chunks if chunks is not None else True, compression="gzip", compression_opts=4, shuffle=True,
-                fletcher32=True, track_times=False)
+    return dict(
+        chunks=chunks if chunks is not None else True,
+        compression="gzip",
+        compression_opts=4,
+        shuffle=True,
+        fletcher32=True,
+        track_times=False,
+    )
 
 
-def write_virtual(out, kind: str, recipe: dict, axis: str, parts: list[tuple[Path, int, int]], axes: list[Axis],
-                  variables: list[Variable], attrs: dict | None = None) -> Path:
+def write_virtual(
+    out,
+    kind: str,
+    recipe: dict,
+    axis: str,
+    parts: list[tuple[Path, int, int]],
+    axes: list[Axis],
+    variables: list[Variable],
+    attrs: dict | None = None,
+) -> Path:
     """Write ``out`` (atomically): ``variables`` stored, every table of the parts whose first axis is ``axis``
     a virtual dataset over the parts.  ``parts`` are (path, start, stop) covering the axis in order, in equal
     blocks but the last, in one folder, named by :func:`part_name`; each table is two mappings (see the module)."""
@@ -62,13 +76,24 @@ def write_virtual(out, kind: str, recipe: dict, axis: str, parts: list[tuple[Pat
     folder = parts[0][0].parent
     for path, start, stop in parts:
         if Path(path) != folder / part_name(start, stop, total, block):
-            raise errors.ValidationError("parts", str(path), f"a virtual asset maps the blocks of {block} {axis} named "
-                                         f"{part_pattern(total, block)} in one folder, in order")
+            raise errors.ValidationError(
+                "parts",
+                str(path),
+                f"a virtual asset maps the blocks of {block} {axis} named {part_pattern(total, block)} in one folder, in order",
+            )
     with open_table(parts[0][0]) as f:
         on_disk, tables = layout(f)
-        per_unit = {name: (ds.name.lstrip("/"), ds.shape[1:], ds.dtype, dims_of(ds),
-                           {k: v for k, v in ds.attrs.items() if k not in _SKIP_ATTRS})
-                    for name, ds in tables.items() if dims_of(ds)[:1] == (axis,)}
+        per_unit = {
+            name: (
+                ds.name.lstrip("/"),
+                ds.shape[1:],
+                ds.dtype,
+                dims_of(ds),
+                {k: v for k, v in ds.attrs.items() if k not in _SKIP_ATTRS},
+            )
+            for name, ds in tables.items()
+            if dims_of(ds)[:1] == (axis,)
+        }
     by_name = {a.name: a for a in axes}
     if len(by_name[axis].values) != total:
         raise errors.ValidationError(axis, len(by_name[axis].values), f"the parts cover {total} units")
@@ -76,9 +101,16 @@ def write_virtual(out, kind: str, recipe: dict, axis: str, parts: list[tuple[Pat
     described = {"folder": rel, "block": block, "total": total, "parts": len(parts)}
     with atomic_path(out) as tmp:
         with h5py.File(tmp, "w", libver=LIBVER, track_order=True) as f:
-            for key, value in {"hairlut_schema": np.int32(SCHEMA), "kind": kind, "hairlut_version": __version__,
-                               "created": _created(parts[0][0]), "recipe": canonical_json(recipe),
-                               "recipe_hash": text, **(attrs or {}), ATTR: json.dumps(described)}.items():
+            for key, value in {
+                "hairlut_schema": np.int32(SCHEMA),
+                "kind": kind,
+                "hairlut_version": __version__,
+                "created": _created(parts[0][0]),
+                "recipe": canonical_json(recipe),
+                "recipe_hash": text,
+                **(attrs or {}),
+                ATTR: json.dumps(described),
+            }.items():
                 f.attrs[key] = value
             scales = {}
             for ax in axes:
@@ -107,14 +139,20 @@ def write_virtual(out, kind: str, recipe: dict, axis: str, parts: list[tuple[Pat
                 for i, dim in enumerate(var.dims):
                     ds.dims[i].label = dim
                     ds.dims[i].attach_scale(scales[dim])
-            names = [os.fsencode(os.path.join(printf_escape(rel), n)) for n in (part_pattern(total, block),
-                                                                                printf_escape(parts[-1][0].name))]
+            names = [
+                os.fsencode(os.path.join(printf_escape(rel), n))
+                for n in (part_pattern(total, block), printf_escape(parts[-1][0].name))
+            ]
             for name, (src, rest, dtype, dims, extra) in per_unit.items():
                 dcpl = _mappings(total, block, rest, src, names, np.nan if np.issubdtype(dtype, np.floating) else 0)
                 space = h5py.h5s.create_simple((total, *rest))
                 tid = h5py.h5t.py_create(np.dtype(dtype), logical=1)
-                ds = place(name, lambda w, dcpl=dcpl, space=space, tid=tid: f[w] if h5py.h5d.create(
-                    f.id, name=w.encode(), tid=tid, space=space, dcpl=dcpl) else None)
+                ds = place(
+                    name,
+                    lambda w, dcpl=dcpl, space=space, tid=tid: (
+                        f[w] if h5py.h5d.create(f.id, name=w.encode(), tid=tid, space=space, dcpl=dcpl) else None
+                    ),
+                )
                 ds.attrs.update(extra)
                 _attach_scales(ds, dims, scales)
     return out
@@ -135,7 +173,7 @@ def _attach_scales(ds: h5py.Dataset, dims: tuple, scales: dict) -> None:
         scale = scales[dim]
         old = scale.attrs["REFERENCE_LIST"] if "REFERENCE_LIST" in scale.attrs else np.zeros(0, row)
         new = np.zeros(len(old) + 1, row)
-        new[:len(old)] = old
+        new[: len(old)] = old
         new[-1] = (ds.ref, i)
         if "REFERENCE_LIST" in scale.attrs:
             del scale.attrs["REFERENCE_LIST"]
@@ -217,18 +255,22 @@ def _lacking(path: Path, found, by_part: dict) -> list[Path]:
         for dset, shape in wanted:
             got = shapes[part].get(dset)
             if got is None or tuple(got[1:]) != shape:
-                raise errors.CorruptAssetError(part, f"part of {path} lacks dataset {dset!r} of shape (n, "
-                                               f"{', '.join(map(str, shape))})")
+                raise errors.CorruptAssetError(
+                    part, f"part of {path} lacks dataset {dset!r} of shape (n, {', '.join(map(str, shape))})"
+                )
     return sorted(by_part)
 
 
 def _refused(path: Path, name: str, file_name: str, part: Path, digest: str) -> errors.AssetError:
     """The error that names why ``part`` is not one of ``path``'s parts (the rule refused it)."""
     folder = parts_dir(path)
-    if os.path.isabs(file_name) or ".." in Path(file_name).parts or part.parent.is_symlink() \
-            or os.path.realpath(part.parent) != os.path.realpath(folder):
-        return errors.CorruptAssetError(path, f"virtual dataset {name!r} points outside the asset's parts folder "
-                                        f"({file_name!r})")
+    if (
+        os.path.isabs(file_name)
+        or ".." in Path(file_name).parts
+        or part.parent.is_symlink()
+        or os.path.realpath(part.parent) != os.path.realpath(folder)
+    ):
+        return errors.CorruptAssetError(path, f"virtual dataset {name!r} points outside the asset's parts folder ({file_name!r})")
     if part.is_symlink():
         return errors.CorruptAssetError(part, f"part of {path} is a symlink; parts are regular files")
     if not part.exists():
@@ -241,6 +283,7 @@ def _refused(path: Path, name: str, file_name: str, part: Path, digest: str) -> 
     except (OSError, KeyError, RuntimeError, ValueError):
         return errors.CorruptAssetError(part, f"part of {path} is not a readable HDF5 file")
     if got != digest:
-        return errors.CorruptAssetError(part, f"part of {path} was baked from another recipe (recipe hash "
-                                        f"{got[:16] or 'none'}, the asset's is {digest[:16]})")
+        return errors.CorruptAssetError(
+            part, f"part of {path} was baked from another recipe (recipe hash {got[:16] or 'none'}, the asset's is {digest[:16]})"
+        )
     return errors.CorruptAssetError(part, f"part of {path} is not a regular HDF5 file of its parts folder")

@@ -11,8 +11,13 @@ agreed and alive) and ``cache`` (the content-addressed table cache).  None of it
 from .._lazy import lazy_exports
 
 _LAZY = {
-    "Baker": "protocol", "Option": "protocol", "Units": "protocol",
-    "get": "registry", "kinds": "registry", "ensure": "registry", "merge": "registry",
+    "Baker": "protocol",
+    "Option": "protocol",
+    "Units": "protocol",
+    "get": "registry",
+    "kinds": "registry",
+    "ensure": "registry",
+    "merge": "registry",
 }
 
 __all__ = ["Baker", "Option", "Units", "ensure", "get", "kinds", "merge"]

@@ -64,8 +64,11 @@ def _validated(path: Path, kind: str | None = None) -> dict:
     from ..assets.virtual_write import check_virtual
 
     with open_table(path, kind) as f:
-        attrs = {k: (v.decode() if isinstance(v, bytes) else str(v)) for k, v in f.attrs.items()
-                 if k in ("kind", "recipe_hash", "created")}
+        attrs = {
+            k: (v.decode() if isinstance(v, bytes) else str(v))
+            for k, v in f.attrs.items()
+            if k in ("kind", "recipe_hash", "created")
+        }
     check_virtual(path)
     return attrs
 
@@ -136,13 +139,22 @@ def entries(root=None) -> list[Entry]:
             continue
         kind, digest = attrs["kind"], attrs["recipe_hash"]
         own = f"{kind}-{digest[:16]}.h5"
-        out.append(Entry(path, kind, digest, attrs.get("created", ""), size, *(("ok", "") if path.name == own else
-                   ("foreign", f"its kind and recipe hash name it {own}"))))
+        out.append(
+            Entry(
+                path,
+                kind,
+                digest,
+                attrs.get("created", ""),
+                size,
+                *(("ok", "") if path.name == own else ("foreign", f"its kind and recipe hash name it {own}")),
+            )
+        )
     return sorted(out, key=lambda e: (e.usable, e.created), reverse=True)
 
 
-def prune(root=None, *, kinds=None, older_than_days: float | None = None, everything: bool = False,
-          dry_run: bool = False) -> list[Path]:
+def prune(
+    root=None, *, kinds=None, older_than_days: float | None = None, everything: bool = False, dry_run: bool = False
+) -> list[Path]:
     """Remove cached assets (by kind and/or age, or all), stale temporaries, unused locks and orphaned parts folders."""
     for kind in kinds or ():
         if kind not in KINDS:
@@ -151,9 +163,13 @@ def prune(root=None, *, kinds=None, older_than_days: float | None = None, everyt
         victims = []
     else:
         now = time.time()
-        victims = [e.path for e in entries(root) if e.usable
-                   and (everything or not kinds or e.kind in kinds)
-                   and (older_than_days is None or now - e.path.stat().st_mtime > older_than_days * 86400)]
+        victims = [
+            e.path
+            for e in entries(root)
+            if e.usable
+            and (everything or not kinds or e.kind in kinds)
+            and (older_than_days is None or now - e.path.stat().st_mtime > older_than_days * 86400)
+        ]
     folder = cache_dir(root)
     now = time.time()
     # a temporary younger than STALE_SECONDS may belong to a bake that is still running

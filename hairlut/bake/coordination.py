@@ -199,9 +199,11 @@ class Session:
             if seen != beat:
                 beat, last = seen, now
             elif now - last >= self.timeout_s:
-                raise self.error(f"process {peer} stopped answering while this one waited for it ({what}): no "
-                                 f"heartbeat for {self.timeout_s:g} s (--timeout); it died, was killed or hangs. "
-                                 "Finished parts are kept: run every process again to resume")
+                raise self.error(
+                    f"process {peer} stopped answering while this one waited for it ({what}): no "
+                    f"heartbeat for {self.timeout_s:g} s (--timeout); it died, was killed or hangs. "
+                    "Finished parts are kept: run every process again to resume"
+                )
             if limit_s is not None and now - start >= limit_s:
                 raise self.error(f"waited {limit_s:g} s for process {peer} ({what})")
 
@@ -228,18 +230,22 @@ class Session:
                 try:
                     probe.bind((host, port))
                 except OSError as exc:
-                    raise self.error(f"the coordinator's port {port} is in use on this host ({exc.strerror}): "
-                                     "another process 0 (a repeated --process-id 0) or another program holds it; "
-                                     "pick a free port for --coordinator") from None
+                    raise self.error(
+                        f"the coordinator's port {port} is in use on this host ({exc.strerror}): "
+                        "another process 0 (a repeated --process-id 0) or another program holds it; "
+                        "pick a free port for --coordinator"
+                    ) from None
             return
 
     def await_coordinator(self) -> None:
         """A process other than 0: wait up to ``timeout_s`` for the coordinator's port to answer."""
         while not _answers(self.coordinator):
             if time.monotonic() - self.started >= self.timeout_s:
-                raise self.error(f"no coordinator answered at {self.coordinator} within {self.timeout_s:g} s "
-                                 "(--timeout): start process 0 (it hosts the coordinator) with --coordinator "
-                                 f"{self.coordinator} --num-processes {self.proc.count}")
+                raise self.error(
+                    f"no coordinator answered at {self.coordinator} within {self.timeout_s:g} s "
+                    "(--timeout): start process 0 (it hosts the coordinator) with --coordinator "
+                    f"{self.coordinator} --num-processes {self.proc.count}"
+                )
             time.sleep(0.25)
 
     def claim(self) -> None:
@@ -253,10 +259,12 @@ class Session:
             if _status(exc) != "ALREADY_EXISTS":
                 raise self.lost(exc) from None
             first = json.loads(self._try_get(f"{_ROOT}/process/{self.proc.index}") or "{}")
-            raise self.error(f"process {self.proc.index} was started twice: pid {first.get('pid')} on "
-                             f"{first.get('host')} joined first, pid {me['pid']} on {me['host']} second, and JAX's "
-                             "runtime keeps one process per id: run the bake again with each --process-id from 0 to "
-                             f"{self.proc.count - 1} once") from None
+            raise self.error(
+                f"process {self.proc.index} was started twice: pid {first.get('pid')} on "
+                f"{first.get('host')} joined first, pid {me['pid']} on {me['host']} second, and JAX's "
+                "runtime keeps one process per id: run the bake again with each --process-id from 0 to "
+                f"{self.proc.count - 1} once"
+            ) from None
         self._beats = threading.Thread(target=self._beat, name="hairlut-heartbeat", daemon=True)
         self._beats.start()
 
@@ -269,8 +277,7 @@ class Session:
             theirs = json.loads(self._await(f"{key}/{peer}", peer, "agreeing on the bake"))
             for name, mine in json.loads(json.dumps(fields, default=str)).items():
                 if theirs["fields"].get(name) != mine:
-                    raise self.error(_difference(name, mine, theirs["fields"].get(name), peer, recipe,
-                                                 theirs.get("recipe")))
+                    raise self.error(_difference(name, mine, theirs["fields"].get(name), peer, recipe, theirs.get("recipe")))
 
     def barrier(self, name: str, limit_s: float | None = None) -> None:
         """Wait until every process has reached ``name`` (see :meth:`_await` for what ends the wait)."""
@@ -293,8 +300,7 @@ class Session:
             cause = exc.cause if isinstance(exc, errors.DistributedError) else self._verdict
             if self.client is not None:
                 with contextlib.suppress(Exception):
-                    self.client.key_value_set(f"{_ROOT}/failed/{self.proc.index}", cause.splitlines()[0],
-                                              allow_overwrite=True)
+                    self.client.key_value_set(f"{_ROOT}/failed/{self.proc.index}", cause.splitlines()[0], allow_overwrite=True)
         self.phase = "closing"
         self._stop.set()
         if self._beats is not None:
@@ -369,19 +375,24 @@ class Session:
         if self.phase == "joining":
             if self.proc.leader:
                 missing = "process 1" if n == 2 else f"one or more of processes 1 to {n - 1}"
-                return (f"{missing} did not join the coordinator at {address} within {self.timeout_s:g} s "
-                        f"(--timeout): start every process with --coordinator {address} --num-processes {n} and "
-                        "its own --process-id")
+                return (
+                    f"{missing} did not join the coordinator at {address} within {self.timeout_s:g} s "
+                    f"(--timeout): start every process with --coordinator {address} --num-processes {n} and "
+                    "its own --process-id"
+                )
             if not _answers(address):
                 return f"the coordinator at {address} (process 0) went away while this process joined"
             if time.monotonic() - self.started < self.timeout_s / 2:
-                return (f"the coordinator at {address} refused this process: does process 0 run with "
-                        f"--num-processes {n}? Every process needs the same")
-            return (f"not every process joined the coordinator at {address} within {self.timeout_s:g} s "
-                    "(--timeout)")
+                return (
+                    f"the coordinator at {address} refused this process: does process 0 run with "
+                    f"--num-processes {n}? Every process needs the same"
+                )
+            return f"not every process joined the coordinator at {address} within {self.timeout_s:g} s (--timeout)"
         if not self.proc.leader and not _answers(address):
-            return (f"lost the coordinator: process 0 at {address} is gone (it failed, exited or was killed; see "
-                    "its own message). Finished parts are kept: run every process again to resume")
+            return (
+                f"lost the coordinator: process 0 at {address} is gone (it failed, exited or was killed; see "
+                "its own message). Finished parts are kept: run every process again to resume"
+            )
         return "JAX's distributed runtime stopped this process (see its log above)"
 
 
@@ -391,8 +402,9 @@ def _difference(name: str, mine, theirs, peer: int, recipe: dict | None, other: 
         return f"process {peer} does not say its {name}: is it another hairlut version?"
     keys = _leaf_differences(recipe, other) if recipe is not None and other is not None else []
     if keys:
-        shown = "; ".join(f"{k} = {json.dumps(a, default=str)} here, {json.dumps(b, default=str)} at process {peer}"
-                          for k, a, b in keys[:3])
+        shown = "; ".join(
+            f"{k} = {json.dumps(a, default=str)} here, {json.dumps(b, default=str)} at process {peer}" for k, a, b in keys[:3]
+        )
         more = f" (and {len(keys) - 3} more)" if len(keys) > 3 else ""
         return f"process {peer} bakes another recipe: {shown}{more}; every process needs the same recipe"
     return f"{name} is {mine} here and {theirs} at process {peer}: every process needs the same {name}"
@@ -408,8 +420,7 @@ def _leaf_differences(a, b, where: str = "") -> list[tuple[str, object, object]]
     return [] if a == b else [(where.rstrip("."), a, b)]
 
 
-def join(coordinator=None, num_processes=None, process_id=None, timeout_s: float = TIMEOUT_S,
-         on_fatal=None) -> Session | None:
+def join(coordinator=None, num_processes=None, process_id=None, timeout_s: float = TIMEOUT_S, on_fatal=None) -> Session | None:
     """Join JAX's distributed runtime as one process of a bake (once per process); None where something else
     initialised ``jax.distributed`` already.  ``coordinator`` None: JAX detects the cluster (SLURM, Open MPI)."""
     global _session
@@ -427,19 +438,24 @@ def join(coordinator=None, num_processes=None, process_id=None, timeout_s: float
         session.check_port_free() if proc.leader else session.await_coordinator()
     jax.config.update("jax_enable_recoverability", True)
     jax.config.update("jax_enable_preemption_service", False)
-    kwargs = {} if coordinator is None else {"coordinator_address": str(coordinator), "num_processes": proc.count,
-                                             "process_id": proc.index}
+    kwargs = (
+        {}
+        if coordinator is None
+        else {"coordinator_address": str(coordinator), "num_processes": proc.count, "process_id": proc.index}
+    )
     left = max(1, math.ceil(session.timeout_s - (time.monotonic() - session.started)))
     whole = max(1, math.ceil(session.timeout_s))
     session.arm()
     try:
         with _held_stderr(session) if session.armed else contextlib.nullcontext():
-            jax.distributed.initialize(**kwargs, initialization_timeout=left, heartbeat_timeout_seconds=whole,
-                                       shutdown_timeout_seconds=whole)
+            jax.distributed.initialize(
+                **kwargs, initialization_timeout=left, heartbeat_timeout_seconds=whole, shutdown_timeout_seconds=whole
+            )
     except (RuntimeError, ValueError, TypeError) as exc:
         session.disarm()
-        raise errors.ValidationError("distributed", coordinator or "auto-detect",
-                                     f"jax.distributed.initialize failed: {_first_line(exc)}") from None
+        raise errors.ValidationError(
+            "distributed", coordinator or "auto-detect", f"jax.distributed.initialize failed: {_first_line(exc)}"
+        ) from None
     from jax._src import distributed as jax_distributed
 
     state = jax_distributed.global_state
@@ -459,4 +475,3 @@ def join(coordinator=None, num_processes=None, process_id=None, timeout_s: float
         raise
     session.phase = "running"
     return session
-

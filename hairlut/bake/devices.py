@@ -50,8 +50,12 @@ def check_args(coordinator=None, num_processes=None, process_id=None) -> None:
     given = {"coordinator": coordinator, "num_processes": num_processes, "process_id": process_id}
     if any(v is not None for v in given.values()) and any(v is None for v in given.values()):
         missing = [k for k, v in given.items() if v is None]
-        raise errors.ValidationError(missing[0], None, "give --coordinator, --num-processes and --process-id together "
-                                     "(or none of them where JAX detects the cluster: SLURM, Open MPI, ...)")
+        raise errors.ValidationError(
+            missing[0],
+            None,
+            "give --coordinator, --num-processes and --process-id together "
+            "(or none of them where JAX detects the cluster: SLURM, Open MPI, ...)",
+        )
     if coordinator is None:
         return
     m = _ADDRESS.match(str(coordinator))
@@ -63,8 +67,7 @@ def check_args(coordinator=None, num_processes=None, process_id=None) -> None:
         raise errors.ValidationError("process_id", process_id, f"need 0 ≤ process_id < {num_processes}")
 
 
-def initialize(coordinator=None, num_processes=None, process_id=None, timeout_s: float = TIMEOUT_S,
-               on_fatal=None) -> Process:
+def initialize(coordinator=None, num_processes=None, process_id=None, timeout_s: float = TIMEOUT_S, on_fatal=None) -> Process:
     """Join JAX's distributed runtime (once per process) and return this process's place in it.
 
     ``timeout_s``: how long to wait for a peer that has not come or has stopped answering.  ``on_fatal(message)``
@@ -147,7 +150,7 @@ def map_chunks(fn, n: int, *, micro: int, devices: int | None = None) -> list:
 
     chunks = [(s, min(s + micro, n)) for s in range(0, n, micro)]
     devs = local_devices()
-    devs = devs if devices is None else devs[:max(1, min(int(devices), len(devs)))]
+    devs = devs if devices is None else devs[: max(1, min(int(devices), len(devs)))]
     if len(devs) == 1 or len(chunks) == 1:
         return [fn(s, e) for s, e in chunks]
 
@@ -171,8 +174,9 @@ def _kernel(fn, static: tuple):
     return jax.jit(lambda xs, rep: fn(*xs, *rep, **kw))
 
 
-def map_units(fn, sharded: tuple, replicated: tuple = (), *, micro: int = 1, devices: int | None = None,
-              **static) -> tuple[np.ndarray, ...]:
+def map_units(
+    fn, sharded: tuple, replicated: tuple = (), *, micro: int = 1, devices: int | None = None, **static
+) -> tuple[np.ndarray, ...]:
     """``fn(*micro_chunk_of_sharded, *replicated, **static)`` over every unit, on every local device.
 
     ``sharded`` arrays share their leading (unit) axis; ``fn`` maps (micro, ...) arrays to a
@@ -184,8 +188,7 @@ def map_units(fn, sharded: tuple, replicated: tuple = (), *, micro: int = 1, dev
     return dispatch_units(fn, sharded, replicated, micro=micro, devices=devices, **static)()
 
 
-def dispatch_units(fn, sharded: tuple, replicated: tuple = (), *, micro: int = 1, devices: int | None = None,
-                   **static):
+def dispatch_units(fn, sharded: tuple, replicated: tuple = (), *, micro: int = 1, devices: int | None = None, **static):
     """:func:`map_units` without waiting: every call is enqueued on its device, and the returned ``gather()``
     waits for them and returns the NumPy outputs.  The host is free in between (JAX's asynchronous
     dispatch): a bake writes one block while the devices compute the next."""
@@ -195,7 +198,7 @@ def dispatch_units(fn, sharded: tuple, replicated: tuple = (), *, micro: int = 1
     if n == 0 or any(len(a) != n for a in sharded):
         raise errors.ValidationError("units", [len(a) for a in sharded], "sharded inputs need one equal, non-zero length")
     devs = local_devices()
-    devs = devs if devices is None else devs[:max(1, min(int(devices), len(devs)))]
+    devs = devs if devices is None else devs[: max(1, min(int(devices), len(devs)))]
     chunks = -(-n // micro)
     kernel = _kernel(fn, tuple(sorted(static.items())))
     rep = {d: tuple(jax.device_put(np.asarray(r), d) for r in replicated) for d in devs}
@@ -208,7 +211,7 @@ def dispatch_units(fn, sharded: tuple, replicated: tuple = (), *, micro: int = 1
     calls = []
     for c in range(chunks):
         d = devs[c % len(devs)]
-        calls.append(kernel(tuple(jax.device_put(x[c * micro:(c + 1) * micro], d) for x in xs), rep[d]))
+        calls.append(kernel(tuple(jax.device_put(x[c * micro : (c + 1) * micro], d) for x in xs), rep[d]))
 
     def gather() -> tuple[np.ndarray, ...]:
         outs = [np.concatenate([np.asarray(call[i]) for call in calls]) for i in range(len(calls[0]))]

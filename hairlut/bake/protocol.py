@@ -80,8 +80,10 @@ class Option:
 def deferred(module: str, name: str) -> Callable:
     """``module``'s ``name`` (an absolute module path), imported on first call: a kind's declaration names its
     bake functions without importing them, so the registry stays light (no JAX)."""
+
     def call(*args, **kwargs):
         return getattr(importlib.import_module(module), name)(*args, **kwargs)
+
     call.__name__ = call.__qualname__ = name
     return call
 
@@ -149,9 +151,16 @@ class Units:
 #: The split bake's own options, added to every kind that declares units.
 def _split_options(units: Units, unit: str | None) -> tuple[Option, ...]:
     default = units.block_help or f"Default: {units.block}."
-    return (Option("block", int, None, f"{(unit or units.axis).capitalize()} per resumable part (OUT.parts/); does not "
-                   f"change the result.  {default}", minimum=1),
-            Option("keep_parts", bool, False, "Keep OUT.parts/ after the final file is written."))
+    return (
+        Option(
+            "block",
+            int,
+            None,
+            f"{(unit or units.axis).capitalize()} per resumable part (OUT.parts/); does not change the result.  {default}",
+            minimum=1,
+        ),
+        Option("keep_parts", bool, False, "Keep OUT.parts/ after the final file is written."),
+    )
 
 
 #: The split bake's help, added to every kind that declares units.
@@ -199,15 +208,20 @@ class Baker:
             raise ValueError(f"{self.kind}: a kind bakes by its own bake, by units, or both")
         if self.units is not None:
             object.__setattr__(self, "options", self.options + _split_options(self.units, self.unit))
-            object.__setattr__(self, "help", self.help.rstrip() + "\n" + SPLIT_HELP.format(
-                unit=self.unit or self.units.axis, shard=self.shard_kind) + _examples(self.examples))
+            object.__setattr__(
+                self,
+                "help",
+                self.help.rstrip()
+                + "\n"
+                + SPLIT_HELP.format(unit=self.unit or self.units.axis, shard=self.shard_kind)
+                + _examples(self.examples),
+            )
         elif self.examples:
             object.__setattr__(self, "help", self.help.rstrip() + "\n" + _examples(self.examples))
         if self.shard_kind is not None:
             if self.merge is None and self.units is None:
                 raise ValueError(f"{self.kind}: a shard kind needs a merge")
-            register_kind(self.shard_kind, self.shard_required, f"a slice of a {self.kind} bake (merge joins them)",
-                          self.bounds)
+            register_kind(self.shard_kind, self.shard_required, f"a slice of a {self.kind} bake (merge joins them)", self.bounds)
         for name, required, description in self.assets:
             register_kind(name, required, description)
 
@@ -252,8 +266,9 @@ def prepare(baker: Baker, given: dict | None, options: Mapping | None = None) ->
     known = {o.name: o for o in baker.options}
     for name in options:
         if name not in known:
-            raise errors.ValidationError(name, options[name], f"not an option of {baker.kind}; "
-                                         f"known: {', '.join(known) or 'none'}")
+            raise errors.ValidationError(
+                name, options[name], f"not an option of {baker.kind}; known: {', '.join(known) or 'none'}"
+            )
     recipe = baker.resolve_recipe(given)
     inputs = {}
     for name, value in options.items():

@@ -111,8 +111,9 @@ def ensure(kind: str, recipe: dict | None = None, root=None, progress=None, **in
     return bake_cached(kind, recipe, root=root, progress=progress, **inputs)[:2]
 
 
-def bake_cached(kind: str, recipe: dict | None = None, *, root=None, progress=None, options=None,
-                **inputs) -> tuple[Path, str, dict]:
+def bake_cached(
+    kind: str, recipe: dict | None = None, *, root=None, progress=None, options=None, **inputs
+) -> tuple[Path, str, dict]:
     """:func:`ensure` with the bake report (or, when reused, a report of the cached file)."""
     from ..assets import recipe_hash
     from . import cache, sharding
@@ -130,13 +131,20 @@ def bake_cached(kind: str, recipe: dict | None = None, *, root=None, progress=No
 
     path, status = cache.ensure(baker.kind, r, produce, root)
     if status == "reused":
-        report = {"out": str(path), "kind": baker.kind, "recipe": r, "recipe_hash": recipe_hash(r),
-                  "bytes": path.stat().st_size, "seconds": time.perf_counter() - t0}
+        report = {
+            "out": str(path),
+            "kind": baker.kind,
+            "recipe": r,
+            "recipe_hash": recipe_hash(r),
+            "bytes": path.stat().st_size,
+            "seconds": time.perf_counter() - t0,
+        }
     return path, status, report
 
 
-def bake(kind: str, recipe: dict | None, out, *, progress=None, shard=None, options=None, distributed=False,
-         merge=None, **inputs) -> dict:
+def bake(
+    kind: str, recipe: dict | None, out, *, progress=None, shard=None, options=None, distributed=False, merge=None, **inputs
+) -> dict:
     """Bake ``kind`` into ``out`` (no cache): :func:`prepare`, then the split path of a kind that declares units
     (``shard`` 'K/N'; ``distributed``: this process is one of JAX's distributed processes; ``merge`` 'virtual'
     or 'copy'; :mod:`hairlut.bake.sharding`) or the kind's own bake."""

@@ -26,13 +26,22 @@ import numpy as np
 
 from .. import errors
 from ..assets import canonical_json, open_table, read_table, recipe_hash
-from .protocol import Baker, parse_shard
+from ..assets.parts import (
+    clean_temporaries,
+    locked,
+    open_folder,
+    part_name,
+    read_share,
+    remove_folder,
+    share_name,
+    stamp,
+    write_share,
+)
+from ..assets.virtual_write import write_virtual
+from ..files import not_an_input
 from .cache import is_valid
 from .devices import Process, agree, barrier, current
-from ..files import not_an_input
-from ..assets.parts import (clean_temporaries, locked, open_folder, part_name, read_share, remove_folder, share_name, stamp,
-                    write_share)
-from ..assets.virtual_write import write_virtual
+from .protocol import Baker, parse_shard
 
 MERGES = ("virtual", "copy")
 
@@ -43,7 +52,7 @@ def blocks_of(total: int, block: int, share: tuple[int, int] | None = None) -> l
     if share is None:
         return blocks
     k, n = share
-    return blocks[k * len(blocks) // n:(k + 1) * len(blocks) // n]
+    return blocks[k * len(blocks) // n : (k + 1) * len(blocks) // n]
 
 
 def header(path, baker: Baker) -> tuple[int, int, int, str, dict]:
@@ -82,8 +91,10 @@ def _intact(part: Path, baker: Baker, digest: str, start: int, stop: int, total:
     return True
 
 
-COPY_NOTE = ("a copied asset (a plain bake, --merge copy, hairlut merge) holds every unit at once; a virtual one "
-             "(--merge virtual, the default with --distributed) holds one block per process")
+COPY_NOTE = (
+    "a copied asset (a plain bake, --merge copy, hairlut merge) holds every unit at once; a virtual one "
+    "(--merge virtual, the default with --distributed) holds one block per process"
+)
 
 
 def held(total: int, block: int, want: int, merge: str, shard, leader: bool) -> tuple[int, str]:
@@ -95,8 +106,9 @@ def held(total: int, block: int, want: int, merge: str, shard, leader: bool) -> 
     return min(block, total), ""
 
 
-def _bake_blocks(units, recipe: dict, todo, parts, total: int, digest: str, baker: Baker, report: dict, progress,
-                 want: int, inputs: dict) -> None:
+def _bake_blocks(
+    units, recipe: dict, todo, parts, total: int, digest: str, baker: Baker, report: dict, progress, want: int, inputs: dict
+) -> None:
     """Bake (or resume) each block of ``todo`` into its part, the device's work on one block overlapping the
     host's on the one before when ``bake_part`` returns its last step (see :class:`hairlut.bake.protocol.Units`).
 
@@ -142,8 +154,19 @@ def _bake_blocks(units, recipe: dict, todo, parts, total: int, digest: str, bake
         complete(*pending)
 
 
-def bake(baker: Baker, recipe: dict, out, *, progress=None, shard=None, distributed=False, merge: str | None = None,
-         block: int | None = None, keep_parts: bool = False, **inputs) -> dict:
+def bake(
+    baker: Baker,
+    recipe: dict,
+    out,
+    *,
+    progress=None,
+    shard=None,
+    distributed=False,
+    merge: str | None = None,
+    block: int | None = None,
+    keep_parts: bool = False,
+    **inputs,
+) -> dict:
     """Bake a resolved ``recipe`` of ``baker``'s kind into ``out``: by units (:func:`run`) when the kind declares
     them and the recipe splits, else by the kind's own ``bake``, which refuses the split options."""
     units = baker.units
@@ -151,8 +174,18 @@ def bake(baker: Baker, recipe: dict, out, *, progress=None, shard=None, distribu
         if units.start is not None:
             units.start(recipe, shard=shard, **inputs)
         t0 = time.perf_counter()
-        report = run(baker, recipe, out, progress=progress, shard=shard, block=block, keep_parts=keep_parts,
-                     distributed=distributed, merge=merge, **inputs)
+        report = run(
+            baker,
+            recipe,
+            out,
+            progress=progress,
+            shard=shard,
+            block=block,
+            keep_parts=keep_parts,
+            distributed=distributed,
+            merge=merge,
+            **inputs,
+        )
         if units.report is not None:
             report.update(units.report(recipe, report, **inputs))
         report["seconds"] = time.perf_counter() - t0
@@ -168,8 +201,19 @@ def bake(baker: Baker, recipe: dict, out, *, progress=None, shard=None, distribu
     return baker.bake(recipe, out, progress=progress, **inputs)
 
 
-def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: int | None = None,
-        keep_parts: bool = False, distributed: bool | Process = False, merge: str | None = None, **inputs) -> dict:
+def run(
+    baker: Baker,
+    recipe: dict,
+    out,
+    *,
+    progress=None,
+    shard=None,
+    block: int | None = None,
+    keep_parts: bool = False,
+    distributed: bool | Process = False,
+    merge: str | None = None,
+    **inputs,
+) -> dict:
     """Bake (or resume) ``recipe`` of ``baker``'s kind into ``out`` along its units; returns a report.
 
     ``progress(done, total)`` counts this process's units: first once with the resumed units (0 when none), then
@@ -187,8 +231,9 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
         raise errors.ValidationError("block", block, "must be an integer ≥ 1")
     proc = (distributed if isinstance(distributed, Process) else current()) if distributed else Process()
     if shard is not None and proc.count > 1:
-        raise errors.ValidationError("shard", shard, "--shard and --distributed exclude each other: each "
-                                     "distributed process bakes its own share")
+        raise errors.ValidationError(
+            "shard", shard, "--shard and --distributed exclude each other: each distributed process bakes its own share"
+        )
     merge = merge or ("virtual" if proc.count > 1 else "copy")
     if merge not in MERGES:
         raise errors.ValidationError("merge", merge, f"one of {', '.join(MERGES)}")
@@ -201,22 +246,33 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
     share = parse_shard(shard) if shard is not None else ((proc.index, proc.count) if proc.count > 1 else None)
     todo = blocks_of(total, block, share)
     if not todo and shard is not None:  # a distributed process with no block just waits for the others
-        raise errors.ValidationError("shard", shard, f"empty: {total} {units.axis} make {len(blocks_of(total, block))} "
-                                     "blocks, fewer than shards")
+        raise errors.ValidationError(
+            "shard", shard, f"empty: {total} {units.axis} make {len(blocks_of(total, block))} blocks, fewer than shards"
+        )
     want = todo[-1][1] - todo[0][0] if todo else 0
     digest = recipe_hash(canonical_json(recipe))
     out = Path(out)
     if proc.count > 1:  # before any work: every process bakes the same blocks of one recipe into one output
-        agree({"--out": str(out.absolute()), "recipe hash": digest, "--block": block, "--merge": merge,
-               units.axis: total}, recipe)
+        agree(
+            {"--out": str(out.absolute()), "recipe hash": digest, "--block": block, "--merge": merge, units.axis: total}, recipe
+        )
     if units.budget is not None:  # before anything is made: what this process will hold at once
         units.budget(recipe, block, *held(total, block, want, merge, shard, proc.leader))
     t0 = time.perf_counter()
     writes_out = proc.leader or shard is not None
-    report = {"out": str(out), "kind": baker.kind if shard is None else baker.shard_kind, "units": want,
-              "unit_range": [todo[0][0], todo[-1][1]] if todo else [0, 0], "total_units": total, "computed": 0, "resumed": 0,
-              "process": proc.index, "processes": proc.count, "merge": merge if shard is None else "shard",
-              "recipe_hash": digest}
+    report = {
+        "out": str(out),
+        "kind": baker.kind if shard is None else baker.shard_kind,
+        "units": want,
+        "unit_range": [todo[0][0], todo[-1][1]] if todo else [0, 0],
+        "total_units": total,
+        "computed": 0,
+        "resumed": 0,
+        "process": proc.index,
+        "processes": proc.count,
+        "merge": merge if shard is None else "shard",
+        "recipe_hash": digest,
+    }
     with locked(out, f".{proc.index}" if proc.count > 1 else "") as waited:
         if waited and share is None and is_valid(out, baker.kind, digest):
             report.update(resumed=want, seconds=time.perf_counter() - t0, bytes=out.stat().st_size, status="reused")
@@ -224,8 +280,11 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
         folder = open_folder(out)
         indexed = merge == "virtual" and shard is None and units.index is not None
         share_file = folder / share_name(proc.index, proc.count)
-        clean_temporaries([folder / part_name(s, e, total, block) for s, e in todo] + ([out] if writes_out else [])
-                          + ([share_file] if indexed and proc.count > 1 else []))
+        clean_temporaries(
+            [folder / part_name(s, e, total, block) for s, e in todo]
+            + ([out] if writes_out else [])
+            + ([share_file] if indexed and proc.count > 1 else [])
+        )
         mine = [folder / part_name(s, e, total, block) for s, e in todo]
         _bake_blocks(units, recipe, todo, mine, total, digest, baker, report, progress, want, inputs)
         indexes = _index_share(units, recipe, todo, mine, share_file, digest, total, proc, report, inputs) if indexed else None
@@ -246,8 +305,9 @@ def run(baker: Baker, recipe: dict, out, *, progress=None, shard=None, block: in
     return report
 
 
-def _index_share(units, recipe: dict, todo, parts, share_file: Path, digest: str, total: int, proc: Process, report: dict,
-                 inputs: dict) -> dict:
+def _index_share(
+    units, recipe: dict, todo, parts, share_file: Path, digest: str, total: int, proc: Process, report: dict, inputs: dict
+) -> dict:
     """{(start, stop): (stamp, index)} of this process's parts (``Units.index``: what the final asset stores from
     each), written as its share file for the leader when there are other processes; ``index_s`` in the report."""
     t = time.perf_counter()
@@ -258,8 +318,17 @@ def _index_share(units, recipe: dict, todo, parts, share_file: Path, digest: str
     return indexes
 
 
-def finish(baker: Baker, recipe: dict, out, total: int, block: int, merge: str, proc: Process = Process(),
-           own: dict | None = None, **inputs) -> Path:
+def finish(
+    baker: Baker,
+    recipe: dict,
+    out,
+    total: int,
+    block: int,
+    merge: str,
+    proc: Process = Process(),
+    own: dict | None = None,
+    **inputs,
+) -> Path:
     """The leader's last step, once every process's parts are in ``<out>.parts/``: write ``out``, as virtual
     datasets over the parts (``merge='virtual'``; the index from ``own`` and the share files, see
     :func:`gather`) or as a copy."""
@@ -281,8 +350,9 @@ def _present(part: Path, baker: Baker, digest: str, start: int, stop: int, total
         raise errors.AssetNotFoundError(part, "part missing or damaged after every process finished")
 
 
-def gather(baker: Baker, recipe: dict, folder: Path, proc: Process, digest: str, total: int, block: int, parts, own,
-           inputs: dict) -> dict:
+def gather(
+    baker: Baker, recipe: dict, folder: Path, proc: Process, digest: str, total: int, block: int, parts, own, inputs: dict
+) -> dict:
     """The leader's ``whole`` keyword arguments: every part's index (``index=[...]``) from its own indexes and
     the other processes' share files, one file per process whatever the part count.  A part that no index
     covers unchanged (a share file missing or foreign, a part rewritten since) is checked and indexed here;
@@ -321,13 +391,16 @@ def merge(baker: Baker, shards, out) -> dict:
         if h != digest or t != total:
             raise errors.CorruptAssetError(p, "shard of a different bake (recipe or unit count differs)")
         if start != pos:
-            raise errors.CorruptAssetError(p, f"{baker.units.axis} {pos}..{start - 1} are missing or overlap" if start > pos
-                                           else f"overlaps the previous shard at {baker.units.axis} {start}")
+            raise errors.CorruptAssetError(
+                p,
+                f"{baker.units.axis} {pos}..{start - 1} are missing or overlap"
+                if start > pos
+                else f"overlaps the previous shard at {baker.units.axis} {start}",
+            )
         pos = stop
     if pos != total:
         raise errors.ValidationError("shards", [str(i[5]) for i in items], f"cover {baker.units.axis} 0..{pos - 1} of {total}")
     if baker.units.budget is not None:
         baker.units.budget(recipe, baker.units.default_block(recipe, True), total, COPY_NOTE)
     path = baker.units.assemble(recipe, [i[5] for i in items], out)
-    return {"out": str(path), "shards": len(items), "units": pos, "bytes": Path(path).stat().st_size,
-            "recipe_hash": digest}
+    return {"out": str(path), "shards": len(items), "units": pos, "bytes": Path(path).stat().st_size, "recipe_hash": digest}

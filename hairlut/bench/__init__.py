@@ -36,27 +36,46 @@ def _unavailable(module: str, name: str):
     return lambda: getattr(import_module(f".{module}", __name__), name)()
 
 
-PARTS: dict[str, Part] = {p.name: p for p in (
-    Part("sh", "SH convolution tables: bake and per-vertex radiance (xing §4)", _runner("_sh")),
-    Part("hrir", "HRIR database bake: density grid, march steps, rays per pixel (satf §4–5)", _runner("_hrir")),
-    Part("maps", "Online maps: every map method against a converged truth, and the online frame (satf §6)",
-         _runner("_maps")),
-    Part("render", "Camera renders: the layered model and the strand render's levels", _runner("_render")),
-    Part("shadows", "Shadow methods against an exact strand-level transmittance", _runner("_shadows")),
-    Part("plan", "The planner: needed-only bakes against a full bake", _runner("_plan")),
-    Part("scale", "Scaling of a bake over devices and processes", _runner("_scale"),
-         _unavailable("_scale", "scale_unavailable")),
-)}
+PARTS: dict[str, Part] = {
+    p.name: p
+    for p in (
+        Part("sh", "SH convolution tables: bake and per-vertex radiance (xing §4)", _runner("_sh")),
+        Part("hrir", "HRIR database bake: density grid, march steps, rays per pixel (satf §4–5)", _runner("_hrir")),
+        Part("maps", "Online maps: every map method against a converged truth, and the online frame (satf §6)", _runner("_maps")),
+        Part("render", "Camera renders: the layered model and the strand render's levels", _runner("_render")),
+        Part("shadows", "Shadow methods against an exact strand-level transmittance", _runner("_shadows")),
+        Part("plan", "The planner: needed-only bakes against a full bake", _runner("_plan")),
+        Part(
+            "scale",
+            "Scaling of a bake over devices and processes",
+            _runner("_scale"),
+            _unavailable("_scale", "scale_unavailable"),
+        ),
+    )
+}
 
-_LAZY = {"hrir_bake_study": "_hrir", "sh_radiance_figures": "_sh",
-         "map_accuracy_study": "_map_accuracy", "map_angles": "_map_accuracy", "map_errors": "_map_accuracy",
-         "map_scene": "_map_accuracy", "map_truth": "_map_accuracy",
-         "online_frame_study": "_online_frame", "ring_model": "_online_frame",
-         "render_study": "_render", "with_config": "_render", "scaling_study": "_scale",
-         "strand_transmittance": "_shadows", "light_oriented_study": "_shadow_studies",
-         "opacity_maps_study": "_shadow_studies", "numpy_opacity_maps": "_shadow_studies",
-         "footprint_study": "_shadow_studies",
-         "needed_only_bake": "_plan", "full_bake": "_plan", "database_coverage": "_plan"}
+_LAZY = {
+    "hrir_bake_study": "_hrir",
+    "sh_radiance_figures": "_sh",
+    "map_accuracy_study": "_map_accuracy",
+    "map_angles": "_map_accuracy",
+    "map_errors": "_map_accuracy",
+    "map_scene": "_map_accuracy",
+    "map_truth": "_map_accuracy",
+    "online_frame_study": "_online_frame",
+    "ring_model": "_online_frame",
+    "render_study": "_render",
+    "with_config": "_render",
+    "scaling_study": "_scale",
+    "strand_transmittance": "_shadows",
+    "light_oriented_study": "_shadow_studies",
+    "opacity_maps_study": "_shadow_studies",
+    "numpy_opacity_maps": "_shadow_studies",
+    "footprint_study": "_shadow_studies",
+    "needed_only_bake": "_plan",
+    "full_bake": "_plan",
+    "database_coverage": "_plan",
+}
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)
 

@@ -52,8 +52,10 @@ def pareto_front(points: list[tuple[float | None, float | None]]) -> list[bool]:
         if not (_finite(t) and _finite(e)):
             out.append(False)
             continue
-        dominated = any(j != i and _finite(t2) and _finite(e2) and t2 <= t and e2 <= e and (t2 < t or e2 < e)
-                        for j, (t2, e2) in enumerate(points))
+        dominated = any(
+            j != i and _finite(t2) and _finite(e2) and t2 <= t and e2 <= e and (t2 < t or e2 < e)
+            for j, (t2, e2) in enumerate(points)
+        )
         out.append(not dominated)
     return out
 

@@ -52,8 +52,11 @@ def run(ctx: Context) -> list[Figure]:
     t0 = time.perf_counter()
     ref = trace_sectors(rho_ref, g, r, shadow=False, **sup)
     ref_s = time.perf_counter() - t0
-    configs = ([(16, 16, 1), (16, 32, 1), (32, 32, 1), (32, 64, 1), (32, 64, 2)] if ctx.quick else
-               [(gr, st, 1) for gr in (16, 32, 64) for st in (16, 32, 64, 128)] + [(32, 64, 2), (32, 64, 4), (64, 128, 4)])
+    configs = (
+        [(16, 16, 1), (16, 32, 1), (32, 32, 1), (32, 64, 1), (32, 64, 2)]
+        if ctx.quick
+        else [(gr, st, 1) for gr in (16, 32, 64) for st in (16, 32, 64, 128)] + [(32, 64, 2), (32, 64, 4), (64, 128, 4)]
+    )
     figs, dens = [], {}
     for grid, steps, rays in configs:
         if grid not in dens:
@@ -61,30 +64,52 @@ def run(ctx: Context) -> list[Figure]:
         rho = dens[grid]
         trace_sectors(rho, g, r, shadow=False, n_steps=steps, rays=rays)  # compile
         sec, (a, re) = timed(lambda: trace_sectors(rho, g, r, shadow=False, n_steps=steps, rays=rays), repeat=2)
-        figs.append(Figure(PART, TABLE, f"tracer grid {grid}², {steps} steps, {rays} ray{'s' if rays > 1 else ''}", sec / n,
-                           _mean_err(a, re, ref), "mean |Δ| (α, re)", {"grid": grid, "steps": steps, "rays": rays},
-                           paper=steps == grid and rays == 1,
-                           extra={"default": (grid, steps, rays) == (grid0, steps0, 1)}))
+        figs.append(
+            Figure(
+                PART,
+                TABLE,
+                f"tracer grid {grid}², {steps} steps, {rays} ray{'s' if rays > 1 else ''}",
+                sec / n,
+                _mean_err(a, re, ref),
+                "mean |Δ| (α, re)",
+                {"grid": grid, "steps": steps, "rays": rays},
+                paper=steps == grid and rays == 1,
+                extra={"default": (grid, steps, rays) == (grid0, steps0, 1)},
+            )
+        )
         if (grid, steps, rays) == (grid0, steps0, 1):
             f16 = _mean_err(a.astype(np.float16), re.astype(np.float16), ref)
-            figs.append(Figure(PART, TABLE, "default, stored as float16", None, f16, "mean |Δ| (α, re)",
-                               {"storage": "float16"}))
+            figs.append(Figure(PART, TABLE, "default, stored as float16", None, f16, "mean |Δ| (α, re)", {"storage": "float16"}))
     rho = dens[grid0] if grid0 in dens else _inputs(r, n, [grid0, grid0], start)[0]
     ph = [r["phong"][k] for k in ("ambient", "diffuse", "specular", "shininess")]
     views, lights = 2 * np.pi * np.arange(V) / V, 2 * np.pi * np.arange(L) / L
 
     def loop():
-        out = [reference_hrir(rho[i], g[i], views, lights, ph, share_lights=True, n_pix=r["trace"]["pixels"],
-                              n_steps=steps0) for i in range(n)]
+        out = [
+            reference_hrir(rho[i], g[i], views, lights, ph, share_lights=True, n_pix=r["trace"]["pixels"], n_steps=steps0)
+            for i in range(n)
+        ]
         return np.stack([o[0] for o in out]), np.stack([o[1] for o in out])
 
     sec, (a, re) = timed(loop, repeat=1)
-    figs.append(Figure(PART, TABLE, f"NumPy per-ray loop, grid {grid0}², {steps0} steps, float64", sec / n,
-                       _mean_err(a, re, ref), "mean |Δ| (α, re)", {"grid": grid0, "steps": steps0, "rays": 1},
-                       baseline=True))
-    ctx.note(PART, f"{n} sectors of the default sector space ({V} views × {L} lights × {r['trace']['pixels']} px); "
-                   f"reference: grid {4 * grid0}², {4 * steps0} steps, 4 rays/px ({ref_s:.1f} s); times are per sector; "
-                   "self-shadowing off throughout; every row, the NumPy loop included, on the same sectors, views and lights")
+    figs.append(
+        Figure(
+            PART,
+            TABLE,
+            f"NumPy per-ray loop, grid {grid0}², {steps0} steps, float64",
+            sec / n,
+            _mean_err(a, re, ref),
+            "mean |Δ| (α, re)",
+            {"grid": grid0, "steps": steps0, "rays": 1},
+            baseline=True,
+        )
+    )
+    ctx.note(
+        PART,
+        f"{n} sectors of the default sector space ({V} views × {L} lights × {r['trace']['pixels']} px); "
+        f"reference: grid {4 * grid0}², {4 * steps0} steps, 4 rays/px ({ref_s:.1f} s); times are per sector; "
+        "self-shadowing off throughout; every row, the NumPy loop included, on the same sectors, views and lights",
+    )
     return figs
 
 
@@ -144,35 +169,74 @@ def hrir_bake_study(quick: bool = False) -> dict:
     err_literal = _errors(np.stack([x[0] for x in literal]), np.stack([x[1] for x in literal]), (a4[:, :nv], re4[:, :nv]))
     rate_tracer = hrirs / t_tracer
     rows = [
-        {"what": f"JAX tracer, default recipe (self_shadow on), float32 ({n_block} sectors)", "rate": hrirs / t_default,
-         "sectors": n_block / t_default},
-        {"what": f"JAX tracer, self_shadow off, float32 ({n_block} sectors, best of 2)", "rate": rate_tracer,
-         "sectors": n_block / t_tracer, "err": err_tracer[0], "errmax": err_tracer[2]},
-        {"what": f"NumPy per-ray loop, every (view, light, ray), float64 ({n_ref} sectors x {nv} views, scaled)",
-         "rate": 1 / t_literal, "sectors": 1 / (t_literal * V * L), "err": err_literal[0], "errmax": err_literal[2],
-         "ratio": rate_tracer * t_literal},
-        {"what": f"NumPy per-ray loop, one march for all lights, float64 ({n_ref} sectors, scaled)",
-         "rate": 1 / t_shared, "sectors": 1 / (t_shared * V * L), "err": err_shared[0], "errmax": err_shared[2],
-         "ratio": rate_tracer * t_shared},
-        {"what": f"full default DB via bake() ({rep['sectors']} sectors, incl. sampling + HDF5)",
-         "rate": rep["sectors"] * V * L / t_bake, "sectors": rep["sectors"] / t_bake},
+        {
+            "what": f"JAX tracer, default recipe (self_shadow on), float32 ({n_block} sectors)",
+            "rate": hrirs / t_default,
+            "sectors": n_block / t_default,
+        },
+        {
+            "what": f"JAX tracer, self_shadow off, float32 ({n_block} sectors, best of 2)",
+            "rate": rate_tracer,
+            "sectors": n_block / t_tracer,
+            "err": err_tracer[0],
+            "errmax": err_tracer[2],
+        },
+        {
+            "what": f"NumPy per-ray loop, every (view, light, ray), float64 ({n_ref} sectors x {nv} views, scaled)",
+            "rate": 1 / t_literal,
+            "sectors": 1 / (t_literal * V * L),
+            "err": err_literal[0],
+            "errmax": err_literal[2],
+            "ratio": rate_tracer * t_literal,
+        },
+        {
+            "what": f"NumPy per-ray loop, one march for all lights, float64 ({n_ref} sectors, scaled)",
+            "rate": 1 / t_shared,
+            "sectors": 1 / (t_shared * V * L),
+            "err": err_shared[0],
+            "errmax": err_shared[2],
+            "ratio": rate_tracer * t_shared,
+        },
+        {
+            "what": f"full default DB via bake() ({rep['sectors']} sectors, incl. sampling + HDF5)",
+            "rate": rep["sectors"] * V * L / t_bake,
+            "sectors": rep["sectors"] / t_bake,
+        },
     ]
-    out["throughput"] = {"rows": rows, "float32_vs_float64": f32_err, "literal_vs_shared": lit_err,
-                         "default_db_seconds": t_bake, "default_db_sectors": rep["sectors"]}
+    out["throughput"] = {
+        "rows": rows,
+        "float32_vs_float64": f32_err,
+        "literal_vs_shared": lit_err,
+        "default_db_seconds": t_bake,
+        "default_db_sectors": rep["sectors"],
+    }
     # 2. run time against error
     rho_ref, g_err = _inputs(r, n_err, [4 * x for x in grid], 1000)
     ref = trace_sectors(rho_ref, g_err, r, **sup)
     rows, dens = [], {}
-    for gr, steps, rays in [(gr, st, 1) for gr in (16, 32, 64) for st in (32, 64, 128)] + [(32, 64, 2), (32, 64, 4),
-                                                                                              (64, 128, 4)]:
+    for gr, steps, rays in [(gr, st, 1) for gr in (16, 32, 64) for st in (32, 64, 128)] + [
+        (32, 64, 2),
+        (32, 64, 4),
+        (64, 128, 4),
+    ]:
         if gr not in dens:
             dens[gr] = _inputs(r, n_err, [gr, gr], 1000)[0]
         rho_g = dens[gr]
         trace_sectors(rho_g[:1], g_err[:1], r, n_steps=steps, rays=rays)
         t, (aa, rr) = timed(lambda: trace_sectors(rho_g, g_err, r, n_steps=steps, rays=rays), repeat=2)
         e = _errors(aa, rr, ref)
-        rows.append({"grid": gr, "steps": steps, "rays": rays, "ms": 1e3 * t / n_err, "mean": e[0], "p99": e[1],
-                     "max": e[2], "default": "<- default" if (gr, steps, rays) == (32, 64, 1) else ""})
+        rows.append(
+            {
+                "grid": gr,
+                "steps": steps,
+                "rays": rays,
+                "ms": 1e3 * t / n_err,
+                "mean": e[0],
+                "p99": e[1],
+                "max": e[2],
+                "default": "<- default" if (gr, steps, rays) == (32, 64, 1) else "",
+            }
+        )
     out["error_table"] = rows
     # 3. self-shadowing and storage
     rho_s, g_s = rho[:n_err], g[:n_err]
@@ -180,9 +244,17 @@ def hrir_bake_study(quick: bool = False) -> dict:
     t_on, (_, r_on) = timed(lambda: trace_sectors(rho_s, g_s, r, shadow=True), repeat=1)
     t_off, (_, r_off) = timed(lambda: trace_sectors(rho_s, g_s, r, shadow=False), repeat=2)
     effect = np.abs(r_on - r_off)
-    out["shadow"] = [{"mode": "self_shadow = false", "ms": 1e3 * t_off / n_err, "db": 1e3 * t_off / n_err * 512 / 1e3},
-                     {"mode": "self_shadow = true (default)", "ms": 1e3 * t_on / n_err, "db": 1e3 * t_on / n_err * 512 / 1e3,
-                      "mean": float(effect.mean()), "max": float(effect.max())}]
-    out["float16_error"] = {k: float(np.abs(x.astype(np.float16).astype(np.float64) - x).max())
-                            for k, x in (("alpha", a), ("reflectance", re))}
+    out["shadow"] = [
+        {"mode": "self_shadow = false", "ms": 1e3 * t_off / n_err, "db": 1e3 * t_off / n_err * 512 / 1e3},
+        {
+            "mode": "self_shadow = true (default)",
+            "ms": 1e3 * t_on / n_err,
+            "db": 1e3 * t_on / n_err * 512 / 1e3,
+            "mean": float(effect.mean()),
+            "max": float(effect.max()),
+        },
+    ]
+    out["float16_error"] = {
+        k: float(np.abs(x.astype(np.float16).astype(np.float64) - x).max()) for k, x in (("alpha", a), ("reflectance", re))
+    }
     return out

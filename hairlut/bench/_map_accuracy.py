@@ -20,11 +20,13 @@ from pathlib import Path
 import numpy as np
 
 #: The scene table's knobs of the full run's extra scene rows (after the scene file's own).
-SCENE_ROWS = (dict(views=32, terms=4, shading_pixels=8, precision="float16"),
-              dict(views=128, terms=4, shading_pixels=8, precision="float16"),
-              dict(views=64, terms=2, shading_pixels=8, precision="float16"),
-              dict(views=64, terms=4, shading_pixels=1, precision="float16"),
-              dict(views=64, terms=4, shading_pixels=64, precision="float32"))
+SCENE_ROWS = (
+    dict(views=32, terms=4, shading_pixels=8, precision="float16"),
+    dict(views=128, terms=4, shading_pixels=8, precision="float16"),
+    dict(views=64, terms=2, shading_pixels=8, precision="float16"),
+    dict(views=64, terms=4, shading_pixels=1, precision="float16"),
+    dict(views=64, terms=4, shading_pixels=64, precision="float32"),
+)
 MAP_KNOBS = ("views", "terms", "shading_pixels", "precision")
 
 
@@ -44,8 +46,9 @@ def map_scene(path: Path, hrir: dict | None = None, **render):
     if hrir:
         own = tables.get("hrir", {})
         tables["hrir"] = {**own, **{k: {**own.get(k, {}), **v} for k, v in hrir.items()}}
-    return resolve_scene({**given, "tables": tables, "render": {**given.get("render", {}), **render}}, path.parent,
-                         source=str(path))
+    return resolve_scene(
+        {**given, "tables": tables, "render": {**given.get("render", {}), **render}}, path.parent, source=str(path)
+    )
 
 
 def map_angles(prep, sc, view=None, lights=None):
@@ -60,14 +63,13 @@ def map_angles(prep, sc, view=None, lights=None):
 
 def _rows(prepared, view, lights):
     """Per-sector rows (α (S, P), re (S, L, P)) of a prepared direct/scene method."""
-    from hairlut.scenemaps import fetch_kernel
     from hairlut.march import direct_sector_maps
+    from hairlut.scenemaps import fetch_kernel
 
     tv, tl, _ = map_angles(prepared, prepared.scene, view, lights)
     src = prepared.maps
     if src.method == "direct":
-        return direct_sector_maps(src.density, src.geometry, np.asarray(tv, np.float64), np.asarray(tl, np.float64),
-                                  src.recipe)
+        return direct_sector_maps(src.density, src.geometry, np.asarray(tv, np.float64), np.asarray(tl, np.float64), src.recipe)
     a, r = fetch_kernel(*src.device, tv, tl)
     return np.asarray(a), np.asarray(r)
 
@@ -79,27 +81,40 @@ def map_truth(scene_path: Path, quick: bool, level: int = 1, cache: Path | None 
     traced truth for later runs (reused only when the scene file, the recipe and the refinement are the same)."""
     import jax.numpy as jnp
 
+    from hairlut.march import direct_sector_maps, scene_sector_inputs
     from hairlut.planner import direct_recipe
     from hairlut.synth import prepare, sweep_sectors
-    from hairlut.march import direct_sector_maps, scene_sector_inputs
 
     sc = map_scene(scene_path, method="direct", rays=1)
     prep = prepare(sc)
     rec = direct_recipe(sc)
-    m = 2 ** level
+    m = 2**level
     fine = {**rec, "sectors": {**rec["sectors"], "grid": [m * g for g in rec["sectors"]["grid"]]}}
     parts = [scene_sector_inputs(pc.table, fine, extent=pc.frames.extent) for pc in prep.clusters]
     dens, geom = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
     tv, tl, cs = map_angles(prep, sc)
-    key = {"recipe": fine, "rays": 2 if quick else 2 * m, "steps": m * rec["trace"]["steps"],
-           "groom": str(sc.groom_path), "scene": Path(scene_path).read_text()}
+    key = {
+        "recipe": fine,
+        "rays": 2 if quick else 2 * m,
+        "steps": m * rec["trace"]["steps"],
+        "groom": str(sc.groom_path),
+        "scene": Path(scene_path).read_text(),
+    }
     if cache is not None and Path(cache).exists():
         z = np.load(cache, allow_pickle=False)
         if str(z["key"]) == json.dumps(key, sort_keys=True, default=str):
             return prep, (z["a"], z["r"]), (z["re_t"], z["a_t"]), float(z["secs"])
     t0 = time.perf_counter()
-    a, r = direct_sector_maps(dens, geom, np.asarray(tv, np.float64), np.asarray(tl, np.float64), fine,
-                              rays=2 if quick else 2 * m, n_steps=m * rec["trace"]["steps"], shadow_lookup="grid")
+    a, r = direct_sector_maps(
+        dens,
+        geom,
+        np.asarray(tv, np.float64),
+        np.asarray(tl, np.float64),
+        fine,
+        rays=2 if quick else 2 * m,
+        n_steps=m * rec["trace"]["steps"],
+        shadow_lookup="grid",
+    )
     secs = time.perf_counter() - t0
     re_t, a_t = (np.asarray(x) for x in sweep_sectors(prep.index, jnp.asarray(a), jnp.asarray(r), cs))
     if cache is not None:
@@ -119,8 +134,12 @@ def map_errors(maps, t_maps, rows=None, t_rows=None) -> dict:
     """Texel re and α rel-L2, the signed mean-α bias of ``maps`` (re, α) against ``t_maps``, and, given per-sector
     ``rows`` (α, …) and ``t_rows``, the coverage rel-L2 of each sector's pixel-mean α (else None)."""
     (re, a), (re_t, a_t) = maps, t_maps
-    out = {"re_rel_l2": _rel(re, re_t), "alpha_rel_l2": _rel(a, a_t),
-           "alpha_bias": float((np.mean(a) - np.mean(a_t)) / np.mean(a_t)), "coverage_rel_l2": None}
+    out = {
+        "re_rel_l2": _rel(re, re_t),
+        "alpha_rel_l2": _rel(a, a_t),
+        "alpha_bias": float((np.mean(a) - np.mean(a_t)) / np.mean(a_t)),
+        "coverage_rel_l2": None,
+    }
     if rows is not None:
         out["coverage_rel_l2"] = _rel(rows[0].mean(-1), t_rows[0].mean(-1))
     return out
@@ -172,17 +191,38 @@ def _satf_rows(scene: Path, tmp: Path, t_maps, t_rows, features, views_list, ks,
                 tv, tl, _ = map_angles(pr, pr.scene)
                 _, a, _, _ = pr.db.query(pr.frames.features, np.asarray(tv), np.asarray(tl)[:, 0], k=k)
                 rows = (a * pr.frames.occupied[:, None],)
-                out.append({"method": "satf", "features": feats, "views": views, "k": k,
-                            "knobs": f"{feats}, {step.recipe['sectors']['count']} records, {views} views, k={k}",
-                            "frame_ms": ms, "bake_s": bake_s, "bytes": Path(path).stat().st_size,
-                            "prepare_s": sum(pr.seconds.values()), **map_errors(maps, t_maps, rows, t_rows)})
+                out.append(
+                    {
+                        "method": "satf",
+                        "features": feats,
+                        "views": views,
+                        "k": k,
+                        "knobs": f"{feats}, {step.recipe['sectors']['count']} records, {views} views, k={k}",
+                        "frame_ms": ms,
+                        "bake_s": bake_s,
+                        "bytes": Path(path).stat().st_size,
+                        "prepare_s": sum(pr.seconds.values()),
+                        **map_errors(maps, t_maps, rows, t_rows),
+                    }
+                )
                 say(f"maps: satf {out[-1]['knobs']}: re rel-L2 {out[-1]['re_rel_l2']:.3f}")
     return out
 
 
-def map_accuracy_study(scene, quick: bool = False, *, methods=("direct", "scene", "satf"), first_knobs=None,
-                       default_only: bool = False, satf_features=("basic",), satf_views=(32,), satf_k=(4,),
-                       satf_count: int | None = None, truth_cache: Path | None = None, progress=None) -> dict:
+def map_accuracy_study(
+    scene,
+    quick: bool = False,
+    *,
+    methods=("direct", "scene", "satf"),
+    first_knobs=None,
+    default_only: bool = False,
+    satf_features=("basic",),
+    satf_views=(32,),
+    satf_k=(4,),
+    satf_count: int | None = None,
+    truth_cache: Path | None = None,
+    progress=None,
+) -> dict:
     """Every map method of ``methods`` on ``scene`` against :func:`map_truth` (module docstring): ``direct`` at
     1 and 2 rays per pixel (2 only when ``quick``); ``scene`` at the file's own knobs (``first_knobs`` over them)
     and, unless ``quick`` or ``default_only``, the :data:`SCENE_ROWS`; ``satf`` per feature set, view grid and k.
@@ -201,8 +241,16 @@ def map_accuracy_study(scene, quick: bool = False, *, methods=("direct", "scene"
         pr = prepare(map_scene(scene, method="direct", rays=rays))
         ms, maps = maps_frame_ms(pr)
         rows = _rows(pr, pr.scene.view, pr.scene.lights)
-        records.append({"method": "direct", "knobs": f"rays={rays}", "frame_ms": ms, "bake_s": 0.0, "bytes": 0,
-                        **map_errors(maps, t_maps, rows, t_rows)})
+        records.append(
+            {
+                "method": "direct",
+                "knobs": f"rays={rays}",
+                "frame_ms": ms,
+                "bake_s": 0.0,
+                "bytes": 0,
+                **map_errors(maps, t_maps, rows, t_rows),
+            }
+        )
         say(f"maps: direct rays={rays}: re rel-L2 {records[-1]['re_rel_l2']:.3f}")
     own = map_scene(scene).config["render"]
     first = {**{k: own[k] for k in MAP_KNOBS}, **(first_knobs or {})}
@@ -218,8 +266,16 @@ def map_accuracy_study(scene, quick: bool = False, *, methods=("direct", "scene"
             pr = prepare(sc, maps=rep["out"])
             ms, maps = maps_frame_ms(pr)
             rows = _rows(pr, sc.view, sc.lights)
-            records.append({"method": "scene", "knobs": ", ".join(f"{a}={b}" for a, b in k.items()), "frame_ms": ms,
-                            "bake_s": bake_s, "bytes": rep["bytes"], **map_errors(maps, t_maps, rows, t_rows)})
+            records.append(
+                {
+                    "method": "scene",
+                    "knobs": ", ".join(f"{a}={b}" for a, b in k.items()),
+                    "frame_ms": ms,
+                    "bake_s": bake_s,
+                    "bytes": rep["bytes"],
+                    **map_errors(maps, t_maps, rows, t_rows),
+                }
+            )
             say(f"maps: scene {records[-1]['knobs']}: re rel-L2 {records[-1]['re_rel_l2']:.3f}")
         if "satf" in methods:
             records += _satf_rows(scene, Path(tmp), t_maps, t_rows, satf_features, satf_views, satf_k, satf_count, say)

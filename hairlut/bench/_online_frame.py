@@ -36,12 +36,25 @@ def ring_model(n_clusters: int, s_t: int, s_u: int, res: int, strands: int, shad
         root = [0.1 * np.cos(a), 0.1, 0.1 * np.sin(a)]
         mid = [0.13 * np.cos(a), -0.05, 0.13 * np.sin(a)]
         tip = [0.12 * np.cos(a + 0.2), -0.25, 0.12 * np.sin(a + 0.2)]
-        clusters.append({"trajectory": [root, mid, tip], "half_axis_a": 0.02, "half_axis_b": 0.012,
-                         "twist": [0.0, 0.5], "s_t": s_t, "s_u": s_u})
-    return {"render": {"resolution": [res, res]}, "camera": {"view": [0.0, 0.3, 1.0]},
-            "lights": {"directions": [[0.5, 0.8, 1.0]]}, "effects": {"noise": True},
-            "strands": {"count": strands, "radius": 0.0015, "profile": "clumped", "spread": 0.25},
-            "shadows": {"method": shadows}, "clusters": clusters}
+        clusters.append(
+            {
+                "trajectory": [root, mid, tip],
+                "half_axis_a": 0.02,
+                "half_axis_b": 0.012,
+                "twist": [0.0, 0.5],
+                "s_t": s_t,
+                "s_u": s_u,
+            }
+        )
+    return {
+        "render": {"resolution": [res, res]},
+        "camera": {"view": [0.0, 0.3, 1.0]},
+        "lights": {"directions": [[0.5, 0.8, 1.0]]},
+        "effects": {"noise": True},
+        "strands": {"count": strands, "radius": 0.0015, "profile": "clumped", "spread": 0.25},
+        "shadows": {"method": shadows},
+        "clusters": clusters,
+    }
 
 
 def _sample(arr, pix):
@@ -76,8 +89,9 @@ def numpy_frame(prep) -> list[np.ndarray]:
         sp = sector_angles(pc.frames, sc.view, sc.lights)
         tx = texels(pc.table, sp, pc.spec.n_layers, (n_u, n_t), db.alpha.shape[-1])
         top, bot = pc.table.hsv_sectors[:, 0], pc.table.hsv_sectors[:, 1]
-        d = param_distance(db, sp.features[top], sp.theta_v[top], sp.theta_l[top], sp.features[bot],
-                           sp.theta_v[bot], sp.theta_l[bot])
+        d = param_distance(
+            db, sp.features[top], sp.theta_v[top], sp.theta_l[top], sp.features[bot], sp.theta_v[bot], sp.theta_l[bot]
+        )
         uni = d < m["k_threshold"]
         k = sc.config["render"]["neighbours"]
         re_s, a_s = fetch(db, sp.features, sp.theta_v, sp.theta_l, k)
@@ -97,8 +111,10 @@ def numpy_frame(prep) -> list[np.ndarray]:
         light = np.zeros(t.shape[:-1] + (len(ls), 3))
         if fx["diffuse"]:
             light += kd * np.maximum(0, scale * _sin(cl) + bias)[..., None] * colours[0]
-        for on, sh, p, ks, col, noisy in ((fx["primary"], s, p1, ks1, colours[1], False),
-                                         (fx["secondary"], -s, p2, ks2, colours[2], fx["noise"])):
+        for on, sh, p, ks, col, noisy in (
+            (fx["primary"], s, p1, ks1, colours[1], False),
+            (fx["secondary"], -s, p2, ks2, colours[2], fx["noise"]),
+        ):
             if on:
                 tt = t + sh * n
                 tt /= np.linalg.norm(tt, axis=-1, keepdims=True)
@@ -113,8 +129,9 @@ def numpy_frame(prep) -> list[np.ndarray]:
         rgb = tau[..., None] * np.sum(light * re[0][..., None], axis=-2)
         keep = 1 - al
         above = np.concatenate([np.cumprod(keep[::-1], 0)[::-1][1:], np.ones_like(keep[:1])])
-        final = np.asarray(sc.config["render"]["background"]) * np.prod(keep, 0)[..., None] + \
-            np.sum(rgb * (al * above)[..., None], 0)
+        final = np.asarray(sc.config["render"]["background"]) * np.prod(keep, 0)[..., None] + np.sum(
+            rgb * (al * above)[..., None], 0
+        )
         out.append(final)
     return out
 
@@ -131,8 +148,7 @@ def shadow_methods(prep, model: dict, runs: int = 10) -> list[dict]:
     points = np.stack([pc.position for pc in prep.clusters])
     rows = []
     for method in SHADOW_METHODS:
-        sc = resolve_scene(ring_model(model["clusters"], model["s_t"], model["s_u"], model["res"], model["strands"],
-                                      method))
+        sc = resolve_scene(ring_model(model["clusters"], model["s_t"], model["s_u"], model["res"], model["strands"], method))
         build = {}
         variant = replace(prep, scene=sc, shadows=prepare_shadows(sc, strands, points, build))
         render_view(variant)  # warm-up: compiles
@@ -142,9 +158,16 @@ def shadow_methods(prep, model: dict, runs: int = 10) -> list[dict]:
         render_view(variant, lights=[[0.4, 0.9, -0.5]])  # a first relight compiles what a new map size needs
         relit, _ = timed(lambda: render_view(variant, lights=[[-0.4, 0.9, 0.5]]), repeat=1)
         render_view(variant)  # back to the scene's lights (rebuilds the maps outside the timings)
-        rows.append({"method": method, "build_s": build.get("shadows", 0.0), "ms": 1e3 * sec.min(),
-                     "median": 1e3 * float(np.median(sec)), "shade": 1e3 * best.stats["seconds"]["shade"],
-                     "relit_s": relit})
+        rows.append(
+            {
+                "method": method,
+                "build_s": build.get("shadows", 0.0),
+                "ms": 1e3 * sec.min(),
+                "median": 1e3 * float(np.median(sec)),
+                "shade": 1e3 * best.stats["seconds"]["shade"],
+                "relit_s": relit,
+            }
+        )
     return rows
 
 
@@ -153,8 +176,14 @@ def small_db(folder: Path, quick: bool) -> Path:
     from hairlut.hrir import bake
 
     out = Path(folder) / "db.h5"
-    bake({"sectors": {"count": 64 if quick else 256, "grid": [16, 16]}, "angles": {"views": 16, "lights": 16},
-          "trace": {"pixels": 32, "steps": 32, "self_shadow": False}}, out)
+    bake(
+        {
+            "sectors": {"count": 64 if quick else 256, "grid": [16, 16]},
+            "angles": {"views": 16, "lights": 16},
+            "trace": {"pixels": 32, "steps": 32, "self_shadow": False},
+        },
+        out,
+    )
     return out
 
 
@@ -190,9 +219,24 @@ def online_frame_study(quick: bool = False, db: Path | None = None, **model) -> 
     rows = []
     for name, runs in (("hairlut.synth.render_view (JAX)", jax_runs), ("NumPy", np_runs)):
         sec = np.array([t for t, _ in runs])
-        rows.append({"impl": name, "runs": len(runs), "ms": 1e3 * sec.min(), "median": 1e3 * float(np.median(sec)),
-                     **{k: 1e3 * v for k, v in runs[int(np.argmin(sec))][1].items()}})
-    return {"device": str(jax.devices()[0]), "model": size, "db_sectors": len(database.features), "stats": res.stats,
-            "prepare_s": t_prep, "rows": rows, "frame_ms": {"jax": rows[0]["ms"], "numpy": rows[1]["ms"]},
-            "median_ms": {"jax": rows[0]["median"], "numpy": rows[1]["median"]}, "max_abs_diff": err,
-            "shadow_methods": shadow_methods(prep, size)}
+        rows.append(
+            {
+                "impl": name,
+                "runs": len(runs),
+                "ms": 1e3 * sec.min(),
+                "median": 1e3 * float(np.median(sec)),
+                **{k: 1e3 * v for k, v in runs[int(np.argmin(sec))][1].items()},
+            }
+        )
+    return {
+        "device": str(jax.devices()[0]),
+        "model": size,
+        "db_sectors": len(database.features),
+        "stats": res.stats,
+        "prepare_s": t_prep,
+        "rows": rows,
+        "frame_ms": {"jax": rows[0]["ms"], "numpy": rows[1]["ms"]},
+        "median_ms": {"jax": rows[0]["median"], "numpy": rows[1]["median"]},
+        "max_abs_diff": err,
+        "shadow_methods": shadow_methods(prep, size),
+    }

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..recipes import load_toml
 from ..planner import bake, plan
+from ..recipes import load_toml
 from ._figure import Figure
 from ._parts import Context, example
 
@@ -38,13 +38,18 @@ def needed_only_bake(scene: Path, cache: Path) -> dict:
     t_bake = time.perf_counter() - t0 - t_plan
     again = plan(scene, cache)
     steps = {s.name: s for s in p.steps}
-    return {"scene": scene.name, "plan_s": t_plan, "bake_s": t_bake,
-            "estimate_s": sum(s.seconds for s in p.steps if s.action == "bake"),
-            "bytes": _bytes(d["path"] for d in done.values()),
-            "baked": ", ".join(sorted(done)), "skipped": ", ".join(s.name for s in p.steps if s.action == "skip"),
-            "rebake_after_replan": sum(s.action == "bake" for s in again.steps),
-            "per_step": {k: {"estimate_s": steps[k].seconds, "actual_s": v["seconds"]} for k, v in done.items()},
-            "hrir_db": done["hrir_db"]["path"] if "hrir_db" in done else None}
+    return {
+        "scene": scene.name,
+        "plan_s": t_plan,
+        "bake_s": t_bake,
+        "estimate_s": sum(s.seconds for s in p.steps if s.action == "bake"),
+        "bytes": _bytes(d["path"] for d in done.values()),
+        "baked": ", ".join(sorted(done)),
+        "skipped": ", ".join(s.name for s in p.steps if s.action == "skip"),
+        "rebake_after_replan": sum(s.action == "bake" for s in again.steps),
+        "per_step": {k: {"estimate_s": steps[k].seconds, "actual_s": v["seconds"]} for k, v in done.items()},
+        "hrir_db": done["hrir_db"]["path"] if "hrir_db" in done else None,
+    }
 
 
 def full_bake(folder: Path, quick: bool) -> dict:
@@ -107,17 +112,47 @@ def run(ctx: Context) -> list[Figure]:
         cov = database_coverage(scene, dbs)
         table = f"{name}: needed-only bake against the full bake"
         err = "median NN feature distance (σ)"
-        figs.append(Figure(PART, table, "full bake (no planner)", full_s, cov["full"][0], err, {"bytes": full["bytes"]},
-                           baseline=True, extra={"p90": cov["full"][1], **full["seconds"]}))
-        figs.append(Figure(PART, table, f"needed only: {r['baked'] or 'nothing'}", r["bake_s"],
-                           cov["needed"][0] if "needed" in cov else None, err,
-                           {"bytes": r["bytes"], "skipped": r["skipped"]},
-                           extra={"p90": cov["needed"][1] if "needed" in cov else None, "plan_s": r["plan_s"],
-                                  "estimate_s": r["estimate_s"], "rebake_after_replan": r["rebake_after_replan"]}))
+        figs.append(
+            Figure(
+                PART,
+                table,
+                "full bake (no planner)",
+                full_s,
+                cov["full"][0],
+                err,
+                {"bytes": full["bytes"]},
+                baseline=True,
+                extra={"p90": cov["full"][1], **full["seconds"]},
+            )
+        )
+        figs.append(
+            Figure(
+                PART,
+                table,
+                f"needed only: {r['baked'] or 'nothing'}",
+                r["bake_s"],
+                cov["needed"][0] if "needed" in cov else None,
+                err,
+                {"bytes": r["bytes"], "skipped": r["skipped"]},
+                extra={
+                    "p90": cov["needed"][1] if "needed" in cov else None,
+                    "plan_s": r["plan_s"],
+                    "estimate_s": r["estimate_s"],
+                    "rebake_after_replan": r["rebake_after_replan"],
+                },
+            )
+        )
         if "needed" not in cov:
-            ctx.note(PART, f"{name}: the plan bakes no HRIR database (its map method needs none), so its coverage is "
-                           "not defined; the full bake's database coverage of the scene is shown for scale")
-    ctx.note(PART, "full bake: " + ", ".join(f"{k} {v:.1f} s" for k, v in full["seconds"].items())
-             + (" (the generic database cut to 128 sectors in a quick run)" if ctx.quick else "")
-             + "; error: the median distance from the scene's sector features to the nearest database record")
+            ctx.note(
+                PART,
+                f"{name}: the plan bakes no HRIR database (its map method needs none), so its coverage is "
+                "not defined; the full bake's database coverage of the scene is shown for scale",
+            )
+    ctx.note(
+        PART,
+        "full bake: "
+        + ", ".join(f"{k} {v:.1f} s" for k, v in full["seconds"].items())
+        + (" (the generic database cut to 128 sectors in a quick run)" if ctx.quick else "")
+        + "; error: the median distance from the scene's sector features to the nearest database record",
+    )
     return figs

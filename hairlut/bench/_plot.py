@@ -39,16 +39,24 @@ def plot_table(rows: list[Figure], path: Path, title: str) -> Path | None:
             xs += [f.seconds, f.seconds]
             ys += [ys[-1], f.error]
         ax.plot(xs, ys, "-", c="tab:green", lw=1.2, label="Pareto front", zorder=2)
-        ax.scatter([f.seconds for f in front], [f.error for f in front], s=60, facecolors="none",
-                   edgecolors="tab:green", zorder=4)
-    for sel, style in ((lambda f: f.baseline, dict(marker="s", c="tab:orange", s=50, label="same-run baseline")),
-                       (lambda f: f.paper, dict(marker="*", c="tab:red", s=120, label="paper's setting"))):
+        ax.scatter(
+            [f.seconds for f in front], [f.error for f in front], s=60, facecolors="none", edgecolors="tab:green", zorder=4
+        )
+    for sel, style in (
+        (lambda f: f.baseline, dict(marker="s", c="tab:orange", s=50, label="same-run baseline")),
+        (lambda f: f.paper, dict(marker="*", c="tab:red", s=120, label="paper's setting")),
+    ):
         chosen = [f for f in pts if sel(f)]
         if chosen:
             ax.scatter([f.seconds for f in chosen], [f.error for f in chosen], zorder=5, **style)
     for f in pts:
-        ax.annotate(f.label if len(f.label) <= 40 else f.label[:38] + "…", (f.seconds, f.error), fontsize=6,
-                    xytext=(3, 3), textcoords="offset points")
+        ax.annotate(
+            f.label if len(f.label) <= 40 else f.label[:38] + "…",
+            (f.seconds, f.error),
+            fontsize=6,
+            xytext=(3, 3),
+            textcoords="offset points",
+        )
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("run time (s, warm)")

@@ -63,7 +63,7 @@ def _methods_here(sc, say) -> dict:
     for m in ("satf", "scene"):
         try:
             found = find_assets(with_config(sc, render={"method": m}))
-        except Exception as exc:  # noqa: BLE001 - a missing table only drops the row
+        except Exception as exc:
             say(f"render: layered {m} skipped ({str(exc).splitlines()[0][:100]})")
             continue
         kw = {"db": found.get("hrir_db"), "maps": found.get("scene_maps"), "sh": found.get("sh_tables")}
@@ -72,10 +72,18 @@ def _methods_here(sc, say) -> dict:
 
 
 def _row(scene, method, frame_ms, cpu_ms, figs, **extra):
-    return {"scene": Path(scene).stem, "method": method, "frame_ms": frame_ms, "cpu_ms": cpu_ms,
-            "flip_mean": figs.get("flip_mean"), "alpha_bias": figs.get("alpha_bias"),
-            "alpha_bias_relative": figs.get("alpha_bias_relative"), "rgb_rmse": figs.get("rgb_rmse"),
-            "rgb_rmse_8x8": figs.get("rgb_rmse_8x8"), **extra}
+    return {
+        "scene": Path(scene).stem,
+        "method": method,
+        "frame_ms": frame_ms,
+        "cpu_ms": cpu_ms,
+        "flip_mean": figs.get("flip_mean"),
+        "alpha_bias": figs.get("alpha_bias"),
+        "alpha_bias_relative": figs.get("alpha_bias_relative"),
+        "rgb_rmse": figs.get("rgb_rmse"),
+        "rgb_rmse_8x8": figs.get("rgb_rmse_8x8"),
+        **extra,
+    }
 
 
 def render_study(path, levels=(0, 1, 2), resolution: int | None = None, progress=None) -> list[dict]:
@@ -102,32 +110,63 @@ def render_study(path, levels=(0, 1, 2), resolution: int | None = None, progress
     rows = []
     for lv in levels:
         f = refs[lv]
-        figs = compare(f, truth)[0] if lv != max(levels) else {"flip_mean": 0.0, "alpha_bias": 0.0, "rgb_rmse": 0.0,
-                                                                "rgb_rmse_8x8": 0.0, "alpha_bias_relative": 0.0}
+        figs = (
+            compare(f, truth)[0]
+            if lv != max(levels)
+            else {"flip_mean": 0.0, "alpha_bias": 0.0, "rgb_rmse": 0.0, "rgb_rmse_8x8": 0.0, "alpha_bias_relative": 0.0}
+        )
         last = f.info["levels"][-1]
-        rows.append(_row(path, f"reference L{lv}", f.info["wall_ms"], f.info["cpu_ms"], figs,
-                         spp=last.get("samples_per_pixel"), steps=last.get("steps_per_crossing")))
+        rows.append(
+            _row(
+                path,
+                f"reference L{lv}",
+                f.info["wall_ms"],
+                f.info["cpu_ms"],
+                figs,
+                spp=last.get("samples_per_pixel"),
+                steps=last.get("steps_per_crossing"),
+            )
+        )
     # what the cluster fit leaves out: the reference of only the strand segments inside the sectors' volume
     t0 = time.perf_counter()
     kept, fractions = inside_clusters(scene_clusters(sc))
     inside = render_strands(sc, camera=truth.camera, levels=[max(levels)], strands=kept)
-    rows.append(_row(path, f"reference L{max(levels)}, strands inside the sectors", 1e3 * (time.perf_counter() - t0),
-                     None, compare(inside, truth)[0], length_fractions=fractions))
+    rows.append(
+        _row(
+            path,
+            f"reference L{max(levels)}, strands inside the sectors",
+            1e3 * (time.perf_counter() - t0),
+            None,
+            compare(inside, truth)[0],
+            length_fractions=fractions,
+        )
+    )
     for method, kw in _methods_here(sc, say).items():
         for oblique in (True, False) if method == "direct" else (True,):
             name = f"layered {method}" + ("" if oblique else " (in-plane α)")
             try:
                 c0 = time.process_time()
-                f = render_layered(with_config(sc, render={"method": method}), camera=truth.camera, repeat=2,
-                                   oblique=oblique, **kw)
+                f = render_layered(
+                    with_config(sc, render={"method": method}), camera=truth.camera, repeat=2, oblique=oblique, **kw
+                )
                 cpu = time.process_time() - c0
-            except Exception as exc:  # noqa: BLE001 - report and go on with the other methods
+            except Exception as exc:
                 say(f"render: {name} failed ({str(exc).splitlines()[0][:120]})")
                 continue
             sec = f.info["seconds"]
-            rows.append(_row(path, name, 1e3 * sec["raster"], None, compare(f, truth)[0],
-                             maps_ms=1e3 * sec["maps"], shade_ms=1e3 * sec["shade"], triangles=f.info["triangles"],
-                             total_cpu_s=cpu))
+            rows.append(
+                _row(
+                    path,
+                    name,
+                    1e3 * sec["raster"],
+                    None,
+                    compare(f, truth)[0],
+                    maps_ms=1e3 * sec["maps"],
+                    shade_ms=1e3 * sec["shade"],
+                    triangles=f.info["triangles"],
+                    total_cpu_s=cpu,
+                )
+            )
             own = compare(f, inside)[0]  # against the strands the sectors hold: the layered model's own loss
             rows.append(_row(path, f"{name} vs inside-only reference", None, None, own))
     return [{**r, "resolution": resolution} for r in rows]
@@ -141,12 +180,20 @@ def _figures(rows: list[dict], levels: tuple[int, ...]) -> list[Figure]:
             continue
         method = r["method"]
         ms = r["frame_ms"] + (r.get("maps_ms") or 0.0)  # a layered frame: its maps (made per frame) and the raster
-        figs.append(Figure(PART, f"{r['scene']}: frame against the finest reference level", method, ms / 1e3,
-                           None if method == truth else r.get("flip_mean"), "FLIP mean",
-                           {k: r[k] for k in ("spp", "steps", "triangles", "resolution") if r.get(k) is not None},
-                           baseline=method == coarse, paper=method == "layered satf",
-                           extra={k: r.get(k) for k in ("rgb_rmse", "rgb_rmse_8x8", "alpha_bias", "maps_ms", "frame_ms",
-                                                        "cpu_ms")}))
+        figs.append(
+            Figure(
+                PART,
+                f"{r['scene']}: frame against the finest reference level",
+                method,
+                ms / 1e3,
+                None if method == truth else r.get("flip_mean"),
+                "FLIP mean",
+                {k: r[k] for k in ("spp", "steps", "triangles", "resolution") if r.get(k) is not None},
+                baseline=method == coarse,
+                paper=method == "layered satf",
+                extra={k: r.get(k) for k in ("rgb_rmse", "rgb_rmse_8x8", "alpha_bias", "maps_ms", "frame_ms", "cpu_ms")},
+            )
+        )
     return figs
 
 
@@ -155,7 +202,10 @@ def run(ctx: Context) -> list[Figure]:
     for scene, resolution, levels in RUNS["quick" if ctx.quick else "full"]:
         figs += _figures(render_study(example(scene), levels, resolution, ctx.progress), levels)
         shown.append(f"{Path(scene).stem} at {resolution} × {resolution}, levels {', '.join(map(str, levels))}")
-    ctx.note(PART, f"{'; '.join(shown)}; the finest reference level is the truth (its error is 0 by "
-                   "definition); a layered frame's time is its maps plus the raster (maps_ms and the raster alone are in "
-                   "results.json); the baseline is the coarsest reference level")
+    ctx.note(
+        PART,
+        f"{'; '.join(shown)}; the finest reference level is the truth (its error is 0 by "
+        "definition); a layered frame's time is its maps plus the raster (maps_ms and the raster alone are in "
+        "results.json); the baseline is the coarsest reference level",
+    )
     return figs

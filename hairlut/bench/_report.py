@@ -16,8 +16,12 @@ def portable(text: str) -> str:
     """``text`` without this machine's absolute paths, so that a report kept in the documentation names none: the
     folder hairlut is installed in (a clone's root, or site-packages) and the working folder are dropped (paths
     below them read relative), the temporary folder reads ``$TMPDIR`` and the home folder ``~``."""
-    roots = {str(Path(__file__).resolve().parents[2]): "", os.getcwd(): "", tempfile.gettempdir(): "$TMPDIR/",
-             str(Path.home()): "~/"}
+    roots = {
+        str(Path(__file__).resolve().parents[2]): "",
+        os.getcwd(): "",
+        tempfile.gettempdir(): "$TMPDIR/",
+        str(Path.home()): "~/",
+    }
     for root, short in sorted(roots.items(), key=lambda kv: -len(kv[0])):
         if root.strip(os.sep):
             text = text.replace(root.rstrip(os.sep) + os.sep, short)
@@ -51,8 +55,22 @@ def table_md(rows: list[Figure]) -> str:
     head = ["setting", "knobs", "time", "× baseline time", _cell(rows[0].error_name), "× baseline error", ""]
     out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for f in rows:
-        out.append("| " + " | ".join(_cell(c) for c in [f.label, _knobs(f.knobs), _seconds(f.seconds), _num(f.time_ratio, ".3g"),
-                                      _num(f.error, ".3g"), _num(f.error_ratio, ".3g"), _marks(f)]) + " |")
+        out.append(
+            "| "
+            + " | ".join(
+                _cell(c)
+                for c in [
+                    f.label,
+                    _knobs(f.knobs),
+                    _seconds(f.seconds),
+                    _num(f.time_ratio, ".3g"),
+                    _num(f.error, ".3g"),
+                    _num(f.error_ratio, ".3g"),
+                    _marks(f),
+                ]
+            )
+            + " |"
+        )
     return "\n".join(out)
 
 
@@ -65,21 +83,25 @@ def headline(figures: list[Figure]) -> list[dict]:
         ok = [f for f in timed if base.error is not None and f.error <= base.error]
         fast = min(ok, key=lambda f: f.seconds, default=None)
         best = min(timed, key=lambda f: (f.error, f.seconds), default=None)
-        out.append({"part": part, "table": name, "error_name": base.error_name, "baseline": base,
-                    "fastest": fast, "best": best})
+        out.append({"part": part, "table": name, "error_name": base.error_name, "baseline": base, "fastest": fast, "best": best})
     return out
 
 
 def headline_md(figures: list[Figure]) -> str:
-    rows = ["| part | table | baseline (time, error) | fastest at ≤ baseline error (× time) "
-            "| most accurate (error, × time) |",
-            "|---|---|---|---|---|"]
+    rows = [
+        "| part | table | baseline (time, error) | fastest at ≤ baseline error (× time) | most accurate (error, × time) |",
+        "|---|---|---|---|---|",
+    ]
     for h in headline(figures):
         b, fa, be = h["baseline"], h["fastest"], h["best"]
         shown = f", {h['error_name']} {_num(b.error, '.3g')}" if b.error is not None else ""
-        cells = [h["part"], h["table"], f"{b.label} ({_seconds(b.seconds)}{shown})",
-                 f"{fa.label} ({_num(fa.time_ratio, '.3g')}×)" if fa else "-",
-                 f"{be.label} ({_num(be.error, '.3g')}, {_num(be.time_ratio, '.3g')}×)" if be else "-"]
+        cells = [
+            h["part"],
+            h["table"],
+            f"{b.label} ({_seconds(b.seconds)}{shown})",
+            f"{fa.label} ({_num(fa.time_ratio, '.3g')}×)" if fa else "-",
+            f"{be.label} ({_num(be.error, '.3g')}, {_num(be.time_ratio, '.3g')}×)" if be else "-",
+        ]
         rows.append("| " + " | ".join(_cell(c) for c in cells) + " |")
     return "\n".join(rows)
 
@@ -89,18 +111,26 @@ def report_md(results: dict, figures: list[Figure], plots: dict[tuple[str, str],
     can be a page of the documentation as it is (``hairlut bench --out docs/bench``)."""
     m = results["machine"]
     gpu = any(d.get("platform") == "gpu" for d in m.get("devices", []))
-    lines = ["# hairlut bench", "",
-             f"{'Quick' if results['quick'] else 'Full'} run, {results['seconds']:.0f} s, on "
-             f"{'a GPU' if gpu else 'the CPU'}: {machine_line(m)}.", "",
-             "Every time is a warm best-of-N wall time on this machine; every ratio is against the baseline "
-             "measured in the same run (marked `baseline`), so load on a shared machine cancels to first order. "
-             "`paper` marks the papers' own settings; `Pareto` the settings no other one beats in both time "
-             "and error.", ""]
+    lines = [
+        "# hairlut bench",
+        "",
+        f"{'Quick' if results['quick'] else 'Full'} run, {results['seconds']:.0f} s, on "
+        f"{'a GPU' if gpu else 'the CPU'}: {machine_line(m)}.",
+        "",
+        "Every time is a warm best-of-N wall time on this machine; every ratio is against the baseline "
+        "measured in the same run (marked `baseline`), so load on a shared machine cancels to first order. "
+        "`paper` marks the papers' own settings; `Pareto` the settings no other one beats in both time "
+        "and error.",
+        "",
+    ]
     if results.get("partial"):
         pr = results["partial"]
-        lines += [f"**Partial run**: interrupted (Ctrl-C) while `{pr['interrupted']}` ran; not run: "
-                  f"{', '.join(f'`{n}`' for n in pr['not_run']) or 'none'}. The figures below are those of the parts "
-                  "that finished.", ""]
+        lines += [
+            f"**Partial run**: interrupted (Ctrl-C) while `{pr['interrupted']}` ran; not run: "
+            f"{', '.join(f'`{n}`' for n in pr['not_run']) or 'none'}. The figures below are those of the parts "
+            "that finished.",
+            "",
+        ]
     lines += ["## Headline", "", headline_md(figures), ""]
     grouped = tables(figures)
     for name, info in results["parts"].items():

@@ -51,7 +51,7 @@ def _run_part(part: Part, ctx: Context, say) -> tuple[dict, list[Figure]]:
         t0 = time.perf_counter()
         try:
             got = derive(part.run(ctx))
-        except Exception as exc:  # noqa: BLE001 - one failing part must not lose the others' figures
+        except Exception as exc:
             info.update(status="failed", reason=f"{type(exc).__name__}: {exc}", traceback=traceback.format_exc(limit=6))
             say(f"{part.name}: failed ({type(exc).__name__}: {exc})")
         info["seconds"] = time.perf_counter() - t0
@@ -60,8 +60,7 @@ def _run_part(part: Part, ctx: Context, say) -> tuple[dict, list[Figure]]:
     return info, got
 
 
-def run_bench(out, *, registry: dict[str, Part], only: str | list[str] | None = None, quick: bool = False,
-              progress=None) -> dict:
+def run_bench(out, *, registry: dict[str, Part], only: str | list[str] | None = None, quick: bool = False, progress=None) -> dict:
     """Run the selected parts of ``registry`` (all when ``only`` is None; :func:`select`) and write
     ``out``/results.json, ``out``/report.md and ``out``/plots/*.png.  ``out`` is checked writable before any part
     runs.  A part that cannot run here is recorded as skipped with its reason; one that fails is recorded with its
@@ -83,12 +82,16 @@ def run_bench(out, *, registry: dict[str, Part], only: str | list[str] | None = 
             try:
                 results["parts"][part.name], got = _run_part(part, ctx, say)
             except KeyboardInterrupt:
-                rest = [p.name for p in parts[i + 1:]]
+                rest = [p.name for p in parts[i + 1 :]]
                 results["partial"] = {"interrupted": part.name, "not_run": rest}
-                results["parts"][part.name] = {"title": part.title, "status": "interrupted", "seconds": time.perf_counter() - t0,
-                                               "reason": "Ctrl-C while it ran; its figures are not kept",
-                                               "notes": ctx.notes.get(part.name, [])}
-                for p in parts[i + 1:]:
+                results["parts"][part.name] = {
+                    "title": part.title,
+                    "status": "interrupted",
+                    "seconds": time.perf_counter() - t0,
+                    "reason": "Ctrl-C while it ran; its figures are not kept",
+                    "notes": ctx.notes.get(part.name, []),
+                }
+                for p in parts[i + 1 :]:
                     results["parts"][p.name] = {"title": p.title, "status": "not run", "reason": "the run was interrupted first"}
                 say(f"{part.name}: interrupted; not run: {', '.join(rest) or 'none'}")
                 break

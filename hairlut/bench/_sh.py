@@ -26,11 +26,17 @@ P = 49.0
 HIGHEST = jax.lax.Precision.HIGHEST
 PART = "sh"
 
-_FACE_AXES = np.array([  # (major, sc, tc) per cube face, as in hairlut.envlight
-    [[1, 0, 0], [0, 0, -1], [0, -1, 0]], [[-1, 0, 0], [0, 0, 1], [0, -1, 0]],
-    [[0, 1, 0], [1, 0, 0], [0, 0, 1]], [[0, -1, 0], [1, 0, 0], [0, 0, -1]],
-    [[0, 0, 1], [1, 0, 0], [0, -1, 0]], [[0, 0, -1], [-1, 0, 0], [0, -1, 0]],
-], np.float64)
+_FACE_AXES = np.array(
+    [  # (major, sc, tc) per cube face, as in hairlut.envlight
+        [[1, 0, 0], [0, 0, -1], [0, -1, 0]],
+        [[-1, 0, 0], [0, 0, 1], [0, -1, 0]],
+        [[0, 1, 0], [1, 0, 0], [0, 0, 1]],
+        [[0, -1, 0], [1, 0, 0], [0, 0, -1]],
+        [[0, 0, 1], [1, 0, 0], [0, -1, 0]],
+        [[0, 0, -1], [-1, 0, 0], [0, -1, 0]],
+    ],
+    np.float64,
+)
 
 
 @functools.partial(jax.jit, static_argnames=("n",))
@@ -55,8 +61,12 @@ def dense_radiance(t, tv, b, cd, cs, kd, ks, *, n: int):
     q0 = jnp.clip(jnp.floor(q).astype(jnp.int32), 0, steps - 1)
     fq = q - q0
     out = 0.0
-    for i, w in ((base + y0 * n + x0, (1 - fx) * (1 - fy)), (base + y0 * n + x1, fx * (1 - fy)),
-                 (base + y1 * n + x0, (1 - fx) * fy), (base + y1 * n + x1, fx * fy)):
+    for i, w in (
+        (base + y0 * n + x0, (1 - fx) * (1 - fy)),
+        (base + y0 * n + x1, fx * (1 - fy)),
+        (base + y1 * n + x0, (1 - fx) * fy),
+        (base + y1 * n + x1, fx * fy),
+    ):
         c_s = cs[i, q0] * (1 - fq)[:, None, None] + cs[i, q0 + 1] * fq[:, None, None]
         out = out + w[:, None] * jnp.einsum("nj,njc->nc", b, kd * cd[i] + ks * c_s, precision=HIGHEST)
     return out
@@ -76,8 +86,11 @@ def bake_figures(ctx: Context):
     theta_v = np.linspace(0, np.pi, 3 if ctx.quick else 9)
     ref_d = np.stack([reference_r(t, 0.0, P, 2, 2, specular=False) for t in t_dirs])
     ref_s = np.stack([[reference_r(t, tv, P, 7, 2) for tv in theta_v] for t in t_dirs])
-    ctx.note(PART, f"bake reference: reference_r at {len(t_dirs)} of the paper's 294 tangents × {len(theta_v)} θ′ "
-                   f"(max |Rd| {np.abs(ref_d).max():.3g}, max |Rs| {np.abs(ref_s).max():.3g}); error = max |ΔR| over Rd and Rs")
+    ctx.note(
+        PART,
+        f"bake reference: reference_r at {len(t_dirs)} of the paper's 294 tangents × {len(theta_v)} θ′ "
+        f"(max |Rd| {np.abs(ref_d).max():.3g}, max |Rs| {np.abs(ref_s).max():.3g}); error = max |ΔR| over Rd and Rs",
+    )
 
     def err(rd, rs):
         return max(_max_err(rd, ref_d), _max_err(rs, ref_s))
@@ -86,8 +99,19 @@ def bake_figures(ctx: Context):
     for n in (7, 16) if ctx.quick else (7, 16, 32, 64):
         paper_tables(n, t_dirs, theta_v, P, 2, 7, 2)  # compile
         sec, (rd, rs) = timed(lambda: paper_tables(n, t_dirs, theta_v, P, 2, 7, 2), repeat=3)
-        figs.append(Figure(PART, "bake: Rd, Rs against the split quadrature", f"paper quadrature ω {n}²×6", sec, err(rd, rs),
-                           "max |ΔR|", {"omega_n": n}, baseline=n == 7, paper=n == 7))
+        figs.append(
+            Figure(
+                PART,
+                "bake: Rd, Rs against the split quadrature",
+                f"paper quadrature ω {n}²×6",
+                sec,
+                err(rd, rs),
+                "max |ΔR|",
+                {"omega_n": n},
+                baseline=n == 7,
+                paper=n == 7,
+            )
+        )
     recipe = resolve_recipe({"kernel": {"p": P}, "bands": {"light_specular": 8}})
 
     def exact():
@@ -99,11 +123,30 @@ def bake_figures(ctx: Context):
     exact()
     first = time.perf_counter() - first
     sec, (tables, rd, rs) = timed(exact, repeat=1 if ctx.quick else 3)
-    figs.append(Figure(PART, "bake: Rd, Rs against the split quadrature", "hairlut Legendre–Gaunt (exact)", sec, err(rd, rs),
-                       "max |ΔR|", {"precision": "float64"}, extra={"first_call_s": first}))
+    figs.append(
+        Figure(
+            PART,
+            "bake: Rd, Rs against the split quadrature",
+            "hairlut Legendre–Gaunt (exact)",
+            sec,
+            err(rd, rs),
+            "max |ΔR|",
+            {"precision": "float64"},
+            extra={"first_call_s": first},
+        )
+    )
     for dtype in ("float32", "float16"):
-        figs.append(Figure(PART, "bake: Rd, Rs against the split quadrature", f"exact, stored as {dtype}", None,
-                           err(rd.astype(dtype), rs.astype(dtype)), "max |ΔR|", {"storage": dtype}))
+        figs.append(
+            Figure(
+                PART,
+                "bake: Rd, Rs against the split quadrature",
+                f"exact, stored as {dtype}",
+                None,
+                err(rd.astype(dtype), rs.astype(dtype)),
+                "max |ΔR|",
+                {"storage": dtype},
+            )
+        )
     return figs, tables
 
 
@@ -115,7 +158,7 @@ def radiance_inputs(n_vert: int, seed: int = 0):
     t = rng.normal(size=(n_vert, 3))
     t /= np.linalg.norm(t, axis=1, keepdims=True)
     tv = rng.uniform(0, np.pi, n_vert)
-    b = rng.normal(size=(n_vert, 9)) * np.array([1, .3, .3, .3, .1, .1, .1, .1, .1])
+    b = rng.normal(size=(n_vert, 9)) * np.array([1, 0.3, 0.3, 0.3, 0.1, 0.1, 0.1, 0.1, 0.1])
     a = rng.normal(size=(64, 3)) * 0.5
     a[0] += 3.0
     return t, tv, b, a
@@ -136,8 +179,9 @@ def radiance_figures(ctx: Context, tables) -> list[Figure]:
     figs.append(Figure(PART, table, "exact form in float64 (the truth)", sec, None, "max rel |ΔI|", {"precision": "float64"}))
     c.radiance(b, t, tv, 0.6, 0.4, dtype="float32")
     sec, fast = timed(lambda: jax.block_until_ready(c.radiance(b, t, tv, 0.6, 0.4, dtype="float32")), repeat=3)
-    figs.append(Figure(PART, table, "exact form in float32", sec, _max_err(fast, exact) / scale, "max rel |ΔI|",
-                       {"precision": "float32"}))
+    figs.append(
+        Figure(PART, table, "exact form in float32", sec, _max_err(fast, exact) / scale, "max rel |ΔI|", {"precision": "float32"})
+    )
     for n, steps in [(7, 9), (16, 17)] if ctx.quick else [(7, 9), (16, 9), (16, 17), (32, 33), (64, 65)]:
         dirs, _ = cube_dirs(n)
         thetas = np.linspace(0.0, np.pi, steps)
@@ -147,11 +191,25 @@ def radiance_figures(ctx: Context, tables) -> list[Figure]:
         dense_radiance(*args, 0.6, 0.4, n=n)
         sec, got = timed(lambda: jax.block_until_ready(dense_radiance(*args, 0.6, 0.4, n=n)), repeat=3)
         paper = (n, steps) == (7, 9)
-        figs.append(Figure(PART, table, f"dense {n}²×6, {steps} θ′, interpolated", sec, _max_err(got, exact) / scale,
-                           "max rel |ΔI|", {"t_resolution": n, "theta_v_steps": steps}, baseline=paper, paper=paper))
-    ctx.note(PART, f"radiance: {n_vert:,} random (t, θ′), RGB, p = {P:g}, from one light's contracted tables; "
-                   f"error relative to max |I| = {scale:.3g}; dense tables in float64; a light update (new light "
-                   f"coefficients to contracted tables ready) takes {1e3 * update:.2f} ms")
+        figs.append(
+            Figure(
+                PART,
+                table,
+                f"dense {n}²×6, {steps} θ′, interpolated",
+                sec,
+                _max_err(got, exact) / scale,
+                "max rel |ΔI|",
+                {"t_resolution": n, "theta_v_steps": steps},
+                baseline=paper,
+                paper=paper,
+            )
+        )
+    ctx.note(
+        PART,
+        f"radiance: {n_vert:,} random (t, θ′), RGB, p = {P:g}, from one light's contracted tables; "
+        f"error relative to max |I| = {scale:.3g}; dense tables in float64; a light update (new light "
+        f"coefficients to contracted tables ready) takes {1e3 * update:.2f} ms",
+    )
     return figs
 
 

@@ -30,9 +30,15 @@ def _rms(d) -> float:
 def _header(strands, light, kappa) -> dict:
     import jax
 
-    return {"jax": jax.__version__, "device": str(jax.devices()[0]), "groom": GROOM.name,
-            "strands": strands.n_strands, "vertices": strands.n_points, "light": np.asarray(light).tolist(),
-            "kappa": kappa}
+    return {
+        "jax": jax.__version__,
+        "device": str(jax.devices()[0]),
+        "groom": GROOM.name,
+        "strands": strands.n_strands,
+        "vertices": strands.n_points,
+        "light": np.asarray(light).tolist(),
+        "kappa": kappa,
+    }
 
 
 def light_oriented_study(resolutions=(32, 64, 128), reference: int = 256, kappa: float = 0.05) -> dict:
@@ -50,8 +56,13 @@ def light_oriented_study(resolutions=(32, 64, 128), reference: int = 256, kappa:
     out["length"] = float(strands.lengths().sum())
     t0 = time.perf_counter()
     ref = ray_march(pts, LIGHT, kappa, strands, reference, step=0.25)
-    out["reference"] = {"resolution": reference, "step_cells": 0.25, "time_s": time.perf_counter() - t0,
-                        "min_T": float(ref.min()), "mean_T": float(ref.mean())}
+    out["reference"] = {
+        "resolution": reference,
+        "step_cells": 0.25,
+        "time_s": time.perf_counter() - t0,
+        "min_T": float(ref.min()),
+        "mean_T": float(ref.mean()),
+    }
 
     def ours(res):
         return light_oriented_map(strands, LIGHT, resolution=res, kappa=kappa)
@@ -66,12 +77,25 @@ def light_oriented_study(resolutions=(32, 64, 128), reference: int = 256, kappa:
         t_np, B = timed(lambda: ray_march(pts, LIGHT, kappa, strands, res), repeat=2)
         d32 = float(np.abs(stored(m, np.float32).at(pts) - T).max())
         d16 = float(np.abs(stored(m, np.float16).at(pts) - T).max())
-        rows.append({"resolution": res, "grid": "×".join(map(str, m.shape)), "hairlut_s": t_all, "hairlut_map_s": t_map,
-                     "hairlut_first_s": t_first, "numpy_s": t_np, "speedup": t_np / t_all,
-                     "max": float(np.abs(T - ref).max()), "rms": _rms(T - ref),
-                     "numpy_max": float(np.abs(B - ref).max()), "numpy_rms": _rms(B - ref),
-                     "vs_numpy_max": float(np.abs(T - B).max()), "vs_numpy_rms": _rms(T - B),
-                     "float32_max": d32, "float16_max": d16})
+        rows.append(
+            {
+                "resolution": res,
+                "grid": "×".join(map(str, m.shape)),
+                "hairlut_s": t_all,
+                "hairlut_map_s": t_map,
+                "hairlut_first_s": t_first,
+                "numpy_s": t_np,
+                "speedup": t_np / t_all,
+                "max": float(np.abs(T - ref).max()),
+                "rms": _rms(T - ref),
+                "numpy_max": float(np.abs(B - ref).max()),
+                "numpy_rms": _rms(B - ref),
+                "vs_numpy_max": float(np.abs(T - B).max()),
+                "vs_numpy_rms": _rms(T - B),
+                "float32_max": d32,
+                "float16_max": d16,
+            }
+        )
     out["results"] = rows
     return out
 
@@ -121,9 +145,9 @@ def numpy_opacity_maps(strands, layout, kappa: float) -> np.ndarray:
 
     for i in range(n_slices):  # loop 3
         prev, cur = cur, cur.copy()
-        sel = order[cuts[i]:cuts[i + 1]]
+        sel = order[cuts[i] : cuts[i + 1]]
         np.add.at(cur, (iy[sel], ix[sel]), w[sel])
-        p = porder[pcuts[i]:pcuts[i + 1]]  # loop 4
+        p = porder[pcuts[i] : pcuts[i + 1]]  # loop 4
         t = np.clip(sp[p] - i, 0.0, 1.0)
         tau[p] = np.exp(-kappa * ((1 - t) * sample(prev, gx[p], gy[p]) + t * sample(cur, gx[p], gy[p])))
     return tau
@@ -158,14 +182,31 @@ def opacity_maps_study(kappa: float = 0.05, quick: bool = False) -> dict:
         t_np, tau_n = timed(lambda: numpy_opacity_maps(strands, m, kappa), repeat=repeat)
         dj, dn, dx = tau_j - ref, tau_n - ref, tau_j - tau_n
         dd = tau_j - maps(ref_setting[0], res).at(verts)
-        rows.append({"setting": f"{n_slices} × {res}", "maps": "×".join(map(str, m.shape)), "t_jax": t_jax * 1e3,
-                     "t_first": t_first * 1e3, "t_np": t_np * 1e3, "speedup": t_np / t_jax,
-                     "max_jax": float(np.abs(dj).max()), "rms_jax": _rms(dj),
-                     "max_np": float(np.abs(dn).max()), "rms_np": _rms(dn),
-                     "max_depth": float(np.abs(dd).max()), "rms_depth": _rms(dd),
-                     "max_cross": float(np.abs(dx).max()), "mean_tau": float(tau_j.mean())})
-    return {**_header(strands, OSM_LIGHT, kappa), "reference": {"n_slices": ref_setting[0], "resolution": ref_setting[1]},
-            "quick": quick, "repeat": repeat, "rows": rows}
+        rows.append(
+            {
+                "setting": f"{n_slices} × {res}",
+                "maps": "×".join(map(str, m.shape)),
+                "t_jax": t_jax * 1e3,
+                "t_first": t_first * 1e3,
+                "t_np": t_np * 1e3,
+                "speedup": t_np / t_jax,
+                "max_jax": float(np.abs(dj).max()),
+                "rms_jax": _rms(dj),
+                "max_np": float(np.abs(dn).max()),
+                "rms_np": _rms(dn),
+                "max_depth": float(np.abs(dd).max()),
+                "rms_depth": _rms(dd),
+                "max_cross": float(np.abs(dx).max()),
+                "mean_tau": float(tau_j.mean()),
+            }
+        )
+    return {
+        **_header(strands, OSM_LIGHT, kappa),
+        "reference": {"n_slices": ref_setting[0], "resolution": ref_setting[1]},
+        "quick": quick,
+        "repeat": repeat,
+        "rows": rows,
+    }
 
 
 def footprint_study(divisors=(64, 128, 256, 512, 1024), every: int = 2) -> dict:
@@ -182,10 +223,15 @@ def footprint_study(divisors=(64, 128, 256, 512, 1024), every: int = 2) -> dict:
     pts = np.asarray(strands.points, np.float64)[::every]
     owner = np.repeat(np.arange(strands.n_strands), np.asarray(strands.counts))[::every]
     span = float(np.ptp(np.asarray(strands.points, np.float64) @ light_frame(LIGHT).T, axis=0).max())
-    maps = {f"light-oriented map, {n} cells": light_oriented_map(strands, LIGHT, resolution=n, kappa=KAPPA)
-            for n in LOM_CELLS}
-    maps.update({f"opacity maps, {s} slices × {n}": opacity_shadow_maps(strands, LIGHT, n_slices=s, resolution=n,
-                                                                         kappa=KAPPA, width=1.0) for s, n in OSM_SETTINGS})
+    maps = {f"light-oriented map, {n} cells": light_oriented_map(strands, LIGHT, resolution=n, kappa=KAPPA) for n in LOM_CELLS}
+    maps.update(
+        {
+            f"opacity maps, {s} slices × {n}": opacity_shadow_maps(
+                strands, LIGHT, n_slices=s, resolution=n, kappa=KAPPA, width=1.0
+            )
+            for s, n in OSM_SETTINGS
+        }
+    )
     got = {k: m.at(pts) for k, m in maps.items()}
     rows = {k: {"cell": float(m.spacing), "rms": [], "bias": []} for k, m in maps.items()}
     own, others = [], []
@@ -197,5 +243,12 @@ def footprint_study(divisors=(64, 128, 256, 512, 1024), every: int = 2) -> dict:
         for k, t in got.items():
             rows[k]["rms"].append(_rms(t - ref))
             rows[k]["bias"].append(float(np.mean(t - ref)))
-    return {**_header(strands, LIGHT, KAPPA), "points": len(pts), "extent": span, "divisors": list(divisors),
-            "tau_own": own, "tau_others": others, "maps": rows}
+    return {
+        **_header(strands, LIGHT, KAPPA),
+        "points": len(pts),
+        "extent": span,
+        "divisors": list(divisors),
+        "tau_own": own,
+        "tau_others": others,
+        "maps": rows,
+    }

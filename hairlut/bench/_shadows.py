@@ -89,8 +89,7 @@ def stored(m, dtype):
     """The light-oriented map ``m`` with its transmittance grid stored as ``dtype`` (and read back in float64)."""
     from hairlut.shadows import LightOrientedMap
 
-    return LightOrientedMap(m.frame, m.origin, m.spacing, m.density,
-                            m.transmittance.astype(dtype).astype(np.float64), m.kappa)
+    return LightOrientedMap(m.frame, m.origin, m.spacing, m.density, m.transmittance.astype(dtype).astype(np.float64), m.kappa)
 
 
 def _voxel_sh(strands, pts, res, lmax, stride):
@@ -151,30 +150,56 @@ def run(ctx: Context) -> list[Figure]:
         m = light_oriented_map(strands, LIGHT, resolution=res, kappa=KAPPA)
         add(f"light-oriented map, {res} cells", sec, t, {"cells": res}, m.spacing, paper=res == 128)
         if res == 128:
-            figs.append(Figure(PART, TABLE, "light-oriented map, 128 cells, stored as float16", None,
-                               _err(stored(m, np.float16).at(pts), ref), name, {"cells": res, "storage": "float16"}))
+            figs.append(
+                Figure(
+                    PART,
+                    TABLE,
+                    "light-oriented map, 128 cells, stored as float16",
+                    None,
+                    _err(stored(m, np.float16).at(pts), ref),
+                    name,
+                    {"cells": res, "storage": "float16"},
+                )
+            )
     for slices, res in OSM_SETTINGS[:2] if ctx.quick else OSM_SETTINGS:
         opacity_shadow_maps(strands, LIGHT, n_slices=slices, resolution=res, kappa=KAPPA, width=1.0).at(pts)
-        sec, t = timed(lambda: opacity_shadow_maps(strands, LIGHT, n_slices=slices, resolution=res, kappa=KAPPA,
-                                                   width=1.0).at(pts), repeat=3)
+        sec, t = timed(
+            lambda: opacity_shadow_maps(strands, LIGHT, n_slices=slices, resolution=res, kappa=KAPPA, width=1.0).at(pts), repeat=3
+        )
         m = opacity_shadow_maps(strands, LIGHT, n_slices=slices, resolution=res, kappa=KAPPA, width=1.0)
         add(f"opacity maps, {slices} slices × {res}", sec, t, {"slices": slices, "texels": res}, m.spacing)
     voxel = [(16, 2, 2)] if ctx.quick else [(16, 2, 2), (32, 2, 2), (32, 4, 2), (32, 2, 4), (64, 2, 4)]
     for res, lmax, stride in voxel:
         _voxel_sh(strands, pts, res, lmax, stride)
         sec, t = timed(lambda: _voxel_sh(strands, pts, res, lmax, stride), repeat=1 if ctx.quick else 2)
-        add(f"voxel SH, {res} cells, lmax {lmax}, stride {stride}", sec, t, {"cells": res, "lmax": lmax, "stride": stride},
-            voxelize(strands, res).size, paper=lmax == 2, extra={"min_T": float(t.min()), "max_T": float(t.max())})
-    ctx.note(PART, f"{GROOM.name}: {len(pts)} vertices, light {np.round(LIGHT, 3).tolist()}, κ = {KAPPA}; reference: "
-                   f"strand-level Ω with footprint σ = {sigma:.3g} (1/{FOOTPRINT} of the hair's extent across the light: "
-                   f"the footprint, ds/2, of the paper's 128-cell light-oriented map), {ref_s:.1f} s; reference T: "
-                   f"mean {ref.mean():.3f}, min {ref.min():.3f}")
-    ctx.note(PART, "the footprint is a choice, with no beam-free limit: mean τ = −ln T of the reference from the "
-                   "points' own strands and from the others, σ = extent × " + _beam_split(
-                       strands, pts, owner, span, (128, 256) if ctx.quick else (128, 256, 512)) +
-                   " (a strand's own part doubles as σ halves); a grid of cell ds has footprint ds/2 (box deposit ⊗ "
-                   "trilinear lookup), so finer grids resolve more of it and come out darker than a wider beam")
-    ctx.note(PART, "second table: each setting against the reference at its own footprint (σ = half its cell, world "
-                   "voxels for the ray march and voxel SH): the method's error apart from the choice of footprint")
+        add(
+            f"voxel SH, {res} cells, lmax {lmax}, stride {stride}",
+            sec,
+            t,
+            {"cells": res, "lmax": lmax, "stride": stride},
+            voxelize(strands, res).size,
+            paper=lmax == 2,
+            extra={"min_T": float(t.min()), "max_T": float(t.max())},
+        )
+    ctx.note(
+        PART,
+        f"{GROOM.name}: {len(pts)} vertices, light {np.round(LIGHT, 3).tolist()}, κ = {KAPPA}; reference: "
+        f"strand-level Ω with footprint σ = {sigma:.3g} (1/{FOOTPRINT} of the hair's extent across the light: "
+        f"the footprint, ds/2, of the paper's 128-cell light-oriented map), {ref_s:.1f} s; reference T: "
+        f"mean {ref.mean():.3f}, min {ref.min():.3f}",
+    )
+    ctx.note(
+        PART,
+        "the footprint is a choice, with no beam-free limit: mean τ = −ln T of the reference from the "
+        "points' own strands and from the others, σ = extent × "
+        + _beam_split(strands, pts, owner, span, (128, 256) if ctx.quick else (128, 256, 512))
+        + " (a strand's own part doubles as σ halves); a grid of cell ds has footprint ds/2 (box deposit ⊗ "
+        "trilinear lookup), so finer grids resolve more of it and come out darker than a wider beam",
+    )
+    ctx.note(
+        PART,
+        "second table: each setting against the reference at its own footprint (σ = half its cell, world "
+        "voxels for the ray march and voxel SH): the method's error apart from the choice of footprint",
+    )
     ctx.note(PART, "the s-map (satf eq 12) works on a view's α-maps, not on strand positions: see the maps part")
     return figs

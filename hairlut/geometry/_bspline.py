@@ -76,8 +76,7 @@ class BSpline:
     degree: int
 
     @classmethod
-    def make(cls, control, knots=None, degree: int | None = None, *, field: str = "spline",
-             dim: int | None = None) -> BSpline:
+    def make(cls, control, knots=None, degree: int | None = None, *, field: str = "spline", dim: int | None = None) -> BSpline:
         """The checked constructor (see the class docstring): finite control points, a clamped uniform knot vector
         on [0, 1] when ``knots`` is None."""
         ctrl = _finite_array(field, control, dim)
@@ -126,12 +125,13 @@ def _check_knots(field: str, knots, n: int, degree: int) -> np.ndarray:
     lo, hi = kv[degree], kv[n]
     if not hi > lo:
         raise ValidationError(field, kv.tolist(), f"empty domain: knot[{degree}] must be < knot[{n}]")
-    inner = kv[degree + 1:n]
+    inner = kv[degree + 1 : n]
     if inner.size:
         _, mult = np.unique(inner, return_counts=True)
         if degree > 0 and mult.max() > degree:
-            raise ValidationError(field, kv.tolist(), f"an interior knot repeats more than degree = {degree} times "
-                                                      "(the curve would break)")
+            raise ValidationError(
+                field, kv.tolist(), f"an interior knot repeats more than degree = {degree} times (the curve would break)"
+            )
     return (kv - lo) / (hi - lo)
 
 
@@ -158,8 +158,8 @@ def basis(x, knots, degree: int, n: int, deriv: int = 0, xp=jnp):
     top = degree - deriv
     for p in range(1, degree + 1):
         m = k - 1 - p
-        ui, uip, ui1, uip1 = knots[:m], knots[p:p + m], knots[1:m + 1], knots[p + 1:p + 1 + m]
-        left, right = nb[:, :m], nb[:, 1:m + 1]
+        ui, uip, ui1, uip1 = knots[:m], knots[p : p + m], knots[1 : m + 1], knots[p + 1 : p + 1 + m]
+        left, right = nb[:, :m], nb[:, 1 : m + 1]
         if p <= top:
             nb = _safe_div(xx - ui, uip - ui, xp) * left + _safe_div(uip1 - xx, uip1 - ui1, xp) * right
         else:
@@ -211,11 +211,15 @@ def piecewise(spline: BSpline, n_span: int | None = None) -> dict[str, np.ndarra
     a, b = kv[nonempty], kv[nonempty + 1]
     xs = (a[:, None] + (b - a)[:, None] * y[None, :]).ravel()
     vals = spline(np.clip(xs, 0.0, 1.0)).reshape(nonempty.size, p + 1, spline.dim)
-    coeffs[nonempty, :p + 1] = np.linalg.solve(vander[None], vals)
+    coeffs[nonempty, : p + 1] = np.linalg.solve(vander[None], vals)
     inv_width[nonempty] = 1.0 / (b - a)
     breaks = np.concatenate([kv, np.full(n_span + 1 - kv.size, 2.0)])
-    return {"breaks": breaks, "coeffs": coeffs, "inv_width": inv_width,
-            "spans": np.array([nonempty[0], nonempty[-1]], dtype=np.int32)}
+    return {
+        "breaks": breaks,
+        "coeffs": coeffs,
+        "inv_width": inv_width,
+        "spans": np.array([nonempty[0], nonempty[-1]], dtype=np.int32),
+    }
 
 
 def eval_piecewise(x, breaks, coeffs, inv_width, spans, deriv=0):
@@ -232,12 +236,12 @@ def eval_piecewise(x, breaks, coeffs, inv_width, spans, deriv=0):
     table = jnp.concatenate([coeffs.reshape(n_span, q * d), breaks[:-1, None], inv_width[:, None]], axis=1)
     # HIGHEST: a TF32 product would round the table's coefficients to 10 bits
     row = jnp.matmul((k[:, None] == jnp.arange(n_span)[None, :]).astype(x.dtype), table, precision=jax.lax.Precision.HIGHEST)
-    c = row[:, :q * d].reshape(-1, q, d)
+    c = row[:, : q * d].reshape(-1, q, d)
     y = (x - row[:, q * d]) * row[:, q * d + 1]
-    iw = row[:, q * d + 1:q * d + 2]
+    iw = row[:, q * d + 1 : q * d + 2]
     p = coeffs.shape[1] - 1
     outs = []
-    for order in ((deriv,) if isinstance(deriv, int) else tuple(deriv)):
+    for order in (deriv,) if isinstance(deriv, int) else tuple(deriv):
         acc = jnp.zeros(c.shape[:1] + c.shape[2:], x.dtype)
         for j in range(p, order - 1, -1):
             fall = float(np.prod(np.arange(j - order + 1, j + 1))) if order else 1.0

@@ -43,8 +43,9 @@ def spline(tab, name: str, x, deriv=0):
     """Values (or derivatives) of spline ``name`` at x (any shape): x.shape + (d,); a tuple
     of orders gives a tuple."""
     shape = jnp.shape(x)
-    out = eval_piecewise(jnp.reshape(x, -1), tab[f"{name}_breaks"], tab[f"{name}_coeffs"],
-                         tab[f"{name}_inv_width"], tab[f"{name}_spans"], deriv)
+    out = eval_piecewise(
+        jnp.reshape(x, -1), tab[f"{name}_breaks"], tab[f"{name}_coeffs"], tab[f"{name}_inv_width"], tab[f"{name}_spans"], deriv
+    )
     if isinstance(deriv, int):
         return out.reshape(shape + out.shape[-1:])
     return tuple(o.reshape(shape + o.shape[-1:]) for o in out)
@@ -151,8 +152,12 @@ def build_frames(tab, n_frames: int):
     """``frame_x``, ``frame_tangent``, ``frame_ref`` and ``min_speed`` of one cluster (needs ``arc``, ``arc_inv``)."""
     fx, ft, fr = frame_table(tab, n_frames)
     n_arc = tab["arc"].shape[0] - 1
-    return {"frame_x": fx, "frame_tangent": ft, "frame_ref": fr,
-            "min_speed": jnp.min(_speed(tab, jnp.linspace(0.0, 1.0, 4 * n_arc + 1)))}
+    return {
+        "frame_x": fx,
+        "frame_tangent": ft,
+        "frame_ref": fr,
+        "min_speed": jnp.min(_speed(tab, jnp.linspace(0.0, 1.0, 4 * n_arc + 1))),
+    }
 
 
 def section(tab, t):

@@ -56,8 +56,15 @@ def _header(path, data: bytes) -> dict:
         raise CorruptAssetError(path, f"header flags 0x{flags:x} set unknown bits 0x{flags & ~_KNOWN_FLAGS:x}")
     if not flags & POINTS:
         raise CorruptAssetError(path, f"header flags 0x{flags:x} lack the points array (bit 2), which the format requires")
-    return {"strands": n_strands, "points": n_points, "flags": flags, "segments": d_segments,
-            "thickness": d_thick, "transparency": d_transp, "color": (r, g, b)}
+    return {
+        "strands": n_strands,
+        "points": n_points,
+        "flags": flags,
+        "segments": d_segments,
+        "thickness": d_thick,
+        "transparency": d_transp,
+        "color": (r, g, b),
+    }
 
 
 def read_hair(path: str | os.PathLike) -> Strands:
@@ -69,8 +76,11 @@ def read_hair(path: str | os.PathLike) -> Strands:
     need = HEADER.size + sum(size * n for _, size, n, _ in present)
     if need > len(data):
         parts = ", ".join(f"{name} ({size * n} bytes)" for name, size, n, _ in present)
-        raise TruncatedAssetError(path, f"header says {plural(head['strands'], 'strand')} and {plural(head['points'], 'point')}: "
-                                        f"{HEADER.size}-byte header + {parts} = {need} bytes, file has {len(data)} bytes")
+        raise TruncatedAssetError(
+            path,
+            f"header says {plural(head['strands'], 'strand')} and {plural(head['points'], 'point')}: "
+            f"{HEADER.size}-byte header + {parts} = {need} bytes, file has {len(data)} bytes",
+        )
     if need < len(data):
         log.warning("%s: ignoring %d bytes after the last array", os.fspath(path), len(data) - need)
     arrays, offset = {}, HEADER.size
@@ -87,8 +97,11 @@ def read_hair(path: str | os.PathLike) -> Strands:
     else:
         per = head["segments"] + 1
         if n_strands * per != n_points:
-            raise CorruptAssetError(path, f"header says {plural(n_strands, 'strand')} × {head['segments']} default segments "
-                                          f"= {n_strands * per} points, but {n_points} points")
+            raise CorruptAssetError(
+                path,
+                f"header says {plural(n_strands, 'strand')} × {head['segments']} default segments "
+                f"= {n_strands * per} points, but {n_points} points",
+            )
         counts = np.full(n_strands, per, dtype=np.int64)
     fields = {"points": arrays["points"].astype(np.float32), "counts": counts}
     for name in ("thickness", "transparency", "color"):
@@ -131,8 +144,17 @@ def hair_bytes(strands: Strands, note: str = "") -> bytes:
             flags |= flag
             parts.append(arr.tobytes())
     text = (note or f"hairlut {__version__}").encode("utf-8")[:88]
-    header = HEADER.pack(MAGIC, strands.n_strands, strands.n_points, flags, d_segments,
-                         defaults["thickness"], defaults["transparency"], *defaults["color"], text)
+    header = HEADER.pack(
+        MAGIC,
+        strands.n_strands,
+        strands.n_points,
+        flags,
+        d_segments,
+        defaults["thickness"],
+        defaults["transparency"],
+        *defaults["color"],
+        text,
+    )
     return header + b"".join(parts)
 
 

@@ -42,8 +42,11 @@ def _header(path, data: bytes) -> dict:
     if len(data) >= 4:
         (version,) = struct.unpack_from("<f", data)
         if not (np.isfinite(version) and 0.0 < version < 100.0):
-            raise FormatError(path, f"not a TressFX file: first 4 bytes {data[:4]!r} are not a plausible "
-                                    f"version number (read {version:g} as float32)")
+            raise FormatError(
+                path,
+                f"not a TressFX file: first 4 bytes {data[:4]!r} are not a plausible "
+                f"version number (read {version:g} as float32)",
+            )
     if len(data) < HEADER.size:
         raise TruncatedAssetError(path, f"a .tfx header is {HEADER.size} bytes, file has {len(data)} bytes")
     head = dict(zip(_FIELDS, HEADER.unpack_from(data)[: len(_FIELDS)]))
@@ -52,16 +55,18 @@ def _header(path, data: bytes) -> dict:
     for key in ("positions", "strand_uv"):
         if key == "positions" or head[key]:
             if head[key] < HEADER.size:
-                raise CorruptAssetError(path, f"header puts the {key.replace('_', ' ')} at offset {head[key]}, "
-                                              f"inside the {HEADER.size}-byte header")
+                raise CorruptAssetError(
+                    path, f"header puts the {key.replace('_', ' ')} at offset {head[key]}, inside the {HEADER.size}-byte header"
+                )
     return head
 
 
 def _check_extent(path, data: bytes, offset: int, nbytes: int, what: str) -> None:
     end = offset + nbytes
     if end > len(data):
-        raise TruncatedAssetError(path, f"header says {what} at offset {offset} = {nbytes} bytes "
-                                        f"(ending at byte {end}), file has {len(data)} bytes")
+        raise TruncatedAssetError(
+            path, f"header says {what} at offset {offset} = {nbytes} bytes (ending at byte {end}), file has {len(data)} bytes"
+        )
 
 
 def read_tfx(path: str | os.PathLike) -> Strands:
@@ -84,8 +89,13 @@ def read_tfx(path: str | os.PathLike) -> Strands:
     if not np.isfinite(w).all():
         bad = int(np.flatnonzero(~np.isfinite(w))[0])
         raise CorruptAssetError(path, f"vertex {bad % n_vert} of strand {bad // n_vert} has a non-finite w component")
-    return build(path, points=raw[:, :3].astype(np.float32), counts=np.full(n_strands, n_vert, dtype=np.int64),
-                 uv=None if uv is None else uv.astype(np.float32), movable=w != 0)
+    return build(
+        path,
+        points=raw[:, :3].astype(np.float32),
+        counts=np.full(n_strands, n_vert, dtype=np.int64),
+        uv=None if uv is None else uv.astype(np.float32),
+        movable=w != 0,
+    )
 
 
 def tfx_bytes(strands: Strands) -> bytes:
@@ -95,8 +105,11 @@ def tfx_bytes(strands: Strands) -> bytes:
         raise ValidationError("strands", strands, "a .tfx file needs at least one strand")
     n_vert = int(counts[0])
     if (counts != n_vert).any():
-        raise ValidationError("counts", f"{counts.min()}..{counts.max()} points per strand",
-                              ".tfx needs the same number of vertices in every strand; resample first")
+        raise ValidationError(
+            "counts",
+            f"{counts.min()}..{counts.max()} points per strand",
+            ".tfx needs the same number of vertices in every strand; resample first",
+        )
     if n_vert not in (4, 8, 16, 32, 64):
         raise ValidationError("counts", n_vert, ".tfx needs a power of two from 4 to 64 vertices per strand")
     movable = strands.movable

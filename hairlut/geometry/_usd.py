@@ -34,8 +34,9 @@ def _pxr(path):
     try:
         from pxr import Gf, Sdf, Tf, Usd, UsdGeom, Vt
     except ImportError as exc:
-        raise MissingDependencyError(path, f"USD files need the optional package usd-core (pip install usd-core); "
-                               f"importing pxr failed: {exc}") from None
+        raise MissingDependencyError(
+            path, f"USD files need the optional package usd-core (pip install usd-core); importing pxr failed: {exc}"
+        ) from None
     return Gf, Sdf, Tf, Usd, UsdGeom, Vt
 
 
@@ -56,8 +57,10 @@ def _spread(values: np.ndarray, interpolation: str, counts: np.ndarray, n_points
         return np.repeat(values, counts, axis=0)
     if interpolation in ("vertex", "varying") and len(values) == n_points:
         return values
-    raise CorruptAssetError(path, f"{what}: {len(values)} values with interpolation {interpolation!r} "
-                            f"do not fit {len(counts)} curves of {n_points} points")
+    raise CorruptAssetError(
+        path,
+        f"{what}: {len(values)} values with interpolation {interpolation!r} do not fit {len(counts)} curves of {n_points} points",
+    )
 
 
 def _curves_fields(prim, path, usd) -> dict:
@@ -82,10 +85,16 @@ def _curves_fields(prim, path, usd) -> dict:
     fields = {"points": points, "counts": counts}
     widths = curves.GetWidthsAttr().Get(time)
     if widths is not None and (len(widths) or not len(points)):  # an empty widths array on curves means none
-        fields["thickness"] = _spread(np.asarray(widths, dtype=np.float32), curves.GetWidthsInterpolation(),
-                                      counts, len(points), f"{where} widths", path)
+        fields["thickness"] = _spread(
+            np.asarray(widths, dtype=np.float32), curves.GetWidthsInterpolation(), counts, len(points), f"{where} widths", path
+        )
     primvars = UsdGeom.PrimvarsAPI(prim)
-    for name, key in (("displayColor", "color"), ("displayOpacity", "transparency"), ("hairlut:movable", "movable"), ("st", "uv")):
+    for name, key in (
+        ("displayColor", "color"),
+        ("displayOpacity", "transparency"),
+        ("hairlut:movable", "movable"),
+        ("st", "uv"),
+    ):
         pv = primvars.GetPrimvar(name)
         if not (pv and pv.HasValue()):
             continue
@@ -113,8 +122,7 @@ def read_usd(path: str | os.PathLike) -> Strands:
     if not prims:
         raise FormatError(path, "the stage holds no UsdGeom.BasisCurves prim")
     parts = [_curves_fields(p, path, usd) for p in prims]
-    fields = {"points": np.concatenate([f["points"] for f in parts]),
-              "counts": np.concatenate([f["counts"] for f in parts])}
+    fields = {"points": np.concatenate([f["points"] for f in parts]), "counts": np.concatenate([f["counts"] for f in parts])}
     for key in ("thickness", "transparency", "color", "uv", "movable"):
         if all(key in f for f in parts):
             fields[key] = np.concatenate([f[key] for f in parts])

@@ -17,8 +17,8 @@ degrees may differ) so one compiled kernel serves them all; a
 from __future__ import annotations
 
 import numbers
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields
-from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -88,8 +88,9 @@ class ClusterSpec:
         steps = np.linalg.norm(np.diff(traj.control, axis=0), axis=1)
         if not (steps > 0).all():
             i = int(np.flatnonzero(steps <= 0)[0])
-            raise ValidationError("trajectory", traj.control[i].tolist(),
-                                  f"control points {i} and {i + 1} coincide (the curve would stop)")
+            raise ValidationError(
+                "trajectory", traj.control[i].tolist(), f"control points {i} and {i + 1} coincide (the curve would stop)"
+            )
         set_(self, "trajectory", traj)
         for name in ("half_axis_a", "half_axis_b"):
             sp = _spline(name, getattr(self, name), None)
@@ -182,8 +183,11 @@ class ClusterBatch:
             if not isinstance(s, ClusterSpec):
                 raise ValidationError(f"specs[{i}]", type(s).__name__, "must be a ClusterSpec")
             if s.structure() != specs[0].structure():
-                raise ValidationError(f"specs[{i}]", s.structure(), f"structure differs from specs[0] {specs[0].structure()} "
-                                      "(layer count, s_t, s_v, s_u must agree)")
+                raise ValidationError(
+                    f"specs[{i}]",
+                    s.structure(),
+                    f"structure differs from specs[0] {specs[0].structure()} (layer count, s_t, s_v, s_u must agree)",
+                )
         object.__setattr__(self, "specs", specs)
 
     @classmethod

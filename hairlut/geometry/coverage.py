@@ -30,7 +30,7 @@ def segment_places(spec, strands, *, samples: int = 801) -> tuple[np.ndarray, np
     length = np.linalg.norm(p[first + 1] - p[first], axis=1)
     near = np.empty(len(mid), np.int64)
     for a in range(0, len(mid), 4096):  # (chunk, samples) distances at a time
-        near[a:a + 4096] = np.argmin(np.linalg.norm(mid[a:a + 4096, None] - sec.origin[None], axis=-1), axis=1)
+        near[a : a + 4096] = np.argmin(np.linalg.norm(mid[a : a + 4096, None] - sec.origin[None], axis=-1), axis=1)
     rel = mid - sec.origin[near]
     along = np.sum(rel * sec.tangent[near], 1)
     v = np.hypot(np.sum(rel * sec.normal[near], 1) / sec.a[near], np.sum(rel * sec.binormal[near], 1) / sec.b[near])
@@ -58,10 +58,13 @@ def length_inside(batch, strands, labels, *, samples: int = 801) -> dict:
         idx = np.flatnonzero(labels == c)
         if not idx.size:
             continue
-        sub = Strands(np.concatenate([pts[off[i]:off[i + 1]] for i in idx]), strands.counts[idx])
+        sub = Strands(np.concatenate([pts[off[i] : off[i + 1]] for i in idx]), strands.counts[idx])
         if c < 0:
-            tot["unassigned"] += float(np.linalg.norm(np.diff(sub.points.astype(np.float64), axis=0), axis=1)
-                                       [np.diff(np.repeat(np.arange(idx.size), sub.counts)) == 0].sum())
+            tot["unassigned"] += float(
+                np.linalg.norm(np.diff(sub.points.astype(np.float64), axis=0), axis=1)[
+                    np.diff(np.repeat(np.arange(idx.size), sub.counts)) == 0
+                ].sum()
+            )
             continue
         _, length, place = segment_places(specs[c], sub, samples=samples)
         for k, name in enumerate(PLACES):

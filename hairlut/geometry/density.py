@@ -118,8 +118,9 @@ def _as_dtype(dtype) -> np.dtype:
     return dt
 
 
-def sector_density(splats: SplatBatch, grid=DEFAULT_GRID, *, density_scale: float = 1.0, dtype=np.float32,
-                   chunk: int = 1024) -> np.ndarray:
+def sector_density(
+    splats: SplatBatch, grid=DEFAULT_GRID, *, density_scale: float = 1.0, dtype=np.float32, chunk: int = 1024
+) -> np.ndarray:
     """(N, n_s, n_r) density of every sector (module docstring); axis 1 is s (phase), axis 2 is r (radius).
 
     With ``density_scale`` = 1 a value is the fraction of the cell's area covered by hair.
@@ -148,11 +149,16 @@ def sector_density(splats: SplatBatch, grid=DEFAULT_GRID, *, density_scale: floa
 
         def run(idx, size, width, each=False):
             rows = np.concatenate([idx, np.full(size - idx.size, idx[0])])  # fixed chunk shape
-            args = [_columns(center[rows], width, 0.0), _columns(sigma[rows], width, 1.0),
-                    _columns(radius[rows], width, 0.0), _columns(mask[rows], width, False),
-                    splats.area_scale[rows], splats.v_range[rows]]
+            args = [
+                _columns(center[rows], width, 0.0),
+                _columns(sigma[rows], width, 1.0),
+                _columns(radius[rows], width, 0.0),
+                _columns(mask[rows], width, False),
+                splats.area_scale[rows],
+                splats.v_range[rows],
+            ]
             arrs = [jnp.asarray(x, dtype=dt if x.dtype.kind == "f" else None) for x in args]
-            out[idx] = np.asarray(density_kernel(*arrs, jscale, n_s=n_s, n_r=n_r, each=each))[:idx.size]
+            out[idx] = np.asarray(density_kernel(*arrs, jscale, n_s=n_s, n_r=n_r, each=each))[: idx.size]
 
         if int(chunk) == 1:  # each sector padded to its own width, as if alone: one call per width
             widths = np.array([_width(int(c)) for c in counts])
@@ -163,7 +169,7 @@ def sector_density(splats: SplatBatch, grid=DEFAULT_GRID, *, density_scale: floa
         order = np.argsort(counts, kind="stable")
         size = min(int(chunk), _bucket(n, 8))
         for start in range(0, n, size):
-            idx = order[start:start + size]
+            idx = order[start : start + size]
             run(idx, size, _width(int(counts[idx].max())))  # padding follows the chunk's own largest count
     return out
 

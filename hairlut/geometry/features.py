@@ -25,8 +25,8 @@ standard deviation so distances in the normalised space weigh features alike.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import jax
 import jax.numpy as jnp
@@ -58,8 +58,9 @@ def feature_names(features="basic", pca: PCABasis | None = None) -> tuple[str, .
             if pca is None or int(n[2:]) >= pca.n_components:
                 raise ValidationError("features", n, "principal-component scores need a PCABasis with that many components")
             continue
-        raise ValidationError("features", n, f"unknown feature; known: {', '.join(_ALL)}, pc0…, or sets "
-                                             f"{', '.join(FEATURE_SETS)}")
+        raise ValidationError(
+            "features", n, f"unknown feature; known: {', '.join(_ALL)}, pc0…, or sets {', '.join(FEATURE_SETS)}"
+        )
     return tuple(names)
 
 
@@ -90,8 +91,16 @@ def _moments(rho, row_area):
     var_rho = jnp.sum((rho - mean[:, None, None]) ** 2 * a, axis=(1, 2)) / total_a
     contrast = jnp.where(mean > 0, jnp.sqrt(var_rho) / jnp.where(mean > 0, mean, 1.0), 0.0)
     peak = jnp.max(rho, axis=(1, 2))
-    return {"rho_st": mean, "rho_s": c_s, "rho_t": c_t, "var_s": v_s, "var_t": v_t, "cov_st": cov,
-            "contrast": contrast, "peak": peak}
+    return {
+        "rho_st": mean,
+        "rho_s": c_s,
+        "rho_t": c_t,
+        "var_s": v_s,
+        "var_t": v_t,
+        "cov_st": cov,
+        "contrast": contrast,
+        "peak": peak,
+    }
 
 
 def _row_areas(areas, density: np.ndarray) -> np.ndarray:
@@ -106,8 +115,7 @@ def _row_areas(areas, density: np.ndarray) -> np.ndarray:
     return arr
 
 
-def sector_features(density, areas=None, features="basic", *, pca: PCABasis | None = None,
-                    chunk: int = 4096) -> np.ndarray:
+def sector_features(density, areas=None, features="basic", *, pca: PCABasis | None = None, chunk: int = 4096) -> np.ndarray:
     """(N, F) features of (N, n_s, n_r) density grids; ``areas``: the SplatBatch (for the row
     areas) or (N, n_r) row areas, None for equal cells.  Computed in float64, ``chunk``
     sectors at a time (one compiled shape)."""
@@ -116,21 +124,22 @@ def sector_features(density, areas=None, features="basic", *, pca: PCABasis | No
         raise ValidationError("density", rho.shape, "need (N, n_s, n_r) grids of numbers")
     names = feature_names(features, pca)
     if names == PROJECTION:
-        raise ValidationError("features", "projection", "projection features need each sector's tracer geometry: "
-                              "hairlut.hrir.projection_features")
+        raise ValidationError(
+            "features", "projection", "projection features need each sector's tracer geometry: hairlut.hrir.projection_features"
+        )
     rows = _row_areas(areas, rho)
     n = len(rho)
     size = min(int(chunk), 1 << (max(n, 8) - 1).bit_length())
     parts = []
     with jax.enable_x64(True):
         for start in range(0, n, size):
-            part = np.asarray(rho[start:start + size], dtype=np.float64)
-            area = rows[start:start + size]
+            part = np.asarray(rho[start : start + size], dtype=np.float64)
+            area = rows[start : start + size]
             if len(part) < size:  # pad the last chunk (zeros and unit areas) to the chunk shape
                 part = np.concatenate([part, np.zeros((size - len(part),) + part.shape[1:])])
                 area = np.concatenate([area, np.ones((size - len(area), area.shape[1]))])
             out = _moments(jnp.asarray(part), jnp.asarray(area))
-            parts.append({k: np.asarray(v)[:min(size, n - start)] for k, v in out.items()})
+            parts.append({k: np.asarray(v)[: min(size, n - start)] for k, v in out.items()})
     mom = {k: np.concatenate([p[k] for p in parts]) if parts else np.zeros(0) for k in _ALL}
     if any(n.startswith("pc") for n in names):
         scores = pca.transform(rho)
@@ -156,8 +165,11 @@ class PCABasis:
         rho = np.asarray(density, dtype=np.float64)
         if rho.ndim != 3 or len(rho) < 2:
             raise ValidationError("density", rho.shape, "need (N ≥ 2, n_s, n_r) grids to fit components")
-        if isinstance(n_components, bool) or not isinstance(n_components, (int, np.integer)) or \
-                not 1 <= n_components <= min(len(rho), rho.shape[1] * rho.shape[2]):
+        if (
+            isinstance(n_components, bool)
+            or not isinstance(n_components, (int, np.integer))
+            or not 1 <= n_components <= min(len(rho), rho.shape[1] * rho.shape[2])
+        ):
             raise ValidationError("n_components", n_components, "need 1 ≤ k ≤ min(N, n_s·n_r)")
         flat = rho.reshape(len(rho), -1)
         mean = flat.mean(axis=0)

@@ -36,8 +36,8 @@ import numpy as np
 
 from ..errors import ValidationError
 from ._bspline import BSpline, fit_bspline
-from .cluster_defaults import STRUCTURE_DEFAULTS as _D
 from .cluster import ClusterBatch, ClusterSpec
+from .cluster_defaults import STRUCTURE_DEFAULTS as _D
 from .sectors import _crossings
 from .strands import Strands
 from .sweep import ClusterGeometry
@@ -121,9 +121,9 @@ def _extend(mean: np.ndarray, points: np.ndarray, n_control: int, rounds: int = 
         near = np.empty(len(points), np.int64)
         dist = np.empty(len(points))
         for a in range(0, len(points), 4096):
-            d = np.linalg.norm(points[a:a + 4096, None] - pos[None], axis=-1)
-            near[a:a + 4096] = np.argmin(d, axis=1)
-            dist[a:a + 4096] = d[np.arange(len(d)), near[a:a + 4096]]
+            d = np.linalg.norm(points[a : a + 4096, None] - pos[None], axis=-1)
+            near[a : a + 4096] = np.argmin(d, axis=1)
+            dist[a : a + 4096] = d[np.arange(len(d)), near[a : a + 4096]]
         along0 = (points - pos[0]) @ tan[0]
         along1 = (points - pos[-1]) @ tan[-1]
         over0 = np.max(-along0[near == 0], initial=0.0)
@@ -141,10 +141,24 @@ def _extend(mean: np.ndarray, points: np.ndarray, n_control: int, rounds: int = 
     return traj, float(dist.max(initial=0.0))
 
 
-def fit_clusters(strands: Strands, n_clusters: int, *, layer_radii=_D["layer_radii"], core_radius: float = _D["core_radius"],
-                 s_t: int = _D["s_t"], s_v: int = _D["s_v"], s_u: int = _D["s_u"], n_control: int = 6, n_axis: int = 6,
-                 n_fit: int = 24, n_resample: int = 16, coverage: float = 0.95, extend: bool = True,
-                 min_half_axis: float | None = None, seed: int = 0) -> tuple[ClusterBatch, np.ndarray]:
+def fit_clusters(
+    strands: Strands,
+    n_clusters: int,
+    *,
+    layer_radii=_D["layer_radii"],
+    core_radius: float = _D["core_radius"],
+    s_t: int = _D["s_t"],
+    s_v: int = _D["s_v"],
+    s_u: int = _D["s_u"],
+    n_control: int = 6,
+    n_axis: int = 6,
+    n_fit: int = 24,
+    n_resample: int = 16,
+    coverage: float = 0.95,
+    extend: bool = True,
+    min_half_axis: float | None = None,
+    seed: int = 0,
+) -> tuple[ClusterBatch, np.ndarray]:
     """Clusters following groups of nearby strands (module docstring); returns (batch, label per strand).
 
     Groups left empty by k-means, or whose mean strand has no length, are dropped (their
@@ -181,8 +195,11 @@ def fit_clusters(strands: Strands, n_clusters: int, *, layer_radii=_D["layer_rad
             traj = fit_bspline(t, mean, n_control, 3, field="trajectory")
             reach = np.linalg.norm(res[labels == j] - mean[None], axis=2).max()
         trajs.append(traj)
-        probes.append(ClusterSpec(traj, 2.0 * reach + 1e-6, 2.0 * reach + 1e-6, layer_radii=(1.0,), core_radius=0.0,
-                                  s_t=s_t, s_v=1, s_u=s_u))
+        probes.append(
+            ClusterSpec(
+                traj, 2.0 * reach + 1e-6, 2.0 * reach + 1e-6, layer_radii=(1.0,), core_radius=0.0, s_t=s_t, s_v=1, s_u=s_u
+            )
+        )
     probe = ClusterGeometry(probes)
     t_fit = np.linspace(0.0, 1.0, n_fit)
     x = _crossings(probe, strands, labels, np.zeros(strands.n_points), probe.sections(t_fit))

@@ -14,8 +14,8 @@ the target atomically.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from ..errors import FormatError, ValidationError
 from ._hair import read_hair, write_hair

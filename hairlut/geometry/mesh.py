@@ -40,8 +40,13 @@ class LayerMeshes:
 
     def mesh(self, cluster: int, layer: int) -> dict[str, np.ndarray]:
         """One layer's mesh as plain arrays (vertices, normals, tangents, uv, triangles)."""
-        return {"vertices": self.vertices[cluster, layer], "normals": self.normals[cluster, layer],
-                "tangents": self.tangents[cluster, layer], "uv": self.uv, "triangles": self.triangles}
+        return {
+            "vertices": self.vertices[cluster, layer],
+            "normals": self.normals[cluster, layer],
+            "tangents": self.tangents[cluster, layer],
+            "uv": self.uv,
+            "triangles": self.triangles,
+        }
 
 
 def grid_triangles(n_rows: int, n_cols: int) -> np.ndarray:
@@ -76,5 +81,12 @@ def layer_meshes(geometry: ClusterGeometry, *, t_subdiv: int = 1, u_subdiv: int 
     p, pt, pu = geometry.derivatives_of(cl, np.broadcast_to(tt, shape), vv, np.broadcast_to(uu, shape))
     flat = (n_c, n_l, rows * cols, 3)
     uv = np.stack([uu.ravel() / (2.0 * np.pi), tt.ravel()], axis=1)
-    return LayerMeshes(p.reshape(flat), _unit(np.cross(pu, pt)).reshape(flat), _unit(pt).reshape(flat),
-                       uv, grid_triangles(rows, cols), rows, cols)
+    return LayerMeshes(
+        p.reshape(flat),
+        _unit(np.cross(pu, pt)).reshape(flat),
+        _unit(pt).reshape(flat),
+        uv,
+        grid_triangles(rows, cols),
+        rows,
+        cols,
+    )

@@ -132,25 +132,43 @@ def _window(p: dict, space: SectorSpace) -> dict:
     r_metric = p["radius_rel"] * np.sqrt(area)
     su_c, sv_c = param_sigma(SIGMA_PER_RADIUS * r_metric, 0.5 * (v0 + v1), p["phase"] + 0.5 * du, 1.0, p["aspect"])
     margin = 3.0 * np.stack([su_c / du, sv_c / (v1 - v0)], axis=1)
-    lo_r = np.maximum(-margin[:, 1], -v0 / (v1 - v0))                # not inside v < 0
-    hi_r = np.minimum(1.0 + margin[:, 1], (1.0 - v0) / (v1 - v0))    # nor outside the ellipse
+    lo_r = np.maximum(-margin[:, 1], -v0 / (v1 - v0))  # not inside v < 0
+    hi_r = np.minimum(1.0 + margin[:, 1], (1.0 - v0) / (v1 - v0))  # nor outside the ellipse
     lo_s, hi_s = -margin[:, 0], 1.0 + margin[:, 0]
     owner = np.repeat(np.arange(len(v0)), p["strands"])
     va, vb = v0 + lo_r * (v1 - v0), v0 + hi_r * (v1 - v0)
-    return {"v0": v0, "v1": v1, "du": du, "r_metric": r_metric, "lo_r": lo_r, "hi_r": hi_r, "lo_s": lo_s, "hi_s": hi_s,
-            "owner": owner, "per_strand": {"lo_s": lo_s[owner], "hi_s": hi_s[owner], "va2": va[owner] ** 2,
-                                           "vb2": vb[owner] ** 2, "clumps": p["clumps"][owner]}}
+    return {
+        "v0": v0,
+        "v1": v1,
+        "du": du,
+        "r_metric": r_metric,
+        "lo_r": lo_r,
+        "hi_r": hi_r,
+        "lo_s": lo_s,
+        "hi_s": hi_s,
+        "owner": owner,
+        "per_strand": {
+            "lo_s": lo_s[owner],
+            "hi_s": hi_s[owner],
+            "va2": va[owner] ** 2,
+            "vb2": vb[owner] ** 2,
+            "clumps": p["clumps"][owner],
+        },
+    }
 
 
 def _draw_strands(rng, w: dict, space: SectorSpace, n: int) -> dict:
     """The strand draws of ``n`` sectors (raw: the arithmetic on them is :func:`_place`'s), in the fixed order."""
     b = w["per_strand"]
     m = len(b["lo_s"])
-    return {"s_pos": rng.uniform(b["lo_s"], b["hi_s"]),  # uniform in metric area over the window: s uniform, v² uniform
-            "v2": rng.uniform(b["va2"], b["vb2"]),
-            "centre": rng.uniform(size=(n, space.clumps[1], 2)),  # blob centres; a sector uses its first `clumps`
-            "pick": rng.integers(0, b["clumps"]),
-            "q_s": rng.uniform(size=m), "q_r": rng.uniform(size=m)}  # the truncated normals' uniforms
+    return {
+        "s_pos": rng.uniform(b["lo_s"], b["hi_s"]),  # uniform in metric area over the window: s uniform, v² uniform
+        "v2": rng.uniform(b["va2"], b["vb2"]),
+        "centre": rng.uniform(size=(n, space.clumps[1], 2)),  # blob centres; a sector uses its first `clumps`
+        "pick": rng.integers(0, b["clumps"]),
+        "q_s": rng.uniform(size=m),
+        "q_r": rng.uniform(size=m),
+    }  # the truncated normals' uniforms
 
 
 def _place(p: dict, w: dict, space: SectorSpace, raw: dict) -> SampledSectors:
@@ -172,18 +190,36 @@ def _place(p: dict, w: dict, space: SectorSpace, raw: dict) -> SampledSectors:
     r_metric = w["r_metric"]
     sig_u, sig_v = param_sigma(SIGMA_PER_RADIUS * r_metric[owner], v, phi, 1.0, p["aspect"][owner])
     sigma = np.stack([sig_u / du[owner], sig_v / (v1 - v0)[owner]], axis=1)
-    splats = pack(owner, np.stack([s_pos, r_pos], axis=1), sigma, r_metric[owner], n,
-                  p["aspect"] * du, np.stack([v0, v1], axis=1), max_splats=max(space.strands[1], 1))
+    splats = pack(
+        owner,
+        np.stack([s_pos, r_pos], axis=1),
+        sigma,
+        r_metric[owner],
+        n,
+        p["aspect"] * du,
+        np.stack([v0, v1], axis=1),
+        max_splats=max(space.strands[1], 1),
+    )
     p["v_range"] = np.stack([v0, v1], axis=1)
     return SampledSectors(splats, p)
 
 
-def groom_sectors(strands: Strands, n_clusters: int, *, radius: float, layer_radii=_D["layer_radii"],
-                  core_radius: float = _D["core_radius"], s_t: int = _D["s_t"], s_v: int = _D["s_v"],
-                  s_u: int = _D["s_u"], seed: int = 0) -> tuple[SectorTable, ClusterGeometry, np.ndarray]:
+def groom_sectors(
+    strands: Strands,
+    n_clusters: int,
+    *,
+    radius: float,
+    layer_radii=_D["layer_radii"],
+    core_radius: float = _D["core_radius"],
+    s_t: int = _D["s_t"],
+    s_v: int = _D["s_v"],
+    s_u: int = _D["s_u"],
+    seed: int = 0,
+) -> tuple[SectorTable, ClusterGeometry, np.ndarray]:
     """Sectors cut from a real groom: fit ``n_clusters`` clusters, assign each strand to its
     group's cluster, build the sectors.  Returns (sectors, geometry, cluster per strand)."""
-    batch, labels = fit_clusters(strands, n_clusters, layer_radii=layer_radii, core_radius=core_radius,
-                                 s_t=s_t, s_v=s_v, s_u=s_u, seed=seed)
+    batch, labels = fit_clusters(
+        strands, n_clusters, layer_radii=layer_radii, core_radius=core_radius, s_t=s_t, s_v=s_v, s_u=s_u, seed=seed
+    )
     geometry = ClusterGeometry(batch)
     return build_sectors(geometry, strands, labels, radius=radius), geometry, labels

@@ -105,8 +105,7 @@ def recipe_fields() -> dict:
     from ..recipes import Field
 
     docs = {name: rule[-1] for name, rule in RULES.items()} | {"profile_weights": WEIGHTS_DOC}
-    return {name: Field(value, (list,), lambda v, n=name: field_reason(n, v), docs[name])
-            for name, value in defaults().items()}
+    return {name: Field(value, (list,), lambda v, n=name: field_reason(n, v), docs[name]) for name, value in defaults().items()}
 
 
 def canonical(space: dict) -> dict:

@@ -99,8 +99,16 @@ class SectorTable:
         starts = np.repeat(self.splat_offsets[ids], counts)
         j = starts + np.arange(rows.size) - np.repeat(np.cumsum(counts) - counts, counts)
         du = self.u_range[ids, 1] - self.u_range[ids, 0]
-        return pack(rows, self.splat_center[j], self.splat_sigma[j], self.crossing_radius[self.splat_crossing[j]],
-                    ids.size, self.half_axes[ids, 0] * self.half_axes[ids, 1] * du, self.v_range[ids], max_splats)
+        return pack(
+            rows,
+            self.splat_center[j],
+            self.splat_sigma[j],
+            self.crossing_radius[self.splat_crossing[j]],
+            ids.size,
+            self.half_axes[ids, 0] * self.half_axes[ids, 1] * du,
+            self.v_range[ids],
+            max_splats,
+        )
 
 
 def _strand_radii(strands: Strands, radius) -> np.ndarray:
@@ -148,13 +156,28 @@ def _crossings(geom: ClusterGeometry, strands: Strands, assignment: np.ndarray, 
         k = keep[first]
         ra, rb = radii[seg[e[ee[k]], 0]], radii[seg[e[ee[k]], 1]]
         phi = np.arctan2(y[k] / big_b[k], x[k] / big_a[k])
-        out.append({"cluster": np.full(k.size, c), "t_index": ii[k], "strand": strand[k], "x": x[k], "y": y[k],
-                    "v": v[k], "phi": phi, "u": np.mod(phi - q[k], 2 * np.pi), "point": p[k],
-                    "radius": ra + lam[k] * (rb - ra), "a": big_a[k], "b": big_b[k]})
+        out.append(
+            {
+                "cluster": np.full(k.size, c),
+                "t_index": ii[k],
+                "strand": strand[k],
+                "x": x[k],
+                "y": y[k],
+                "v": v[k],
+                "phi": phi,
+                "u": np.mod(phi - q[k], 2 * np.pi),
+                "point": p[k],
+                "radius": ra + lam[k] * (rb - ra),
+                "a": big_a[k],
+                "b": big_b[k],
+            }
+        )
     keys = ("cluster", "t_index", "strand", "x", "y", "v", "phi", "u", "point", "radius", "a", "b")
     if not out:
-        return {k: np.zeros((0, 3) if k == "point" else 0, dtype=np.int64 if k in ("cluster", "t_index", "strand") else float)
-                for k in keys}
+        return {
+            k: np.zeros((0, 3) if k == "point" else 0, dtype=np.int64 if k in ("cluster", "t_index", "strand") else float)
+            for k in keys
+        }
     return {k: np.concatenate([d[k] for d in out]) for k in keys}
 
 
@@ -167,8 +190,15 @@ def _track_of(bounds: np.ndarray, cluster: np.ndarray, v: np.ndarray) -> np.ndar
     return np.clip(pos, 0, n_b - 2).astype(np.int64)
 
 
-def build_sectors(geometry: ClusterGeometry, strands: Strands, assignment=None, *, radius: float | None = None,
-                  sigma_per_radius: float = SIGMA_PER_RADIUS, halo: float = 5.0) -> SectorTable:
+def build_sectors(
+    geometry: ClusterGeometry,
+    strands: Strands,
+    assignment=None,
+    *,
+    radius: float | None = None,
+    sigma_per_radius: float = SIGMA_PER_RADIUS,
+    halo: float = 5.0,
+) -> SectorTable:
     """Sectors, HSVs, crossings and splats of ``strands`` in ``geometry`` (float64 NumPy).
 
     ``assignment`` (S,) gives each strand's cluster (−1: none); by default
@@ -190,8 +220,9 @@ def build_sectors(geometry: ClusterGeometry, strands: Strands, assignment=None, 
     du = 2 * np.pi / s_u
     sec = geometry.sections(np.linspace(0.0, 1.0, n_i))
 
-    cl, ti, tr, uk = (a.ravel() for a in np.meshgrid(np.arange(n_c), np.arange(n_i), np.arange(n_g), np.arange(s_u),
-                                                     indexing="ij"))
+    cl, ti, tr, uk = (
+        a.ravel() for a in np.meshgrid(np.arange(n_c), np.arange(n_i), np.arange(n_g), np.arange(s_u), indexing="ij")
+    )
     bounds = geometry.track_bounds
     v_range = np.stack([bounds[cl, tr], bounds[cl, tr + 1]], axis=1)
     u_range = np.stack([uk * du, (uk + 1) * du], axis=1)
@@ -227,15 +258,35 @@ def build_sectors(geometry: ClusterGeometry, strands: Strands, assignment=None, 
     order = np.argsort(s_sid, kind="stable")
     offsets = np.concatenate([[0], np.cumsum(np.bincount(s_sid, minlength=n_c * n_i * n_g * s_u))])
 
-    hc, hi_, hg, hk = (a.ravel() for a in np.meshgrid(np.arange(n_c), np.arange(s_t), np.arange(n_g), np.arange(s_u),
-                                                      indexing="ij"))
+    hc, hi_, hg, hk = (
+        a.ravel() for a in np.meshgrid(np.arange(n_c), np.arange(s_t), np.arange(n_g), np.arange(s_u), indexing="ij")
+    )
     top = ((hc * n_i + hi_) * n_g + hg) * s_u + hk
     hsv = np.stack([top, top + n_g * s_u], axis=1)
     return SectorTable(
-        shape=(n_c, n_i, n_g, s_u), s_v=s_v, cluster=cl, t_index=ti, track=tr, layer=tr // s_v, u_index=uk, t=t,
-        v_range=v_range, u_range=u_range,
-        half_axes=np.stack([sec.a[cl, ti], sec.b[cl, ti]], axis=1), twist=sec.twist[cl, ti], corners=corners,
-        crossing_strand=x["strand"], crossing_sector=sid, crossing_sr=sr, crossing_xy=np.stack([x["x"], x["y"]], axis=1),
-        crossing_vu=np.stack([x["v"], x["u"]], axis=1), crossing_point=x["point"], crossing_radius=x["radius"],
-        splat_offsets=offsets, splat_crossing=src[order], splat_center=center[order], splat_sigma=sigma[order],
-        hsv_sectors=hsv)
+        shape=(n_c, n_i, n_g, s_u),
+        s_v=s_v,
+        cluster=cl,
+        t_index=ti,
+        track=tr,
+        layer=tr // s_v,
+        u_index=uk,
+        t=t,
+        v_range=v_range,
+        u_range=u_range,
+        half_axes=np.stack([sec.a[cl, ti], sec.b[cl, ti]], axis=1),
+        twist=sec.twist[cl, ti],
+        corners=corners,
+        crossing_strand=x["strand"],
+        crossing_sector=sid,
+        crossing_sr=sr,
+        crossing_xy=np.stack([x["x"], x["y"]], axis=1),
+        crossing_vu=np.stack([x["v"], x["u"]], axis=1),
+        crossing_point=x["point"],
+        crossing_radius=x["radius"],
+        splat_offsets=offsets,
+        splat_crossing=src[order],
+        splat_center=center[order],
+        splat_sigma=sigma[order],
+        hsv_sectors=hsv,
+    )

@@ -97,8 +97,9 @@ class SplatBatch:
 
     def take(self, index) -> SplatBatch:
         """The batch restricted to sectors ``index`` (any integer index array or slice)."""
-        return SplatBatch(*(np.asarray(getattr(self, f))[index] for f in
-                            ("center", "sigma", "radius", "mask", "area_scale", "v_range")))
+        return SplatBatch(
+            *(np.asarray(getattr(self, f))[index] for f in ("center", "sigma", "radius", "mask", "area_scale", "v_range"))
+        )
 
     def row_areas(self, n_s: int, n_r: int) -> np.ndarray:
         """(N, n_r) exact metric area of one cell in each grid row."""

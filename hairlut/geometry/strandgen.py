@@ -64,10 +64,20 @@ def _roots(rng, n, profile, v_min, v_max, spread, clumps):
     return np.clip(np.hypot(pts[:, 0], pts[:, 1]), v_min, v_max), np.arctan2(pts[:, 1], pts[:, 0])
 
 
-def generate_strands(geometry: ClusterGeometry, count, *, radius=0.004, profile: str = "uniform",
-                     spread: float = 0.35, clumps: int = 6, jitter: float = 0.0, jitter_waves: int = 3,
-                     points: int = 32, v_range: tuple[float, float] | None = None,
-                     seed: int = 0) -> tuple[Strands, np.ndarray]:
+def generate_strands(
+    geometry: ClusterGeometry,
+    count,
+    *,
+    radius=0.004,
+    profile: str = "uniform",
+    spread: float = 0.35,
+    clumps: int = 6,
+    jitter: float = 0.0,
+    jitter_waves: int = 3,
+    points: int = 32,
+    v_range: tuple[float, float] | None = None,
+    seed: int = 0,
+) -> tuple[Strands, np.ndarray]:
     """Strands in every cluster of ``geometry``; returns (strands, cluster of each strand).
 
     ``count``: strands per cluster (int or (C,)); ``radius``: metric strand radius, a
@@ -108,8 +118,11 @@ def generate_strands(geometry: ClusterGeometry, count, *, radius=0.004, profile:
         m = np.arange(1, jitter_waves + 1)
         coef = rng.normal(0.0, 1.0 / np.sqrt(jitter_waves), (n, 2, jitter_waves))
         phase = rng.uniform(0.0, 2 * np.pi, (n, 2, jitter_waves))
-        wave = np.sqrt(2.0) * jitter * np.sum(coef[..., None] * np.sin(np.pi * m[None, None, :, None] * t + phase[..., None]),
-                                              axis=2)
+        wave = (
+            np.sqrt(2.0)
+            * jitter
+            * np.sum(coef[..., None] * np.sin(np.pi * m[None, None, :, None] * t + phase[..., None]), axis=2)
+        )
         z = base + wave[:, 0] + 1j * wave[:, 1]
         rad = np.abs(z)
         z = np.where(rad > 0, z / np.where(rad > 0, rad, 1.0), 1.0) * np.clip(rad, lo, hi)

@@ -9,8 +9,8 @@ point; ``uv`` has one row per strand.  Every attribute but ``points`` and
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -55,8 +55,9 @@ class Strands:
         set_(self, "points", points)
         counts = np.asarray(self.counts)
         if counts.ndim != 1 or (counts.size and counts.dtype.kind not in "iu"):
-            raise ValidationError("counts", counts.dtype if counts.ndim == 1 else counts.shape,
-                                  "must be a 1-D integer array (points per strand)")
+            raise ValidationError(
+                "counts", counts.dtype if counts.ndim == 1 else counts.shape, "must be a 1-D integer array (points per strand)"
+            )
         counts = counts.astype(np.int64)
         set_(self, "counts", counts)
         if counts.size and counts.min() < 2:
@@ -111,8 +112,11 @@ class Strands:
                 raise ValidationError(f"polylines[{i}]", p.shape, "each polyline must be (n, 3)")
         points = np.concatenate(arrays) if arrays else np.zeros((0, 3))
         counts = np.array([len(p) for p in arrays], dtype=np.int64)
-        extra = {k: np.concatenate([np.asarray(a) for a in v]) if len(v) else np.zeros((0,) + _TAIL[k])
-                 for k, v in per_point.items() if v is not None}
+        extra = {
+            k: np.concatenate([np.asarray(a) for a in v]) if len(v) else np.zeros((0,) + _TAIL[k])
+            for k, v in per_point.items()
+            if v is not None
+        }
         return cls(points, counts, uv=uv, **extra)
 
     @classmethod
@@ -160,8 +164,9 @@ class Strands:
     def as_padded(self) -> np.ndarray:
         """(S, V, 3) view of the points when every strand has the same number V of points."""
         if self.n_strands and (self.counts != self.counts[0]).any():
-            raise ValidationError("counts", f"{self.counts.min()}..{self.counts.max()}",
-                                  "as_padded needs the same number of points in every strand")
+            raise ValidationError(
+                "counts", f"{self.counts.min()}..{self.counts.max()}", "as_padded needs the same number of points in every strand"
+            )
         per = int(self.counts[0]) if self.n_strands else 0
         return self.points.reshape(self.n_strands, per, 3)
 
@@ -192,8 +197,11 @@ class Strands:
         if self.n_strands:
             lengths = self.lengths()
             lo, hi = self.bbox()
-            out["points_per_strand"] = {"min": int(self.counts.min()), "mean": float(self.counts.mean()),
-                                        "max": int(self.counts.max())}
+            out["points_per_strand"] = {
+                "min": int(self.counts.min()),
+                "mean": float(self.counts.mean()),
+                "max": int(self.counts.max()),
+            }
             out["bbox"] = {"min": lo.tolist(), "max": hi.tolist()}
             out["length"] = {"min": float(lengths.min()), "mean": float(lengths.mean()), "max": float(lengths.max())}
         out["arrays"] = {name: getattr(self, name) is not None for name in OPTIONAL}

@@ -14,8 +14,9 @@ the ellipse; u the phase in radians.  Everything returned is float64 NumPy.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from functools import partial
-from typing import NamedTuple, Sequence
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -50,8 +51,11 @@ class Section(NamedTuple):
     def point(self, v, u) -> np.ndarray:
         """Eq 1 at these sections: (…, 3); v and u broadcast against the scalar fields' shape."""
         phi = self.twist + u
-        return (self.origin + (v * self.a * np.cos(phi))[..., None] * self.normal
-                + (v * self.b * np.sin(phi))[..., None] * self.binormal)
+        return (
+            self.origin
+            + (v * self.a * np.cos(phi))[..., None] * self.normal
+            + (v * self.b * np.sin(phi))[..., None] * self.binormal
+        )
 
 
 # These kernels run once per batch or query and are cheap; XLA's backend optimisation
@@ -92,8 +96,13 @@ def _point_derivatives(sec: dict, length, v, u):
     phi = sec["twist"] + u
     c, s = np.cos(phi), np.sin(phi)
     a_, b_, da, dbb, dq = sec["a"], sec["b"], sec["da"], sec["db"], sec["dtwist"]
-    dt = (big_l * tan + (v * (da * c - a_ * dq * s))[..., None] * r + (v * (dbb * s + b_ * dq * c))[..., None] * b
-          + (v * a_ * c)[..., None] * dr + (v * b_ * s)[..., None] * db)
+    dt = (
+        big_l * tan
+        + (v * (da * c - a_ * dq * s))[..., None] * r
+        + (v * (dbb * s + b_ * dq * c))[..., None] * b
+        + (v * a_ * c)[..., None] * dr
+        + (v * b_ * s)[..., None] * db
+    )
     du = (-v * a_ * s)[..., None] * r + (v * b_ * c)[..., None] * b
     return _point(sec, v, u), dt, du
 
@@ -128,13 +137,16 @@ class ClusterGeometry:
                 frames = _build({k: jnp.asarray(v) for k, v in arrs.items()}, int(frame_samples))
                 blocks.append(arrs | {k: np.asarray(v) for k, v in frames.items()})
         self._blocks = blocks
-        self._tables = {k: np.concatenate([b[k] for b in blocks])[:self.n_clusters] for k in blocks[0]}
+        self._tables = {k: np.concatenate([b[k] for b in blocks])[: self.n_clusters] for k in blocks[0]}
         self.lengths = self._tables["arc"][:, -1].copy()
         slow = self._tables["min_speed"] <= 1e-9 * self.lengths
         if slow.any():
             i = int(np.flatnonzero(slow)[0])
-            raise ValidationError(f"specs[{i}].trajectory", self.batch.specs[i].trajectory.control.tolist(),
-                                  "the trajectory's speed vanishes somewhere (a stationary point has no tangent)")
+            raise ValidationError(
+                f"specs[{i}].trajectory",
+                self.batch.specs[i].trajectory.control.tolist(),
+                "the trajectory's speed vanishes somewhere (a stationary point has no tangent)",
+            )
         self.track_bounds = self._tables["track_bounds"]
 
     # -- sizes -------------------------------------------------------------------------------
@@ -168,7 +180,7 @@ class ClusterGeometry:
                 tt = np.zeros((len(rows), cols))
                 tt[:, :m] = t[rows]
                 jtab = {k: jnp.asarray(v) for k, v in tab.items()}
-                chunks = [fn(jtab, jnp.asarray(tt[:, c0:c0 + width])) for c0 in range(0, cols, width)]
+                chunks = [fn(jtab, jnp.asarray(tt[:, c0 : c0 + width])) for c0 in range(0, cols, width)]
                 keep = len(np.unique(rows))
                 parts.append({k: np.concatenate([np.asarray(c[k]) for c in chunks], axis=1)[:keep, :m] for k in chunks[0]})
         return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
@@ -210,8 +222,11 @@ class ClusterGeometry:
             raise ValidationError("cluster", cl.dtype, "cluster indices must be integers")
         cl, tt = (a.ravel() for a in np.broadcast_arrays(cl, np.asarray(t, dtype=np.float64)))
         if cl.size and (cl.min() < 0 or cl.max() >= self.n_clusters):
-            raise ValidationError("cluster", int(cl.min() if cl.min() < 0 else cl.max()),
-                                  f"cluster index out of range for {self.n_clusters} clusters")
+            raise ValidationError(
+                "cluster",
+                int(cl.min() if cl.min() < 0 else cl.max()),
+                f"cluster index out of range for {self.n_clusters} clusters",
+            )
         counts = np.bincount(cl, minlength=self.n_clusters)
         width = max(int(counts.max()) if cl.size else 0, 1)
         order = np.argsort(cl, kind="stable")

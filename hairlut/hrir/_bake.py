@@ -18,18 +18,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import errors
-from ..bake.protocol import parse_shard
 from ..bake.devices import dispatch_units, free_memory
-from ..assets.parts import parts_dir
-from ..bake.sharding import blocks_of
 from ..geometry.density import sector_density
 from ..geometry.sampler import sample_each
 from ..geometry.splats import SplatBatch
 from ..march import sector_geometry
 from ._io import PARAMS, assemble, concat, read_shard, storage_errors, write_shard  # noqa: F401
 from ._kind import KIND
-from ._recipe import resolve_recipe, sector_space
+from ._recipe import sector_space
 from ._tracer import trace_kernel
 
 BLOCK = 32
@@ -64,8 +60,14 @@ def dispatch_trace(density, geometry, recipe: dict, *, views=None, lights=None, 
     from ..geometry import angle_grid
 
     tr, ph = recipe["trace"], recipe["phong"]
-    cfg = {"n_pix": tr["pixels"], "n_steps": tr["steps"], "rays": tr["rays_per_pixel"], "shadow": tr["self_shadow"],
-           "smooth": tr["smooth"], "eps": float(tr["termination"])}
+    cfg = {
+        "n_pix": tr["pixels"],
+        "n_steps": tr["steps"],
+        "rays": tr["rays_per_pixel"],
+        "shadow": tr["self_shadow"],
+        "smooth": tr["smooth"],
+        "eps": float(tr["termination"]),
+    }
     cfg.update(overrides)
     V = recipe["angles"]["views"] if views is None else None
     views = angle_grid(V) if views is None else np.asarray(views)
@@ -92,10 +94,10 @@ def launch_block(recipe: dict, start: int, stop: int):
     Returns ``finish()``, which waits for the devices and returns everything stored for the sectors
     (:func:`bake_block`): between the two the host is free to write the previous block."""
     splats, params = sample_block(recipe, start, stop)
-    density = sector_density(splats, tuple(recipe["sectors"]["grid"]), density_scale=recipe["sectors"]["density_scale"],
-                             chunk=1)
-    geometry = sector_geometry(params, kappa=recipe["trace"]["extinction"], n_pix=recipe["trace"]["pixels"],
-                               smooth_ratio=recipe["trace"]["smooth_ratio"])
+    density = sector_density(splats, tuple(recipe["sectors"]["grid"]), density_scale=recipe["sectors"]["density_scale"], chunk=1)
+    geometry = sector_geometry(
+        params, kappa=recipe["trace"]["extinction"], n_pix=recipe["trace"]["pixels"], smooth_ratio=recipe["trace"]["smooth_ratio"]
+    )
     gather = dispatch_trace(density, geometry, recipe)
     return lambda: _finished(recipe, start, stop, density, geometry, params, *gather())
 
@@ -103,8 +105,13 @@ def launch_block(recipe: dict, start: int, stop: int):
 def _finished(recipe: dict, start: int, stop: int, density, geometry, params, alpha, refl) -> dict:
     """Everything stored for sectors [start, stop).  Finite and within their physical bounds or refused, naming the
     recipe keys, when the part is written (the kind's ``BOUNDS``, :mod:`hairlut.assets.bounds`)."""
-    return {"alpha": alpha, "reflectance": refl, "density": density, "geometry": geometry,
-            "params": {k: params[k] for k in PARAMS}}
+    return {
+        "alpha": alpha,
+        "reflectance": refl,
+        "density": density,
+        "geometry": geometry,
+        "params": {k: params[k] for k in PARAMS},
+    }
 
 
 def bake_part(recipe: dict, start: int, stop: int, total: int, path, **_):
@@ -154,8 +161,17 @@ def assemble_parts(recipe: dict, parts, out, **_):
     return assemble(out, recipe, concat([read_shard(p)[0] for p in parts]))
 
 
-def bake(given: dict | None, out, *, shard=None, block: int | None = None, progress=None, keep_parts: bool = False,
-         distributed=False, merge: str | None = None) -> dict:
+def bake(
+    given: dict | None,
+    out,
+    *,
+    shard=None,
+    block: int | None = None,
+    progress=None,
+    keep_parts: bool = False,
+    distributed=False,
+    merge: str | None = None,
+) -> dict:
     """Bake (or resume) the HRIR-DB of a recipe into ``out`` (written atomically): ``hairlut.bake.registry.bake``
     of this kind, split over its sectors (:mod:`hairlut.bake.sharding`).
 
@@ -165,5 +181,13 @@ def bake(given: dict | None, out, *, shard=None, block: int | None = None, progr
     sectors, then as blocks complete.  Returns a report dict."""
     from ..bake import registry
 
-    return registry.bake(KIND, given, out, progress=progress, shard=shard, distributed=distributed, merge=merge,
-                         options={"block": block, "keep_parts": keep_parts})
+    return registry.bake(
+        KIND,
+        given,
+        out,
+        progress=progress,
+        shard=shard,
+        distributed=distributed,
+        merge=merge,
+        options={"block": block, "keep_parts": keep_parts},
+    )

@@ -42,14 +42,16 @@ from ..assets.trust import finite_fault
 from ..assets.virtual_write import check_virtual
 from ..geometry import angle_grid as angles
 from ..geometry.features import PROJECTION, FeatureStats, PCABasis, feature_names, sector_features
-from ._kind import KIND, SHARD_KIND
 from ..march import GEOM
+from ._kind import KIND, SHARD_KIND
 
 PARAMS = ("strands", "radius_rel", "spread", "clumps", "aspect", "v_inner", "radial_extent", "s_u", "phase", "profile")
 
-FRAME = ("local frame: origin at the sector's parametric centre, +x the outward ellipse normal (radial), "
-         "+y the tangent (increasing phase); theta from +x toward the viewer / light; pixels span "
-         "[-extent, extent] along the view direction rotated by +90 degrees")
+FRAME = (
+    "local frame: origin at the sector's parametric centre, +x the outward ellipse normal (radial), "
+    "+y the tangent (increasing phase); theta from +x toward the viewer / light; pixels span "
+    "[-extent, extent] along the view direction rotated by +90 degrees"
+)
 
 
 @contextlib.contextmanager
@@ -69,12 +71,20 @@ def _axes(recipe: dict, n: int, *, sector0: int = 0) -> list[Axis]:
     P = recipe["trace"]["pixels"]
     n_s, n_r = recipe["sectors"]["grid"]
     return [
-        Axis("sector", np.arange(sector0, sector0 + n, dtype=np.int64), "1",
-             "sector index (its random draw depends on the seed and it alone)"),
+        Axis(
+            "sector",
+            np.arange(sector0, sector0 + n, dtype=np.int64),
+            "1",
+            "sector index (its random draw depends on the seed and it alone)",
+        ),
         Axis("theta_v", angles(V), "rad", "in-plane view angle from the local +x axis", period=2 * np.pi),
         Axis("theta_l", angles(L), "rad", "in-plane light angle from the local +x axis", period=2 * np.pi),
-        Axis("pixel", -1 + (np.arange(P) + 0.5) * 2 / P, "extent",
-             "pixel centre along the image line, in units of the sector extent"),
+        Axis(
+            "pixel",
+            -1 + (np.arange(P) + 0.5) * 2 / P,
+            "extent",
+            "pixel centre along the image line, in units of the sector extent",
+        ),
         Axis("s", (np.arange(n_s) + 0.5) / n_s, "1", "density cell centre along the phase"),
         Axis("r", (np.arange(n_r) + 0.5) / n_r, "1", "density cell centre along the radius"),
     ]
@@ -83,15 +93,35 @@ def _axes(recipe: dict, n: int, *, sector0: int = 0) -> list[Axis]:
 def _per_sector(data: dict, dtype) -> list[Variable]:
     n, V, L, P = data["reflectance"].shape
     out = [
-        Variable("alpha", data["alpha"].astype(dtype, copy=False), ("sector", "theta_v", "pixel"), "1",
-                 "accumulated opacity (eq 5), Gaussian-smoothed", chunks=(min(n, 16), V, P)),
-        Variable("reflectance", data["reflectance"].astype(dtype, copy=False), ("sector", "theta_v", "theta_l", "pixel"), "1",
-                 "accumulated reflectance (eq 5, alpha-premultiplied), Gaussian-smoothed", chunks=(1, V, L, P)),
-        Variable("density", data["density"].astype(np.float32), ("sector", "s", "r"), "1",
-                 "sector density grid (area fraction times density_scale)", chunks=(min(n, 64), *data["density"].shape[1:])),
+        Variable(
+            "alpha",
+            data["alpha"].astype(dtype, copy=False),
+            ("sector", "theta_v", "pixel"),
+            "1",
+            "accumulated opacity (eq 5), Gaussian-smoothed",
+            chunks=(min(n, 16), V, P),
+        ),
+        Variable(
+            "reflectance",
+            data["reflectance"].astype(dtype, copy=False),
+            ("sector", "theta_v", "theta_l", "pixel"),
+            "1",
+            "accumulated reflectance (eq 5, alpha-premultiplied), Gaussian-smoothed",
+            chunks=(1, V, L, P),
+        ),
+        Variable(
+            "density",
+            data["density"].astype(np.float32),
+            ("sector", "s", "r"),
+            "1",
+            "sector density grid (area fraction times density_scale)",
+            chunks=(min(n, 64), *data["density"].shape[1:]),
+        ),
     ]
-    out += [Variable(f"geometry/{c}", data["geometry"][:, i], ("sector",), "1", f"tracer frame column {c}")
-            for i, c in enumerate(GEOM)]
+    out += [
+        Variable(f"geometry/{c}", data["geometry"][:, i], ("sector",), "1", f"tracer frame column {c}")
+        for i, c in enumerate(GEOM)
+    ]
     out += [Variable(f"sector/{p}", data["params"][p], ("sector",), "1", f"sampled sector parameter {p}") for p in PARAMS]
     return out
 
@@ -111,8 +141,9 @@ def storage_errors(recipe: dict, data: dict, stored: dict | None = None) -> dict
     return out
 
 
-def write_shard(path, recipe: dict, data: dict, start: int, total: int, epoch: int | None = None,
-                errors_: dict | None = None) -> Path:
+def write_shard(
+    path, recipe: dict, data: dict, start: int, total: int, epoch: int | None = None, errors_: dict | None = None
+) -> Path:
     """Write sectors [start, start + n) of a bake as an ``hrir_shard`` file, α and reflectance in the storage dtype.
 
     ``errors_``: the storage errors of data already cast (else measured here from float32 data)."""
@@ -121,11 +152,20 @@ def write_shard(path, recipe: dict, data: dict, start: int, total: int, epoch: i
     stored = {k: data[k].astype(dtype, copy=False) for k in ("alpha", "reflectance")}  # cast once
     err = storage_errors(recipe, data, stored) if errors_ is None else errors_
     with _source_date(epoch):
-        return write_table(path, SHARD_KIND, recipe, _axes(recipe, n, sector0=start), _per_sector({**data, **stored}, dtype),
-                           attrs={"sector_start": np.int64(start), "sector_stop": np.int64(start + n),
-                                  "sector_total": np.int64(total),
-                                  "storage_max_abs_error_alpha": err["alpha"],
-                                  "storage_max_abs_error_reflectance": err["reflectance"]})
+        return write_table(
+            path,
+            SHARD_KIND,
+            recipe,
+            _axes(recipe, n, sector0=start),
+            _per_sector({**data, **stored}, dtype),
+            attrs={
+                "sector_start": np.int64(start),
+                "sector_stop": np.int64(start + n),
+                "sector_total": np.int64(total),
+                "storage_max_abs_error_alpha": err["alpha"],
+                "storage_max_abs_error_reflectance": err["reflectance"],
+            },
+        )
 
 
 def read_shard(path, recipe_hash: str | None = None) -> tuple[dict, int, int, dict]:
@@ -137,10 +177,14 @@ def read_shard(path, recipe_hash: str | None = None) -> tuple[dict, int, int, di
         raise errors.CorruptAssetError(path, "baked from a different recipe")
     try:
         start, stop, total = (int(t.attrs[k]) for k in ("sector_start", "sector_stop", "sector_total"))
-        data = {"alpha": t["alpha"], "reflectance": t["reflectance"], "density": t["density"],
-                "geometry": np.stack([t[f"geometry/{c}"] for c in GEOM], axis=1),
-                "params": {p: t[f"sector/{p}"] for p in PARAMS},
-                "errors": {k: float(t.attrs[f"storage_max_abs_error_{k}"]) for k in ("alpha", "reflectance")}}
+        data = {
+            "alpha": t["alpha"],
+            "reflectance": t["reflectance"],
+            "density": t["density"],
+            "geometry": np.stack([t[f"geometry/{c}"] for c in GEOM], axis=1),
+            "params": {p: t[f"sector/{p}"] for p in PARAMS},
+            "errors": {k: float(t.attrs[f"storage_max_abs_error_{k}"]) for k in ("alpha", "reflectance")},
+        }
     except KeyError as exc:
         raise errors.MissingDatasetError(path, f"shard lacks {exc}") from None
     if len(data["alpha"]) != stop - start:
@@ -177,15 +221,26 @@ def _index(recipe: dict, data: dict, n: int) -> tuple[list[Axis], list[Variable]
     if names == PROJECTION:
         from ._projection import fit_projection, projection_settings, sector_projections
 
-        basis, feats, stats = fit_projection(sector_projections(data["density"], data["geometry"],
-                                                                n_steps=recipe["trace"]["steps"]))
-        extra = [Variable("projection_mean", basis.mean, ("projection_bin",), "1", "mean projection profile"),
-                 Variable("projection_components", basis.components, ("feature", "projection_bin"), "1",
-                          "principal components of the projection profiles (zero rows pad a small database)")]
+        basis, feats, stats = fit_projection(
+            sector_projections(data["density"], data["geometry"], n_steps=recipe["trace"]["steps"])
+        )
+        extra = [
+            Variable("projection_mean", basis.mean, ("projection_bin",), "1", "mean projection profile"),
+            Variable(
+                "projection_components",
+                basis.components,
+                ("feature", "projection_bin"),
+                "1",
+                "principal components of the projection profiles (zero rows pad a small database)",
+            ),
+        ]
         extra_attrs = {"projection": json.dumps(projection_settings(recipe))}
     else:
-        feats = data["features"] if "features" in data else sector_features(
-            data["density"], _row_areas(data, n_s, n_r), names, chunk=FEATURE_CHUNK)
+        feats = (
+            data["features"]
+            if "features" in data
+            else sector_features(data["density"], _row_areas(data, n_s, n_r), names, chunk=FEATURE_CHUNK)
+        )
         if n >= 2:
             stats = FeatureStats.fit(feats, names)
         else:
@@ -194,18 +249,36 @@ def _index(recipe: dict, data: dict, n: int) -> tuple[list[Axis], list[Variable]
     err = data["errors"] if "errors" in data else storage_errors(recipe, data)
     axes = _axes(recipe, n) + [Axis("feature", np.arange(len(names), dtype=np.int32), "1", "feature: " + ",".join(names))]
     if extra:
-        axes.append(Axis("projection_bin", np.arange(len(extra[0].data), dtype=np.int32), "1",
-                         "projection profile bin: direction-major (direction, bin along the image line)"))
+        axes.append(
+            Axis(
+                "projection_bin",
+                np.arange(len(extra[0].data), dtype=np.int32),
+                "1",
+                "projection profile bin: direction-major (direction, bin along the image line)",
+            )
+        )
     variables = [
-        Variable("features", feats, ("sector", "feature"), "1", "density features rho_feature (satf 5.2)",
-                 attrs={"names": json.dumps(list(names))}),
+        Variable(
+            "features",
+            feats,
+            ("sector", "feature"),
+            "1",
+            "density features rho_feature (satf 5.2)",
+            attrs={"names": json.dumps(list(names))},
+        ),
         Variable("features_mean", stats.mean, ("feature",), "1", "feature mean (normalisation)"),
         Variable("features_std", stats.std, ("feature",), "1", "feature standard deviation (normalisation)"),
         *extra,
     ]
-    attrs = {**extra_attrs, "n_sectors": np.int64(n), "feature_names": json.dumps(list(names)), "frame": FRAME,
-             "storage_dtype": dtype.name, "storage_max_abs_error_alpha": err["alpha"],
-             "storage_max_abs_error_reflectance": err["reflectance"]}
+    attrs = {
+        **extra_attrs,
+        "n_sectors": np.int64(n),
+        "feature_names": json.dumps(list(names)),
+        "frame": FRAME,
+        "storage_dtype": dtype.name,
+        "storage_max_abs_error_alpha": err["alpha"],
+        "storage_max_abs_error_reflectance": err["reflectance"],
+    }
     return axes, variables, attrs
 
 
@@ -290,23 +363,34 @@ def _check_contents(path, t) -> tuple[str, ...]:
     except errors.ValidationError as exc:
         raise errors.CorruptAssetError(path, f"stored recipe: {exc}") from None
     if names != want_names:
-        raise errors.CorruptAssetError(path, f"root attribute 'feature_names' is {str(names)[:80]}, "
-                                       f"the recipe's features give {want_names}")
+        raise errors.CorruptAssetError(
+            path, f"root attribute 'feature_names' is {str(names)[:80]}, the recipe's features give {want_names}"
+        )
     V, L, P = r["angles"]["views"], r["angles"]["lights"], r["trace"]["pixels"]
     n_s, n_r = r["sectors"]["grid"]
     if "alpha" not in t.variables or t["alpha"].ndim < 1:
         raise errors.MissingDatasetError(path, "hrir_db lacks 'alpha'")
     n, F = t["alpha"].shape[0], len(names)
-    want = {"features": (n, F), "features_mean": (F,), "features_std": (F,), "alpha": (n, V, P),
-            "reflectance": (n, V, L, P), "density": (n, n_s, n_r),
-            **{f"geometry/{c}": (n,) for c in GEOM}, **{f"sector/{p}": (n,) for p in PARAMS}}
+    want = {
+        "features": (n, F),
+        "features_mean": (F,),
+        "features_std": (F,),
+        "alpha": (n, V, P),
+        "reflectance": (n, V, L, P),
+        "density": (n, n_s, n_r),
+        **{f"geometry/{c}": (n,) for c in GEOM},
+        **{f"sector/{p}": (n,) for p in PARAMS},
+    }
     for name, shape in want.items():
         if name not in t.variables:
             raise errors.MissingDatasetError(path, f"hrir_db lacks {name!r}")
         if t[name].shape != shape:
-            raise errors.CorruptAssetError(path, f"table {name!r} has shape {t[name].shape}, the recipe "
-                                           f"(views {V}, lights {L}, pixels {P}, grid {n_s}×{n_r}, {F} features) "
-                                           f"needs {shape}")
+            raise errors.CorruptAssetError(
+                path,
+                f"table {name!r} has shape {t[name].shape}, the recipe "
+                f"(views {V}, lights {L}, pixels {P}, grid {n_s}×{n_r}, {F} features) "
+                f"needs {shape}",
+            )
     if tuple(names) == PROJECTION:
         from ._projection import projection_settings
 
@@ -333,11 +417,29 @@ def load_hrir_db(path) -> HRIRDB:
     try:
         names = _check_contents(path, t)
         stats = FeatureStats(names, t["features_mean"], t["features_std"])
-        basis = (PCABasis((1, len(t["projection_mean"])), np.asarray(t["projection_mean"], np.float64),
-                          np.asarray(t["projection_components"], np.float64)) if names == PROJECTION else None)
-        return HRIRDB(t["features"], stats, t.axes["theta_v"].values, t.axes["theta_l"].values, t["alpha"],
-                      t["reflectance"], t["density"], {c: t[f"geometry/{c}"] for c in GEOM},
-                      {p: t[f"sector/{p}"] for p in PARAMS}, t.recipe, dict(t.attrs), basis)
+        basis = (
+            PCABasis(
+                (1, len(t["projection_mean"])),
+                np.asarray(t["projection_mean"], np.float64),
+                np.asarray(t["projection_components"], np.float64),
+            )
+            if names == PROJECTION
+            else None
+        )
+        return HRIRDB(
+            t["features"],
+            stats,
+            t.axes["theta_v"].values,
+            t.axes["theta_l"].values,
+            t["alpha"],
+            t["reflectance"],
+            t["density"],
+            {c: t[f"geometry/{c}"] for c in GEOM},
+            {p: t[f"sector/{p}"] for p in PARAMS},
+            t.recipe,
+            dict(t.attrs),
+            basis,
+        )
     except KeyError as exc:
         raise errors.MissingDatasetError(path, f"hrir_db lacks {exc}") from None
 
@@ -351,9 +453,14 @@ def reindex(db_path, out, features: str) -> Path:
 
     db = load_hrir_db(db_path)
     recipe = resolve_recipe({**db.recipe, "sectors": {**db.recipe["sectors"], "features": features}}, budget=False)
-    data = {"alpha": db.alpha, "reflectance": db.reflectance, "density": db.density,
-            "geometry": np.stack([db.geometry[c] for c in GEOM], axis=1), "params": db.params,
-            "errors": {k: float(db.attrs[f"storage_max_abs_error_{k}"]) for k in ("alpha", "reflectance")}}
+    data = {
+        "alpha": db.alpha,
+        "reflectance": db.reflectance,
+        "density": db.density,
+        "geometry": np.stack([db.geometry[c] for c in GEOM], axis=1),
+        "params": db.params,
+        "errors": {k: float(db.attrs[f"storage_max_abs_error_{k}"]) for k in ("alpha", "reflectance")},
+    }
     return assemble(out, recipe, data)
 
 

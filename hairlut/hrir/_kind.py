@@ -35,8 +35,9 @@ def phong_sum(recipe: dict, tables=None) -> float:
 #: The physical bounds of the traced tables (hairlut.assets.bounds): checked on every part and asset written.
 BOUNDS = (
     Bound("alpha", 0.0, 1.0, keys=DEPTH_KEYS, text="0 ≤ α ≤ 1"),
-    Bound("reflectance", 0.0, 1.0, of="alpha", scale=phong_sum, keys=DEPTH_KEYS + SHADING_KEYS,
-          text="0 ≤ re ≤ α·(k_a + k_d + k_s)"),
+    Bound(
+        "reflectance", 0.0, 1.0, of="alpha", scale=phong_sum, keys=DEPTH_KEYS + SHADING_KEYS, text="0 ≤ re ≤ α·(k_a + k_d + k_s)"
+    ),
     Bound("density", 0.0, None, keys=("sectors.density_scale", "sectors.grid", *DEPTH_KEYS[2:]), text="ρ ≥ 0"),
     Bound("geometry/*", None, None, keys=DEPTH_KEYS, text="finite"),
 )
@@ -59,9 +60,11 @@ def _part(name: str):
 def describe(report: dict) -> list[str]:
     lo, hi = report["unit_range"]
     rate = report["computed"] / report["seconds"] if report["seconds"] > 0 else 0.0
-    return [f"wrote {report['out']} ({report['kind']}, sectors {lo}..{hi - 1} of {report['total_units']}, "
-            f"{report['bytes'] / 2**20:.1f} MiB) in {report['seconds']:.1f} s",
-            f"  baked {report['computed']} sectors ({rate:.1f}/s), resumed {report['resumed']}"]
+    return [
+        f"wrote {report['out']} ({report['kind']}, sectors {lo}..{hi - 1} of {report['total_units']}, "
+        f"{report['bytes'] / 2**20:.1f} MiB) in {report['seconds']:.1f} s",
+        f"  baked {report['computed']} sectors ({rate:.1f}/s), resumed {report['resumed']}",
+    ]
 
 
 BAKER = Baker(
@@ -79,18 +82,27 @@ BAKER = Baker(
     shard_kind=SHARD_KIND,
     shard_required=("alpha", "reflectance", "density"),
     bounds=BOUNDS,
-    units=Units("sector", lambda recipe, **_: recipe["sectors"]["count"], deferred(f"{__package__}._bake", "bake_part"),
-                deferred(f"{__package__}._bake", "join_parts"), deferred(f"{__package__}._bake", "assemble_parts"),
-                _part("whole"), block=deferred(f"{__package__}._bake", "auto_block"), check=_part("check"),
-                budget=_part("budget"), index=_part("part_index"),
-                block_help="Default: 32, or up to a 16th of a large bake as the device's memory allows (32 with "
-                           "--shard/--distributed)."),
+    units=Units(
+        "sector",
+        lambda recipe, **_: recipe["sectors"]["count"],
+        deferred(f"{__package__}._bake", "bake_part"),
+        deferred(f"{__package__}._bake", "join_parts"),
+        deferred(f"{__package__}._bake", "assemble_parts"),
+        _part("whole"),
+        block=deferred(f"{__package__}._bake", "auto_block"),
+        check=_part("check"),
+        budget=_part("budget"),
+        index=_part("part_index"),
+        block_help="Default: 32, or up to a 16th of a large bake as the device's memory allows (32 with --shard/--distributed).",
+    ),
     help="""HRIR database: planar ray tracing of random generalized sectors (satf §5).""",
-    examples=("hairlut bake hrir --recipe tables/hrir-default.toml --out tables/hrir-default.h5",
-              "hairlut bake hrir --recipe tables/hrir-default.toml --out s0.h5 --shard 0/2",
-              "hairlut bake hrir --recipe tables/hrir-default.toml --out s1.h5 --shard 1/2",
-              "hairlut merge s0.h5 s1.h5 --out tables/hrir-default.h5",
-              "hairlut bake hrir --set sectors.count=64        # into the table cache (tables/)",
-              "hairlut bake hrir --recipe r.toml --out db.h5 --distributed \\",
-              "    --coordinator 10.0.0.1:12355 --num-processes 2 --process-id 0   # and --process-id 1 elsewhere"),
+    examples=(
+        "hairlut bake hrir --recipe tables/hrir-default.toml --out tables/hrir-default.h5",
+        "hairlut bake hrir --recipe tables/hrir-default.toml --out s0.h5 --shard 0/2",
+        "hairlut bake hrir --recipe tables/hrir-default.toml --out s1.h5 --shard 1/2",
+        "hairlut merge s0.h5 s1.h5 --out tables/hrir-default.h5",
+        "hairlut bake hrir --set sectors.count=64        # into the table cache (tables/)",
+        "hairlut bake hrir --recipe r.toml --out db.h5 --distributed \\",
+        "    --coordinator 10.0.0.1:12355 --num-processes 2 --process-id 0   # and --process-id 1 elsewhere",
+    ),
 )

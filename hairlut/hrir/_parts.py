@@ -19,9 +19,9 @@ from .. import errors
 from ..assets import open_table
 from ..assets.layout import layout
 from ..geometry.features import PROJECTION, feature_names, sector_features
+from ..march import GEOM
 from ._io import FEATURE_CHUNK, _index, _read, _row_areas
 from ._kind import SHARD_KIND
-from ..march import GEOM
 
 STORAGE = ("alpha", "reflectance")  # the tables whose storage error (float16 rounding) a part records
 
@@ -40,9 +40,9 @@ def part_features(recipe: dict, density: np.ndarray, geometry: np.ndarray, start
         lo, hi = max(start, c0), min(stop, c0 + size)
         rho = np.zeros((size, n_s, n_r), np.asarray(density).dtype)
         area = np.ones((size, n_r))
-        rho[lo - c0:hi - c0] = density[lo - start:hi - start]
-        area[lo - c0:hi - c0] = areas[lo - start:hi - start]
-        out.append(sector_features(rho, area, names, chunk=size)[lo - c0:hi - c0])
+        rho[lo - c0 : hi - c0] = density[lo - start : hi - start]
+        area[lo - c0 : hi - c0] = areas[lo - start : hi - start]
+        out.append(sector_features(rho, area, names, chunk=size)[lo - c0 : hi - c0])
     return np.concatenate(out) if out else np.zeros((0, len(names)))
 
 
@@ -71,11 +71,21 @@ def whole(recipe: dict, parts, index=None, **_):
     if feature_names(recipe["sectors"]["features"]) != PROJECTION:
         sizes = [len(d["features"] if "features" in d else d["density"]) for d in small]
         starts, total = np.cumsum([0, *sizes[:-1]]), sum(sizes)
-        feats = np.concatenate([d["features"] if "features" in d else  # an index of density grids (an older share file)
-                                part_features(recipe, d["density"], d["geometry"], int(s), total) for d, s in zip(small, starts)])
+        feats = np.concatenate(
+            [
+                d["features"]
+                if "features" in d
+                # an index of density grids (an older share file)
+                else part_features(recipe, d["density"], d["geometry"], int(s), total)
+                for d, s in zip(small, starts)
+            ]
+        )
         return _index(recipe, {"features": feats, "errors": errs}, total)
-    data = {"density": np.concatenate([d["density"] for d in small]),
-            "geometry": np.concatenate([d["geometry"] for d in small]), "errors": errs}
+    data = {
+        "density": np.concatenate([d["density"] for d in small]),
+        "geometry": np.concatenate([d["geometry"] for d in small]),
+        "errors": errs,
+    }
     return _index(recipe, data, len(data["density"]))
 
 

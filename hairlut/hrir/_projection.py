@@ -41,7 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ..geometry.features import FeatureStats, PCABasis, PROJECTION
+from ..geometry.features import PROJECTION, FeatureStats, PCABasis
 from ..march import GEOM, march, sector_fields
 
 #: Views of the projection profile over [0, π).
@@ -71,8 +71,9 @@ def projection_kernel(rho, geom, *, directions: int, bins: int, sub: int, n_step
     return jax.lax.map(one, (rho, geom), batch_size=block)
 
 
-def sector_projections(density, geometry, *, n_steps: int, directions: int = DIRECTIONS, bins: int = BINS,
-                       sub: int = SUB, block: int = BLOCK) -> np.ndarray:
+def sector_projections(
+    density, geometry, *, n_steps: int, directions: int = DIRECTIONS, bins: int = BINS, sub: int = SUB, block: int = BLOCK
+) -> np.ndarray:
     """(N, D·B) projection profiles (float64 copies of the float32 kernel's) of N sectors' density
     grids (N, n_s, n_r) and geometry rows (N, 11); empty sectors (all-zero density) are exactly 0."""
     rho = np.asarray(density)
@@ -92,9 +93,16 @@ def sector_projections(density, geometry, *, n_steps: int, directions: int = DIR
     size = min(block, 1 << (live.size - 1).bit_length())
     total = -(-live.size // size) * size
     rows = np.concatenate([live, np.full(total - live.size, live[0])])  # pad with copies of a live sector
-    p = projection_kernel(jnp.asarray(rho[rows], jnp.float32), jnp.asarray(g[rows], jnp.float32),
-                          directions=int(directions), bins=int(bins), sub=int(sub), n_steps=int(n_steps), block=size)
-    p = np.asarray(p, np.float64)[:live.size].reshape(live.size, -1)
+    p = projection_kernel(
+        jnp.asarray(rho[rows], jnp.float32),
+        jnp.asarray(g[rows], jnp.float32),
+        directions=int(directions),
+        bins=int(bins),
+        sub=int(sub),
+        n_steps=int(n_steps),
+        block=size,
+    )
+    p = np.asarray(p, np.float64)[: live.size].reshape(live.size, -1)
     if not np.all(np.isfinite(p)):
         raise errors.HairlutError("sector_projections: the kernel produced non-finite profiles (check the density scale)")
     out[live] = p
@@ -103,8 +111,15 @@ def sector_projections(density, geometry, *, n_steps: int, directions: int = DIR
 
 def projection_settings(recipe: dict) -> dict:
     """The profile's settings for a resolved recipe (stored as the database's ``projection`` attribute)."""
-    return {"directions": DIRECTIONS, "bins": BINS, "sub": SUB, "steps": int(recipe["trace"]["steps"]),
-            "cumulative": CUMULATIVE, "components": COMPONENTS, "profile": 2 * DIRECTIONS * BINS}
+    return {
+        "directions": DIRECTIONS,
+        "bins": BINS,
+        "sub": SUB,
+        "steps": int(recipe["trace"]["steps"]),
+        "cumulative": CUMULATIVE,
+        "components": COMPONENTS,
+        "profile": 2 * DIRECTIONS * BINS,
+    }
 
 
 def profile(projections, bins: int = BINS) -> np.ndarray:
@@ -126,13 +141,12 @@ def fit_projection(projections) -> tuple[PCABasis, np.ndarray, FeatureStats]:
     else:
         basis = PCABasis((1, m), prof.mean(0), np.zeros((0, m)))
     comps = np.zeros((COMPONENTS, m))
-    comps[:basis.n_components] = basis.components
+    comps[: basis.n_components] = basis.components
     basis = PCABasis((1, m), basis.mean, comps)
     scores = basis.transform(prof[:, None, :])
     spread = float(np.sqrt(np.sum(np.var(prof, axis=0)))) if n >= 2 else 0.0
     scale = max(spread, 1e-12)
-    return basis, scores, FeatureStats(PROJECTION, scores.mean(0) if n >= 2 else scores[0].copy(),
-                                       np.full(COMPONENTS, scale))
+    return basis, scores, FeatureStats(PROJECTION, scores.mean(0) if n >= 2 else scores[0].copy(), np.full(COMPONENTS, scale))
 
 
 def projection_features(db, density, geometry) -> np.ndarray:
@@ -140,7 +154,10 @@ def projection_features(db, density, geometry) -> np.ndarray:
     database's grid, pixel count and extinction) on the database's stored basis; the query side."""
     basis = getattr(db, "projection", None)
     if basis is None:
-        raise errors.ValidationError("db.features", tuple(db.stats.names), "this database is not indexed by projection "
-                                     "features (bake it with sectors.features = \"projection\")")
+        raise errors.ValidationError(
+            "db.features",
+            tuple(db.stats.names),
+            'this database is not indexed by projection features (bake it with sectors.features = "projection")',
+        )
     prof = profile(sector_projections(density, geometry, n_steps=int(db.recipe["trace"]["steps"])))
     return basis.transform(prof[:, None, :])

@@ -68,8 +68,7 @@ def interpolate(idx, w, tv, tl, alpha, refl):
     for j in range(idx.shape[1]):
         a0, a1 = idx[:, j] * V + v0, idx[:, j] * V + v1  # α rows; reflectance rows follow in θl
         r0, r1 = a0[:, None] * L, a1[:, None] * L
-        r = ((1 - gv) * ((1 - gl) * rows[r0 + l0] + gl * rows[r0 + l1])
-             + gv * ((1 - gl) * rows[r1 + l0] + gl * rows[r1 + l1]))
+        r = (1 - gv) * ((1 - gl) * rows[r0 + l0] + gl * rows[r0 + l1]) + gv * ((1 - gl) * rows[r1 + l0] + gl * rows[r1 + l1])
         re = re + w[:, j, None, None] * r
         a = a + w[:, j, None] * ((1 - fv) * arows[a0] + fv * arows[a1])
     return re, a
@@ -97,8 +96,11 @@ def query_kernel(zq, tv, tl, zdb, alpha, refl, k):
 
 def device_arrays(db):
     """The database's normalised features, α and reflectance as float32 device arrays."""
-    return (jnp.asarray(db.stats.normalize(db.features), jnp.float32), jnp.asarray(db.alpha, jnp.float32),
-            jnp.asarray(db.reflectance, jnp.float32))
+    return (
+        jnp.asarray(db.stats.normalize(db.features), jnp.float32),
+        jnp.asarray(db.alpha, jnp.float32),
+        jnp.asarray(db.reflectance, jnp.float32),
+    )
 
 
 def feature_limit(n_records: int, n_features: int) -> float:
@@ -132,16 +134,28 @@ def satf_query(db, features, theta_v, theta_l, k: int = 4):
     if z.size and not np.abs(z).max() <= limit:
         i, j = np.unravel_index(int(np.argmax(np.nan_to_num(np.abs(z), nan=np.inf))), z.shape)
         lo, hi = db.stats.denormalize(-limit)[j], db.stats.denormalize(limit)[j]
-        raise errors.ValidationError("features", float(flat[i, j]),
-                                     f"{db.stats.names[j]} lies {abs(z[i, j]):.3g} standard deviations from the "
-                                     f"database's mean; the float32 distances overflow beyond {limit:.3g} "
-                                     f"({db.stats.names[j]} in [{lo:.3g}, {hi:.3g}])")
+        raise errors.ValidationError(
+            "features",
+            float(flat[i, j]),
+            f"{db.stats.names[j]} lies {abs(z[i, j]):.3g} standard deviations from the "
+            f"database's mean; the float32 distances overflow beyond {limit:.3g} "
+            f"({db.stats.names[j]} in [{lo:.3g}, {hi:.3g}])",
+        )
     zdb, alpha, refl = getattr(db, "device_arrays", None) or device_arrays(db)
     turn = 2 * np.pi  # reduced in float64 first: a huge angle is inf in float32, and inf mod 2π is NaN
     re, a, idx, w = query_kernel(
-        jnp.asarray(z, jnp.float32), jnp.asarray(np.mod(np.broadcast_to(tv, shape).ravel(), turn), jnp.float32),
-        jnp.asarray(np.mod(np.broadcast_to(tl, shape).ravel(), turn), jnp.float32), zdb, alpha, refl, int(k),
+        jnp.asarray(z, jnp.float32),
+        jnp.asarray(np.mod(np.broadcast_to(tv, shape).ravel(), turn), jnp.float32),
+        jnp.asarray(np.mod(np.broadcast_to(tl, shape).ravel(), turn), jnp.float32),
+        zdb,
+        alpha,
+        refl,
+        int(k),
     )
     P = db.alpha.shape[-1]
-    return (np.asarray(re).reshape(*shape, P), np.asarray(a).reshape(*shape, P),
-            np.asarray(idx).reshape(*shape, k), np.asarray(w).reshape(*shape, k))
+    return (
+        np.asarray(re).reshape(*shape, P),
+        np.asarray(a).reshape(*shape, P),
+        np.asarray(idx).reshape(*shape, k),
+        np.asarray(w).reshape(*shape, k),
+    )

@@ -55,9 +55,13 @@ SCHEMA = {
         "seed": Field(0, (int,), in_range(0, 2**63 - 1), "sector i is drawn from the seed and i alone"),
         "grid": Field([32, 32], (list,), _grid, "density grid (n_s, n_r) of each sector"),
         "density_scale": Field(1.0, _NUM, float32(positive), "density of a fully covered cell"),
-        "features": Field("basic", (str,), one_of("basic", "moments", "projection"),
-                          "feature set of the index: the paper's (satf §5.2), moments, or projection "
-                          "(each sector's density projected at 8 views, 24 principal components)"),
+        "features": Field(
+            "basic",
+            (str,),
+            one_of("basic", "moments", "projection"),
+            "feature set of the index: the paper's (satf §5.2), moments, or projection "
+            "(each sector's density projected at 8 views, 24 principal components)",
+        ),
         "space": space_fields(),
     },
     "angles": {
@@ -81,8 +85,7 @@ SCHEMA = {
         "shininess": Field(20.0, _NUM, float32(positive), "Phong exponent p"),
     },
     "storage": {
-        "dtype": Field("float32", (str,), one_of("float16", "float32"),
-                       "dtype of alpha and reflectance"),
+        "dtype": Field("float32", (str,), one_of("float16", "float32"), "dtype of alpha and reflectance"),
     },
 }
 
@@ -123,8 +126,11 @@ def float32_factors(recipe: dict) -> dict:
     root_area = math.sqrt(sp["aspect"][0] * (math.pi / sp["s_u"][1])) * dv
     rel_lo, rel_hi = sp["radius_rel"]
     mass = sp["strands"][1] * math.pi * rel_hi * n_s * n_r * n_r  # ρ̂ = density_scale · mass · radius_rel_hi
-    return {"sigma_t": 1.0 / (rel_lo * root_area), "gradient": 4 * math.pi * mass * rel_hi * max(n_s, n_r),
-            "depth": 4 * mass / root_area}
+    return {
+        "sigma_t": 1.0 / (rel_lo * root_area),
+        "gradient": 4 * math.pi * mass * rel_hi * max(n_s, n_r),
+        "depth": 4 * mass / root_area,
+    }
 
 
 #: The keys each float32 bound depends on, the one it limits first (the others are named when the user set them).
@@ -132,8 +138,14 @@ SPACE_AREA = ("sectors.space.radial_extent", "sectors.space.v_inner", "sectors.s
 BOUND_KEYS = {
     "sigma_t": ("trace.extinction", "sectors.space.radius_rel", *SPACE_AREA),
     "gradient": ("sectors.density_scale", "sectors.grid", "sectors.space.strands", "sectors.space.radius_rel"),
-    "depth": ("trace.extinction", "sectors.density_scale", "sectors.grid", "sectors.space.strands",
-              "sectors.space.radius_rel", *SPACE_AREA),
+    "depth": (
+        "trace.extinction",
+        "sectors.density_scale",
+        "sectors.grid",
+        "sectors.space.strands",
+        "sectors.space.radius_rel",
+        *SPACE_AREA,
+    ),
 }
 
 
@@ -153,22 +165,40 @@ def check_float32(recipe: dict, given: dict | None = None) -> None:
     kappa, scale = recipe["trace"]["extinction"], recipe["sectors"]["density_scale"]
     f = float32_factors(recipe)
     if not kappa * f["sigma_t"] <= FLOAT32_MAX:
-        raise _refuse(recipe, given, "sigma_t", f"σ_t = κ / r_strand reaches {kappa * f['sigma_t']:.3g} for the "
-                      f"sector space's thinnest strand in its smallest sector, beyond float32 ({FLOAT32_MAX:.3g}); "
-                      f"trace.extinction ≤ {FLOAT32_MAX / f['sigma_t']:.3g} with the rest as given")
+        raise _refuse(
+            recipe,
+            given,
+            "sigma_t",
+            f"σ_t = κ / r_strand reaches {kappa * f['sigma_t']:.3g} for the "
+            f"sector space's thinnest strand in its smallest sector, beyond float32 ({FLOAT32_MAX:.3g}); "
+            f"trace.extinction ≤ {FLOAT32_MAX / f['sigma_t']:.3g} with the rest as given",
+        )
     top = math.sqrt(FLOAT32_MAX / 2)
     if not scale * f["gradient"] <= top:
-        raise _refuse(recipe, given, "gradient", f"the density gradient's components can reach "
-                      f"{scale * f['gradient']:.3g} (sectors.grid, the space's strands and radius_rel), whose squares "
-                      f"overflow float32 ({FLOAT32_MAX:.3g}); sectors.density_scale ≤ {top / f['gradient']:.3g} "
-                      "with the rest as given")
+        raise _refuse(
+            recipe,
+            given,
+            "gradient",
+            f"the density gradient's components can reach "
+            f"{scale * f['gradient']:.3g} (sectors.grid, the space's strands and radius_rel), whose squares "
+            f"overflow float32 ({FLOAT32_MAX:.3g}); sectors.density_scale ≤ {top / f['gradient']:.3g} "
+            "with the rest as given",
+        )
     if not kappa * (scale * f["depth"]) <= FLOAT32_MAX / 2:  # (no strands: 0, whatever κ)
-        raise _refuse(recipe, given, "depth", f"a ray's optical depth can reach {kappa * (scale * f['depth']):.3g} "
-                      f"(κ × sectors.density_scale × the sector space's densest sector), beyond float32 "
-                      f"({FLOAT32_MAX:.3g} / 2); trace.extinction ≤ {FLOAT32_MAX / 2 / (scale * f['depth']):.3g} "
-                      "with the rest as given")
+        raise _refuse(
+            recipe,
+            given,
+            "depth",
+            f"a ray's optical depth can reach {kappa * (scale * f['depth']):.3g} "
+            f"(κ × sectors.density_scale × the sector space's densest sector), beyond float32 "
+            f"({FLOAT32_MAX:.3g} / 2); trace.extinction ≤ {FLOAT32_MAX / 2 / (scale * f['depth']):.3g} "
+            "with the rest as given",
+        )
     ph = recipe["phong"]
     if not ph["ambient"] + ph["diffuse"] + ph["specular"] <= FLOAT32_MAX:
         top = max(("ambient", "diffuse", "specular"), key=lambda k: ph[k])
-        raise errors.ValidationError(f"phong.{top}", ph[top], f"k_a + k_d + k_s (the reflectance of a unit of opacity) "
-                                     f"must be ≤ {FLOAT32_MAX:.8g} (float32's largest)")
+        raise errors.ValidationError(
+            f"phong.{top}",
+            ph[top],
+            f"k_a + k_d + k_s (the reflectance of a unit of opacity) must be ≤ {FLOAT32_MAX:.8g} (float32's largest)",
+        )

@@ -58,8 +58,12 @@ class _Sector:
         ok = inside & (f[:, 1] ** 2 + f[:, 2] ** 2 > (1e-5 * self.scale) ** 2) & (v > 0)
         for k in np.flatnonzero(ok):
             cp, sp = np.cos(phi[k]), np.sin(phi[k])
-            jac = np.array([[-g["du"] * v[k] * sp, (g["v1"] - g["v0"]) * cp],
-                            [g["du"] * v[k] * g["aspect"] * cp, (g["v1"] - g["v0"]) * g["aspect"] * sp]])
+            jac = np.array(
+                [
+                    [-g["du"] * v[k] * sp, (g["v1"] - g["v0"]) * cp],
+                    [g["du"] * v[k] * g["aspect"] * cp, (g["v1"] - g["v0"]) * g["aspect"] * sp],
+                ]
+            )
             ge = np.linalg.solve(jac.T, f[k, 1:])  # ∇ρ in ellipse coordinates
             grad[k] = [cb * ge[0] + sb * ge[1], -sb * ge[0] + cb * ge[1]]
         ok &= np.hypot(grad[:, 0], grad[:, 1]) > 0
@@ -93,16 +97,28 @@ def _ray(sec: _Sector, pts, d, L, phong, ds, eps, shadow):
         spec = np.where((nl > 0) & (rv > 0), np.abs(rv) ** p, 0.0)
         direct = kd * np.maximum(nl, 0) + ks * spec
         if shadow:
-            direct = direct * np.exp(-np.array([_depth_to_light(sec, pts[k], L[i], ds, 2 * g["extent"])
-                                                for i in range(len(L))]))
+            direct = direct * np.exp(-np.array([_depth_to_light(sec, pts[k], L[i], ds, 2 * g["extent"]) for i in range(len(L))]))
         re = ka + direct
         re_acc = re_acc + a * re * (1 - a_acc)  # eq 5
         a_acc = a_acc + a * (1 - a_acc)
     return a_acc, re_acc
 
 
-def reference_hrir(rho, geom, views, lights, phong, *, n_pix: int, n_steps: int, rays: int = 1,
-                   shadow: bool = False, smooth: bool = True, eps: float = 1e-4, share_lights: bool = False):
+def reference_hrir(
+    rho,
+    geom,
+    views,
+    lights,
+    phong,
+    *,
+    n_pix: int,
+    n_steps: int,
+    rays: int = 1,
+    shadow: bool = False,
+    smooth: bool = True,
+    eps: float = 1e-4,
+    share_lights: bool = False,
+):
     """alpha (V, P) and reflectance (V, L, P) of one sector by a per-ray NumPy loop (float64).
 
     By default every (view, light, ray) is traced on its own, as in the paper; with
@@ -128,7 +144,7 @@ def reference_hrir(rho, geom, views, lights, phong, *, n_pix: int, n_steps: int,
                 alpha[iv, j], refl[iv, :, j] = _ray(sec, pts, d, L, phong, ds, eps, shadow)
                 continue
             for il in range(len(L)):
-                alpha[iv, j], re = _ray(sec, pts, d, L[il:il + 1], phong, ds, eps, shadow)
+                alpha[iv, j], re = _ray(sec, pts, d, L[il : il + 1], phong, ds, eps, shadow)
                 refl[iv, il, j] = re[0]
     alpha = alpha.reshape(len(views), n_pix, rays).mean(-1)
     refl = refl.reshape(len(views), len(lights), n_pix, rays).mean(-1)

@@ -62,8 +62,20 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 
-from ..march import (GEOM, SHADOW_GRID, SIGMA_PX, direct_lighting, front_to_back, grid_transmittance, light_depth_grid, march,
-                     reflectance, sector_fields, smooth_matrix, to_pixels)
+from ..march import (
+    GEOM,
+    SHADOW_GRID,
+    SIGMA_PX,
+    direct_lighting,
+    front_to_back,
+    grid_transmittance,
+    light_depth_grid,
+    march,
+    reflectance,
+    sector_fields,
+    smooth_matrix,
+    to_pixels,
+)
 
 __all__ = ["GEOM", "trace_kernel"]
 
@@ -86,8 +98,21 @@ def _trace_one(rho, g, views, lights, phong, *, n_pix, n_steps, rays, shadow, sm
 
 
 @partial(jax.jit, static_argnames=("n_pix", "n_steps", "rays", "shadow", "smooth", "eps", "chunk"))
-def trace_kernel(rho, geom, views, lights, phong, *, n_pix: int, n_steps: int, rays: int = 1,
-                 shadow: bool = False, smooth: bool = True, eps: float = 1e-4, chunk: int = 1):
+def trace_kernel(
+    rho,
+    geom,
+    views,
+    lights,
+    phong,
+    *,
+    n_pix: int,
+    n_steps: int,
+    rays: int = 1,
+    shadow: bool = False,
+    smooth: bool = True,
+    eps: float = 1e-4,
+    chunk: int = 1,
+):
     """HRIRs of B sectors: alpha (B, V, P) and premultiplied reflectance (B, V, L, P).
 
     ``rho`` (B, n_s, n_r) densities, ``geom`` (B, len(GEOM)) sector geometry (see

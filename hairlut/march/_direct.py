@@ -60,10 +60,23 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ._march import (GEOM, SHADOW_GRID, exclusive_depth, front_to_back, grid_transmittance, light_depth_grid, march,
-                    normals, phong_direct, reflectance, sector_fields, smooth_matrix, to_pixels, view_points)
 from ..validate import check_int
-
+from ._march import (
+    GEOM,
+    SHADOW_GRID,
+    exclusive_depth,
+    front_to_back,
+    grid_transmittance,
+    light_depth_grid,
+    march,
+    normals,
+    phong_direct,
+    reflectance,
+    sector_fields,
+    smooth_matrix,
+    to_pixels,
+    view_points,
+)
 
 #: Sectors mapped at once inside the kernel (vmapped), by default.
 BLOCK = 64
@@ -89,7 +102,7 @@ def _light_depth_at(fields, g, lights, n_steps: int, m: int, qx, qy):
     quads = jnp.stack([depth[:, :-1, :-1], depth[:, 1:, :-1], depth[:, :-1, 1:], depth[:, 1:, 1:]], -1)
     quads = quads.reshape(L * (m - 1) * (n_steps - 1), 4)
     p = quads[(jnp.arange(L)[:, None, None] * (m - 1) + i0) * (n_steps - 1) + j0]  # one gather per point
-    return ((1 - a) * (1 - b) * p[..., 0] + a * (1 - b) * p[..., 1] + (1 - a) * b * p[..., 2] + a * b * p[..., 3])
+    return (1 - a) * (1 - b) * p[..., 0] + a * (1 - b) * p[..., 1] + (1 - a) * b * p[..., 2] + a * b * p[..., 3]
 
 
 def _direct_one(rho, g, view, lights, phong, path_v, path_l, *, n_pix, n_steps, rays, shadow, smooth, eps, shade):
@@ -124,9 +137,24 @@ def _direct_one(rho, g, view, lights, phong, path_v, path_l, *, n_pix, n_steps, 
 
 
 @partial(jax.jit, static_argnames=("n_pix", "n_steps", "rays", "shadow", "smooth", "eps", "block", "shade"))
-def direct_kernel(rho, geom, theta_v, theta_l, phong, path=None, light_path=None, *, n_pix: int, n_steps: int,
-                  rays: int = 1, shadow="march", smooth: bool = True, eps: float = 1e-4, block: int = BLOCK,
-                  shade: bool = True):
+def direct_kernel(
+    rho,
+    geom,
+    theta_v,
+    theta_l,
+    phong,
+    path=None,
+    light_path=None,
+    *,
+    n_pix: int,
+    n_steps: int,
+    rays: int = 1,
+    shadow="march",
+    smooth: bool = True,
+    eps: float = 1e-4,
+    block: int = BLOCK,
+    shade: bool = True,
+):
     """α (B, P) and premultiplied re (B, L, P) of B sectors, each at its own view and lights.
 
     ``rho`` (B, n_s, n_r), ``geom`` (B, 11) geometry rows (``hairlut.hrir.GEOM``), ``theta_v``
@@ -139,10 +167,12 @@ def direct_kernel(rho, geom, theta_v, theta_l, phong, path=None, light_path=None
     factors of the view's and the lights' rays (module docstring, "Oblique rays"); None: the in-plane maps.
     See the module docstring.
     """
-    one = partial(_direct_one, n_pix=n_pix, n_steps=n_steps, rays=rays, shadow=shadow, smooth=smooth, eps=eps,
-                  shade=shade)
-    alpha, re = jax.lax.map(lambda a: one(a[0], a[1], a[2], a[3], phong, a[4], a[5]),
-                            (rho, geom, theta_v, theta_l, path, light_path), batch_size=block)
+    one = partial(_direct_one, n_pix=n_pix, n_steps=n_steps, rays=rays, shadow=shadow, smooth=smooth, eps=eps, shade=shade)
+    alpha, re = jax.lax.map(
+        lambda a: one(a[0], a[1], a[2], a[3], phong, a[4], a[5]),
+        (rho, geom, theta_v, theta_l, path, light_path),
+        batch_size=block,
+    )
     return alpha, re if shade else re[:, :0]
 
 
@@ -170,8 +200,14 @@ def _settings(recipe, n_pix, overrides, shadow_lookup="march") -> tuple[dict, np
         raise errors.ValidationError("recipe", type(recipe).__name__, "need an HRIR recipe with 'trace' and 'phong' sections")
     tr, ph = recipe["trace"], recipe["phong"]
     try:
-        cfg = {"n_pix": tr["pixels"], "n_steps": tr["steps"], "rays": tr["rays_per_pixel"], "shadow": tr["self_shadow"],
-               "smooth": tr["smooth"], "eps": float(tr["termination"])}
+        cfg = {
+            "n_pix": tr["pixels"],
+            "n_steps": tr["steps"],
+            "rays": tr["rays_per_pixel"],
+            "shadow": tr["self_shadow"],
+            "smooth": tr["smooth"],
+            "eps": float(tr["termination"]),
+        }
         phong = np.array([ph["ambient"], ph["diffuse"], ph["specular"], ph["shininess"]], np.float64)
     except KeyError as e:
         raise errors.ValidationError(f"recipe.{e.args[0]}", None, "missing from the recipe's trace/phong sections") from None
@@ -202,8 +238,11 @@ def _check_paths(path, light_path, n: int, n_l: int):
             continue
         a = np.asarray(x, np.float64)
         if a.shape != shape:
-            raise errors.ValidationError(name, a.shape, f"need shape {shape}: one optical-path factor per sector"
-                                         + (" and light" if name == "light_path" else ""))
+            raise errors.ValidationError(
+                name,
+                a.shape,
+                f"need shape {shape}: one optical-path factor per sector" + (" and light" if name == "light_path" else ""),
+            )
         if not (np.all(np.isfinite(a)) and (a > 0).all()):
             raise errors.ValidationError(name, "non-finite or ≤ 0", "optical-path factors (1/sin ψ) are finite and > 0")
         out.append(a)
@@ -223,8 +262,14 @@ def _check_inputs(density, geometry, theta_v, theta_l):
         raise errors.ValidationError("geometry", g.shape, f"need shape ({n}, {n_geom}): one hrir.GEOM row per sector")
     if not np.all(np.isfinite(g)):
         raise errors.ValidationError("geometry", "non-finite", "geometry rows must be finite")
-    if not ((g[:, _EXTENT] > 0).all() and (g[:, _SIGMA_T] >= 0).all() and (g[:, _SIGMA_PX] >= 0).all()
-            and (g[:, _ASPECT] > 0).all() and (g[:, _V1] > g[:, _V0]).all() and (g[:, _DU] > 0).all()):
+    if not (
+        (g[:, _EXTENT] > 0).all()
+        and (g[:, _SIGMA_T] >= 0).all()
+        and (g[:, _SIGMA_PX] >= 0).all()
+        and (g[:, _ASPECT] > 0).all()
+        and (g[:, _V1] > g[:, _V0]).all()
+        and (g[:, _DU] > 0).all()
+    ):
         raise errors.ValidationError("geometry", "bad row", "need extent > 0, σ_t ≥ 0, σ_px ≥ 0, aspect > 0, v1 > v0, Δu > 0")
     tv = np.asarray(theta_v, np.float64)
     if tv.shape != (n,):
@@ -239,9 +284,20 @@ def _check_inputs(density, geometry, theta_v, theta_l):
     return rho, g, tv, tl
 
 
-def direct_sector_maps(density, geometry, theta_v, theta_l, recipe: dict, *, n_pix: int | None = None,
-                       block: int = BLOCK, shadow_lookup: str = "march", path=None, light_path=None,
-                       **overrides) -> tuple[np.ndarray, np.ndarray]:
+def direct_sector_maps(
+    density,
+    geometry,
+    theta_v,
+    theta_l,
+    recipe: dict,
+    *,
+    n_pix: int | None = None,
+    block: int = BLOCK,
+    shadow_lookup: str = "march",
+    path=None,
+    light_path=None,
+    **overrides,
+) -> tuple[np.ndarray, np.ndarray]:
     """α (N, P) and premultiplied re (N, L, P) of N sectors, each at its own exact angles (one jitted kernel).
 
     ``density`` (N, n_s, n_r) sector density grids (``hairlut.geometry.sector_density``);
@@ -279,13 +335,19 @@ def direct_sector_maps(density, geometry, theta_v, theta_l, recipe: dict, *, n_p
     size = bucket(live.size, block)
     rows = np.concatenate([live, np.full(size - live.size, live[0])])  # pad with a copy of a live sector
     two_pi = 2.0 * np.pi
-    a, r = direct_kernel(jnp.asarray(rho[rows], jnp.float32), jnp.asarray(g[rows], jnp.float32),
-                         jnp.asarray(np.mod(tv[rows], two_pi), jnp.float32),
-                         jnp.asarray(np.mod(tl[rows] if n_l else np.zeros((size, 1)), two_pi), jnp.float32),
-                         jnp.asarray(phong, jnp.float32), None if pv is None else jnp.asarray(pv[rows], jnp.float32),
-                         None if pl is None or not n_l else jnp.asarray(pl[rows], jnp.float32),
-                         block=min(block, size), shade=n_l > 0, **cfg)
-    a, r = np.asarray(a)[:live.size], np.asarray(r)[:live.size]
+    a, r = direct_kernel(
+        jnp.asarray(rho[rows], jnp.float32),
+        jnp.asarray(g[rows], jnp.float32),
+        jnp.asarray(np.mod(tv[rows], two_pi), jnp.float32),
+        jnp.asarray(np.mod(tl[rows] if n_l else np.zeros((size, 1)), two_pi), jnp.float32),
+        jnp.asarray(phong, jnp.float32),
+        None if pv is None else jnp.asarray(pv[rows], jnp.float32),
+        None if pl is None or not n_l else jnp.asarray(pl[rows], jnp.float32),
+        block=min(block, size),
+        shade=n_l > 0,
+        **cfg,
+    )
+    a, r = np.asarray(a)[: live.size], np.asarray(r)[: live.size]
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(r))):
         raise errors.HairlutError("direct_sector_maps: the kernel produced non-finite maps (check the density scale)")
     alpha[live], re[live] = a, r
@@ -341,8 +403,9 @@ def scene_sector_inputs(table, recipe: dict, *, extent=None, n_pix: int | None =
         tr = recipe["trace"]
         kappa, pixels, ratio = tr["extinction"], tr["pixels"] if n_pix is None else n_pix, tr["smooth_ratio"]
     except (KeyError, TypeError) as e:
-        raise errors.ValidationError("recipe", type(recipe).__name__,
-                                     f"need an HRIR recipe with sectors.grid, sectors.density_scale and trace ({e})") from None
+        raise errors.ValidationError(
+            "recipe", type(recipe).__name__, f"need an HRIR recipe with sectors.grid, sectors.density_scale and trace ({e})"
+        ) from None
     pixels = check_int(pixels, "n_pix", 1)
     splats = table.splats()
     density = sector_density(splats, grid, density_scale=scale)
@@ -351,8 +414,13 @@ def scene_sector_inputs(table, recipe: dict, *, extent=None, n_pix: int | None =
     # an empty sector takes the median crossing radius; with no crossing at all any radius will do (no density)
     fill = np.median(table.crossing_radius) if table.crossing_radius.size else np.sqrt(splats.sector_areas()) / 20
     r = np.where(m.any(1), (splats.radius * m).sum(1) / np.maximum(m.sum(1), 1), fill)
-    params = {"phase": table.twist + table.u_range[:, 0], "s_u": 2 * np.pi / du, "v_range": table.v_range,
-              "aspect": b / a, "radius_rel": r / np.sqrt(splats.sector_areas())}
+    params = {
+        "phase": table.twist + table.u_range[:, 0],
+        "s_u": 2 * np.pi / du,
+        "v_range": table.v_range,
+        "aspect": b / a,
+        "radius_rel": r / np.sqrt(splats.sector_areas()),
+    }
     geometry = sector_geometry(params, kappa=kappa, n_pix=pixels, smooth_ratio=ratio)
     ext = sector_extent(table) if extent is None else np.asarray(getattr(extent, "extent", extent), np.float64)
     if ext.shape != (len(geometry),) or not (np.isfinite(ext).all() and (ext > 0).all()):

@@ -52,12 +52,28 @@ def sector_geometry(params: dict, *, kappa: float, n_pix: int, smooth_ratio: flo
     r_strand = np.asarray(params["radius_rel"], np.float64) * np.sqrt(area)
     sigma_t = kappa / r_strand
     sigma_px = smooth_ratio * SIGMA_PER_RADIUS * r_strand / (2 * extent / n_pix)
-    cols = {"phase": phase, "du": du, "v0": v0, "v1": v1, "aspect": aspect, "cx": cx, "cy": cy, "beta": beta,
-            "extent": extent, "sigma_t": sigma_t, "sigma_px": sigma_px}
+    cols = {
+        "phase": phase,
+        "du": du,
+        "v0": v0,
+        "v1": v1,
+        "aspect": aspect,
+        "cx": cx,
+        "cy": cy,
+        "beta": beta,
+        "extent": extent,
+        "sigma_t": sigma_t,
+        "sigma_px": sigma_px,
+    }
     return np.stack([cols[k] for k in GEOM], axis=1)
 
 
 def disc_params(n: int = 1, *, radius_rel: float = 0.05, aspect: float = 1.0) -> dict:
     """Parameters of ``n`` full discs (v ∈ [0, 1], Δu = 2π, phase 0): the analytic test case."""
-    return {"phase": np.zeros(n), "s_u": np.ones(n, np.int64), "v_range": np.tile([[0.0, 1.0]], (n, 1)),
-            "aspect": np.full(n, aspect), "radius_rel": np.full(n, radius_rel)}
+    return {
+        "phase": np.zeros(n),
+        "s_u": np.ones(n, np.int64),
+        "v_range": np.tile([[0.0, 1.0]], (n, 1)),
+        "aspect": np.full(n, aspect),
+        "radius_rel": np.full(n, radius_rel),
+    }

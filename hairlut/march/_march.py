@@ -65,8 +65,7 @@ def bilerp_nodes(grid, fi, fj):
     if grid.ndim > 2:
         a = a[..., None]
         b = b[..., None]
-    return ((1 - a) * (1 - b) * grid[i0, j0] + a * (1 - b) * grid[i1, j0]
-            + (1 - a) * b * grid[i0, j1] + a * b * grid[i1, j1])
+    return (1 - a) * (1 - b) * grid[i0, j0] + a * (1 - b) * grid[i1, j0] + (1 - a) * b * grid[i0, j1] + a * b * grid[i1, j1]
 
 
 def patches(grid):
@@ -87,8 +86,12 @@ def bilerp_patch(patches, fi, fj):
     a = (fi - i0)[..., None]
     b = (fj - j0)[..., None]
     p = patches[i0, j0]
-    return ((1 - a) * (1 - b) * p[..., :c] + a * (1 - b) * p[..., c:2 * c]
-            + (1 - a) * b * p[..., 2 * c:3 * c] + a * b * p[..., 3 * c:])
+    return (
+        (1 - a) * (1 - b) * p[..., :c]
+        + a * (1 - b) * p[..., c : 2 * c]
+        + (1 - a) * b * p[..., 2 * c : 3 * c]
+        + a * b * p[..., 3 * c :]
+    )
 
 
 def sector_fields(rho):
@@ -146,10 +149,12 @@ def march(fields, g, ang, n_lanes: int, n_steps: int, fenced: bool = False, dept
     ``fenced`` (for callers that do not vmap it, :func:`sample`): the gather and the whole march run behind
     :func:`fence` calls, so that XLA:CPU computes each sample once instead of once per consumer (the scene bake:
     39 → 29 CPU-ms per paper-model sector, the same bits)."""
+
     def run(fields, g, ang):
         rho, inside, *grad = sample(fields, g, *view_points(g, ang, n_lanes, n_steps), fenced, depth_only)
         tau = g[SIGMA_T] * rho * (2 * g[EXTENT] / n_steps)
         return tau if depth_only else (tau, *grad, inside)
+
     return fence(run, fields, g, ang) if fenced else run(fields, g, ang)
 
 
@@ -175,8 +180,12 @@ def light_depth_grid(fields, g, light, n_steps: int, m: int, fenced: bool = Fals
 
     def lookup(depth, i0, j0, a, b):
         li = jnp.arange(light.shape[0])[None, None, :]
-        return ((1 - a) * (1 - b) * depth[li, i0, j0] + a * (1 - b) * depth[li, i0 + 1, j0]
-                + (1 - a) * b * depth[li, i0, j0 + 1] + a * b * depth[li, i0 + 1, j0 + 1])
+        return (
+            (1 - a) * (1 - b) * depth[li, i0, j0]
+            + a * (1 - b) * depth[li, i0 + 1, j0]
+            + (1 - a) * b * depth[li, i0, j0 + 1]
+            + a * b * depth[li, i0 + 1, j0 + 1]
+        )
 
     if not fenced:
         return lookup(depth, *corners(g, light))
@@ -264,8 +273,15 @@ def phong_direct(nx, ny, vx, vy, lx, ly, phong):
 
 def view_points(g, views, n_lanes: int, n_steps: int):
     """Local (qx, qy) of every (view, lane, step) sample: (V, lanes, K) each, as :func:`march` places them."""
-    return sample_points(g, jnp.cos(views)[:, None, None], jnp.sin(views)[:, None, None],
-                         jnp.arange(n_lanes)[None, :, None], jnp.arange(n_steps)[None, None, :], n_lanes, n_steps)
+    return sample_points(
+        g,
+        jnp.cos(views)[:, None, None],
+        jnp.sin(views)[:, None, None],
+        jnp.arange(n_lanes)[None, :, None],
+        jnp.arange(n_steps)[None, None, :],
+        n_lanes,
+        n_steps,
+    )
 
 
 def sample_points(g, dx, dy, lane, step, n_lanes: int, n_steps: int):

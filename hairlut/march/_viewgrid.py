@@ -38,22 +38,51 @@ import numpy as np
 
 from .. import errors
 from ..validate import check_int
-from ._march import (SHADOW_GRID, direct_lighting, fence, front_to_back, grid_transmittance, light_depth_grid, march,
-                    reflectance, resolved, sample, sample_points, sector_fields, smooth_matrix, to_pixels, transmittance_at)
 from ._compact import compact
 from ._direct import _SIGMA_PX, bucket
+from ._march import (
+    SHADOW_GRID,
+    direct_lighting,
+    fence,
+    front_to_back,
+    grid_transmittance,
+    light_depth_grid,
+    march,
+    reflectance,
+    resolved,
+    sample,
+    sample_points,
+    sector_fields,
+    smooth_matrix,
+    to_pixels,
+    transmittance_at,
+)
 
 HIGHEST = jax.lax.Precision.HIGHEST
 
 
 @partial(jax.jit, static_argnames=("n_pix", "n_steps", "rays", "shadow", "smooth", "eps", "block"))
-def view_grid_kernel(rho, geom, views_half, lights, phong, *, n_pix: int, n_steps: int, rays: int = 1,
-                     shadow: bool = True, smooth: bool = True, eps: float = 1e-4, block: int = 1):
+def view_grid_kernel(
+    rho,
+    geom,
+    views_half,
+    lights,
+    phong,
+    *,
+    n_pix: int,
+    n_steps: int,
+    rays: int = 1,
+    shadow: bool = True,
+    smooth: bool = True,
+    eps: float = 1e-4,
+    block: int = 1,
+):
     """α (B, V, P) and premultiplied re (B, V, L, P) of B sectors on the views ``views_half`` (V/2,)
     followed by the same views + π, and the lights ``lights`` (L,).  ``rho`` (B, n_s, n_r), ``geom``
     (B, 11) rows of ``hairlut.hrir.GEOM``, ``phong`` = (k_a, k_d, k_s, p); B a multiple of ``block``."""
-    one = partial(_shade_one, n_pix=n_pix, n_steps=n_steps, rays=rays, shadow=shadow, smooth=smooth, eps=eps,
-                  mirror=True, bins=n_pix)  # every view of the circle, per pixel
+    one = partial(
+        _shade_one, n_pix=n_pix, n_steps=n_steps, rays=rays, shadow=shadow, smooth=smooth, eps=eps, mirror=True, bins=n_pix
+    )  # every view of the circle, per pixel
     return jax.lax.map(lambda a: one(a[0], a[1], views_half, lights, phong), (rho, geom), batch_size=block)
 
 
@@ -61,9 +90,9 @@ def view_grid_kernel(rho, geom, views_half, lights, phong, *, n_pix: int, n_step
 CALL = 32
 
 
-
-def trace_view_grid(density, geometry, recipe: dict, *, views: int, lights: int, block: int = 1,
-                    progress=None) -> tuple[np.ndarray, np.ndarray]:
+def trace_view_grid(
+    density, geometry, recipe: dict, *, views: int, lights: int, block: int = 1, progress=None
+) -> tuple[np.ndarray, np.ndarray]:
     """α (N, V, P) and premultiplied re (N, V, L, P) of N sectors on θv,i = 2πi/V (V even) and
     θl,j = 2πj/L: what ``hairlut.hrir.trace_sectors`` returns for those grids (float32 rounding
     apart; module docstring), in about half the work.  ``recipe``: an HRIR recipe (``trace`` and
@@ -96,12 +125,11 @@ def _live_calls(kernel, rho, g, shapes, block: int, name: str, progress) -> tupl
     outs = tuple(np.zeros((n, *shape), np.float32) for shape in shapes)
     live = np.flatnonzero(rho.reshape(n, -1).max(axis=1, initial=0.0) > 0) if n else np.zeros(0, np.int64)
     for start in range(0, live.size, CALL):
-        idx = live[start:start + CALL]
+        idx = live[start : start + CALL]
         size = bucket(idx.size, block) if idx.size < CALL else idx.size
         size = -(-size // block) * block
         rows = np.concatenate([idx, np.full(size - idx.size, idx[0])])
-        got = [np.asarray(x)[:idx.size] for x in kernel(jnp.asarray(rho[rows], jnp.float32),
-                                                        jnp.asarray(g[rows], jnp.float32))]
+        got = [np.asarray(x)[: idx.size] for x in kernel(jnp.asarray(rho[rows], jnp.float32), jnp.asarray(g[rows], jnp.float32))]
         if not all(np.isfinite(x).all() for x in got):
             raise errors.HairlutError(f"{name}: the kernel produced non-finite maps (check the density scale)")
         for out, x in zip(outs, got):
@@ -141,7 +169,7 @@ def _shade_one(rho, g, views_kept, lights, phong, *, n_pix, n_steps, rays, shado
     ``views_kept`` then, with ``mirror``, the same + π (their samples and light lookups shared: the module docstring)."""
     fields = sector_fields(rho)
     lanes = n_pix * rays
-    flip = (lambda x: jnp.concatenate([x, jnp.flip(x, axis=(1, 2))], axis=0)) if mirror else (lambda x: x)  # noqa: E731
+    flip = (lambda x: jnp.concatenate([x, jnp.flip(x, axis=(1, 2))], axis=0)) if mirror else (lambda x: x)
     tau, gx, gy, rs, rr, inside = (flip(x) for x in march(fields, g, views_kept, lanes, n_steps))
     views = jnp.concatenate([views_kept, views_kept + jnp.pi]) if mirror else views_kept
     w, alpha = front_to_back(tau, eps)
@@ -216,8 +244,7 @@ def _shade_weighted(fields, scale, g, views, lights, phong, w, w_m, light_depth,
         ids = jax.lax.dynamic_slice(live, (j * chunk,), (chunk,))
         valid = j * chunk + jnp.arange(chunk) < count
         v, lane, k = ids // (lanes * K), (ids // K) % lanes, ids % K
-        qx, qy, dx, dy = fence(lambda v, lane, k: (*sample_points(g, cv[v], sv[v], lane, k, lanes, K), cv[v], sv[v]),
-                               v, lane, k)
+        qx, qy, dx, dy = fence(lambda v, lane, k: (*sample_points(g, cv[v], sv[v], lane, k, lanes, K), cv[v], sv[v]), v, lane, k)
         _, inside, gx, gy, rs, rr = fence(lambda x, y: sample(fields, g, x, y, fenced=True), qx, qy)
         front, back = fence(lambda *a: _mirror_phong(scale, *a, lights, phong, power), gx, gy, rs, rr, inside, dx, dy)
         if light_depth is not None:
@@ -232,8 +259,9 @@ def _shade_weighted(fields, scale, g, views, lights, phong, w, w_m, light_depth,
     return acc[:, 0], acc[:, 1]
 
 
-def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, shadow, smooth, eps, bins, alpha, power=0,
-              shadow_grid=0):
+def _bake_one(
+    rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, shadow, smooth, eps, bins, alpha, power=0, shadow_grid=0
+):
     """``_shade_one``'s per-bin α and re on the kept views (every ``step``-th of ``views_half``, then the same + π),
     from one optical-depth march: eq 5's weights both ways along each ray, then the shading of the samples where
     either is nonzero (:func:`_shade_weighted`: each sample's normal, light transmittance and Phong power computed once
@@ -258,10 +286,10 @@ def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, 
     opacity, after, w, a = (x[::step] for x in (opacity, after, w_all, a_all)) if alpha else (opacity, after, w_all, a_all)
     w_m = _weights(opacity, after, eps)  # the mirror views' weights, in the march's order
     a_m = jnp.flip(jnp.sum(w_m, axis=-1), axis=-1)  # lanes in the mirror's order
-    light_depth = (light_depth_grid(fields, g, lights, n_steps, shadow_grid or min(n_steps, SHADOW_GRID), fenced=True)
-                   if shadow else None)
-    direct, direct_m = _shade_weighted(fields, jnp.max(jnp.abs(rho)), g, views, lights, phong, w, w_m, light_depth,
-                                       power=power)
+    light_depth = (
+        light_depth_grid(fields, g, lights, n_steps, shadow_grid or min(n_steps, SHADOW_GRID), fenced=True) if shadow else None
+    )
+    direct, direct_m = _shade_weighted(fields, jnp.max(jnp.abs(rho)), g, views, lights, phong, w, w_m, light_depth, power=power)
     # eq 5's k_a α + Σ_k w_k direct_k (``hairlut.hrir`` ``reflectance``) in this layout: (Vk, L, lanes)
     r = phong[0] * a[:, None] + direct
     r_m = phong[0] * a_m[:, None] + jnp.flip(direct_m, axis=-1)  # lanes in the mirror's order
@@ -271,11 +299,48 @@ def _bake_one(rho, g, views_half, lights, phong, *, n_pix, n_steps, rays, step, 
     return (a_all if alpha else None), *binned
 
 
-@partial(jax.jit, static_argnames=("n_views", "n_pix", "n_steps", "rays", "m", "shade_rays", "shade_steps", "shadow", "smooth",
-                                   "eps", "mirror", "bins", "power", "shadow_grid"))
-def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int, n_pix: int, n_steps: int, rays: int, m: int,
-                     shade_rays: int, shade_steps: int, shadow: bool = True, smooth: bool = True, eps: float = 1e-4,
-                     mirror: bool = True, bins: int = 8, power: int = 0, shadow_grid: int = 0):
+@partial(
+    jax.jit,
+    static_argnames=(
+        "n_views",
+        "n_pix",
+        "n_steps",
+        "rays",
+        "m",
+        "shade_rays",
+        "shade_steps",
+        "shadow",
+        "smooth",
+        "eps",
+        "mirror",
+        "bins",
+        "power",
+        "shadow_grid",
+    ),
+)
+def bake_grid_kernel(
+    rho,
+    geom,
+    proj,
+    views_kept,
+    lights,
+    phong,
+    *,
+    n_views: int,
+    n_pix: int,
+    n_steps: int,
+    rays: int,
+    m: int,
+    shade_rays: int,
+    shade_steps: int,
+    shadow: bool = True,
+    smooth: bool = True,
+    eps: float = 1e-4,
+    mirror: bool = True,
+    bins: int = 8,
+    power: int = 0,
+    shadow_grid: int = 0,
+):
     """The scene bake's arrays of B sectors: α (B, V/2, P) on the views 2πi/V, i < V/2, and per bin of P/Q
     pixels α (B, Vr, Q) and premultiplied re (B, Vr, L, Q) on the ratio's views (:func:`bake_view_grid`).
 
@@ -299,26 +364,44 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
     if mirror:
         # the V/2 views as the host computes them (float64, then rounded): the kept ones bitwise views_kept
         views = jnp.asarray(2 * np.pi * np.arange(half) / n_views, rho.dtype) if shared else views_kept
-        shade = partial(_bake_one, n_pix=n_pix, n_steps=sk, rays=sr, step=half // views_kept.shape[0] if shared else 1,
-                        shadow=shadow, smooth=smooth, eps=eps, bins=bins, alpha=shared, power=power, shadow_grid=shadow_grid)
+        shade = partial(
+            _bake_one,
+            n_pix=n_pix,
+            n_steps=sk,
+            rays=sr,
+            step=half // views_kept.shape[0] if shared else 1,
+            shadow=shadow,
+            smooth=smooth,
+            eps=eps,
+            bins=bins,
+            alpha=shared,
+            power=power,
+            shadow_grid=shadow_grid,
+        )
         alpha, ab, rb = jax.lax.map(lambda a: shade(a[0], a[1], views, lights, phong), (rho, geom))
     else:
-        shade = partial(_shade_one, n_pix=n_pix, n_steps=sk, rays=sr, shadow=shadow, smooth=smooth, eps=eps, mirror=False,
-                        bins=bins)
+        shade = partial(
+            _shade_one, n_pix=n_pix, n_steps=sk, rays=sr, shadow=shadow, smooth=smooth, eps=eps, mirror=False, bins=bins
+        )
         ab, rb = jax.lax.map(lambda a: shade(a[0], a[1], views_kept, lights, phong), (rho, geom))
     if m:
+
         def nodes(r, g):  # σ_t ρ 2R/m at the m × m node grid (x major): the view-0 march's samples, x reversed
-            return jnp.flip(march(sector_fields(r), g, jnp.zeros(1, rho.dtype), m, m, fenced=True, depth_only=True)[0],
-                            axis=1).T.reshape(-1)
+            return jnp.flip(
+                march(sector_fields(r), g, jnp.zeros(1, rho.dtype), m, m, fenced=True, depth_only=True)[0], axis=1
+            ).T.reshape(-1)
 
         tau_nodes = jax.lax.map(lambda a: nodes(a[0], a[1]), (rho, geom))  # (B, m²)
         tau = jnp.matmul(tau_nodes, proj, precision=HIGHEST).reshape(-1, half, lanes) * (m / n_steps)
         alpha = -jnp.expm1(-tau)
     elif not shared:  # the tracer's march on the V/2 views, eq 5's Σ_k w_k with its cut-off
         views = 2 * jnp.pi * jnp.arange(half, dtype=rho.dtype) / (2 * half)
-        alpha = jax.lax.map(lambda a: front_to_back(march(sector_fields(a[0]), a[1], views, lanes, n_steps, fenced=True,
-                                                          depth_only=True), eps)[1],
-                            (rho, geom))
+        alpha = jax.lax.map(
+            lambda a: front_to_back(march(sector_fields(a[0]), a[1], views, lanes, n_steps, fenced=True, depth_only=True), eps)[
+                1
+            ],
+            (rho, geom),
+        )
     alpha = to_pixels(alpha, n_pix, rays)
     if smooth:
         alpha = jnp.einsum("bvp,bpq->bvq", alpha, S, precision=HIGHEST)
@@ -328,9 +411,21 @@ def bake_grid_kernel(rho, geom, proj, views_kept, lights, phong, *, n_views: int
 _PROJ: dict[tuple, jax.Array] = {}  # one entry: (m, V, lanes, steps) → projection_matrix on the device
 
 
-def bake_view_grid(density, geometry, recipe: dict, *, views: int, lights: int, ratio_step: int = 1, bins: int,
-                   alpha_grid: int, shade_rays: int | None = None, shade_steps: int | None = None,
-                   shadow_grid: int = 0, progress=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def bake_view_grid(
+    density,
+    geometry,
+    recipe: dict,
+    *,
+    views: int,
+    lights: int,
+    ratio_step: int = 1,
+    bins: int,
+    alpha_grid: int,
+    shade_rays: int | None = None,
+    shade_steps: int | None = None,
+    shadow_grid: int = 0,
+    progress=None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """What the scene table stores, computed directly: α (N, V/2, P) on θv,i = 2πi/V, i < V/2, and per bin
     of P/``bins`` pixels α (N, Vr, Q) and premultiplied re (N, Vr, L, Q) on the ratio's views θv,i,
     i = 0, ``ratio_step``, 2·ratio_step, … (Vr = V/ratio_step) and θl,j = 2πj/L (:func:`bake_grid_kernel`).
@@ -377,9 +472,21 @@ def bake_view_grid(density, geometry, recipe: dict, *, views: int, lights: int, 
     vk = jnp.asarray(2 * np.pi * kept / V, jnp.float32)
     lt = jnp.asarray(2 * np.pi * np.arange(L) / L, jnp.float32)
     ph = jnp.asarray(phong, jnp.float32)
-    settings = dict(n_views=V, n_pix=P, n_steps=cfg["n_steps"], rays=cfg["rays"], m=m, shade_rays=sr, shade_steps=sk,
-                    shadow=bool(cfg["shadow"]), smooth=cfg["smooth"], eps=cfg["eps"], mirror=mirror, bins=Q,
-                    power=int(phong[3]) if phong[3] == int(phong[3]) and 1 <= phong[3] <= 64 else 0,
-                    shadow_grid=grid)
+    settings = dict(
+        n_views=V,
+        n_pix=P,
+        n_steps=cfg["n_steps"],
+        rays=cfg["rays"],
+        m=m,
+        shade_rays=sr,
+        shade_steps=sk,
+        shadow=bool(cfg["shadow"]),
+        smooth=cfg["smooth"],
+        eps=cfg["eps"],
+        mirror=mirror,
+        bins=Q,
+        power=int(phong[3]) if phong[3] == int(phong[3]) and 1 <= phong[3] <= 64 else 0,
+        shadow_grid=grid,
+    )
     kernel = lambda r, gg: bake_grid_kernel(r, gg, _PROJ[key], vk, lt, ph, **settings)  # noqa: E731
     return _live_calls(kernel, rho, g, ((V // 2, P), (Vr, Q), (Vr, L, Q)), 1, "bake_view_grid", progress)

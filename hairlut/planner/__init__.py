@@ -11,11 +11,23 @@ the online module (``hairlut.synth``), which it never imports."""
 from .._lazy import lazy_exports
 
 _LAZY = {
-    "Plan": "_plan", "Step": "_plan", "bake": "_plan", "find_assets": "_plan", "scene_assets": "_plan",
-    "plan": "_plan", "direct_recipe": "_plan", "map_method": "_plan", "scene_maps_recipe": "_plan",
-    "environment_light": "_lighting", "environment_bands": "_lighting", "reference_light": "_lighting",
-    "sh_bands": "_lighting", "sh_recipe": "_lighting",
-    "REFERENCE_BANDS": "_envbands", "window_factors": "_envbands", "window_coeffs": "_envbands",
+    "Plan": "_plan",
+    "Step": "_plan",
+    "bake": "_plan",
+    "find_assets": "_plan",
+    "scene_assets": "_plan",
+    "plan": "_plan",
+    "direct_recipe": "_plan",
+    "map_method": "_plan",
+    "scene_maps_recipe": "_plan",
+    "environment_light": "_lighting",
+    "environment_bands": "_lighting",
+    "reference_light": "_lighting",
+    "sh_bands": "_lighting",
+    "sh_recipe": "_lighting",
+    "REFERENCE_BANDS": "_envbands",
+    "window_factors": "_envbands",
+    "window_coeffs": "_envbands",
 }
 
 __all__ = ["Plan", "Step", "bake", "environment_bands", "find_assets", "plan", "scene_assets"]

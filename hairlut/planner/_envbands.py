@@ -86,12 +86,11 @@ def _fibonacci(n: int) -> np.ndarray:
     i = np.arange(n) + 0.5
     z = 1 - 2 * i / n
     r = np.sqrt(1 - z * z)
-    phi = np.pi * (1 + 5 ** 0.5) * i
+    phi = np.pi * (1 + 5**0.5) * i
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
 
 
-def band_radiance(coeffs: np.ndarray, kd: float, ks: float, p: float, *, tangents: int = 2048,
-                  theta_v: int = 33) -> np.ndarray:
+def band_radiance(coeffs: np.ndarray, kd: float, ks: float, p: float, *, tangents: int = 2048, theta_v: int = 33) -> np.ndarray:
     """Per band l, the radiance term (k_d λ_l^d + k_s λ_l^s(θ′)) L_l(t): (l, t, θ′, C) for the
     light's own bands, tangents on a Fibonacci sphere and θ′ uniform in [0, π]."""
     from ..sh import real_sh
@@ -114,7 +113,7 @@ def radiance_error(terms: np.ndarray, bands: int, window: str = "none") -> tuple
     all of ``terms``' bands unwindowed; ``terms`` from :func:`band_radiance`."""
     ref = terms.sum(0)
     e = np.tensordot(window_factors(bands, window), terms[:bands], axes=(0, 0))
-    err = float(np.sqrt(np.mean((e - ref) ** 2)) / max(np.sqrt(np.mean(ref ** 2)), 1e-300))
+    err = float(np.sqrt(np.mean((e - ref) ** 2)) / max(np.sqrt(np.mean(ref**2)), 1e-300))
     return err, float(np.mean(np.any(e < 0, axis=-1)))
 
 

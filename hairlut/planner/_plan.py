@@ -44,12 +44,11 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-
 from .. import budget, errors
-from ..bake import cache, registry
 from ..assets import recipe_hash
-from ._lighting import environment_bands, environment_light, sh_recipe
+from ..bake import cache, registry
 from ..scene import SceneSectors, as_scene, grid_coverage, restricted_space, scene_sectors
+from ._lighting import environment_bands, environment_light, sh_recipe
 
 #: Voxel SH transmittance: casts (voxel · direction · step) per second (``hairlut bench --only plan``).
 CAST_RATE = 6.0e7
@@ -91,19 +90,30 @@ class Plan:
     def to_json(self) -> dict:
         """The plan as ``hairlut plan --json`` prints it: the steps (without their bake inputs) and the bake/reuse
         totals."""
-        return {"scene": self.scene.source, "cache": self.cache_dir,
-                "steps": [{k: v for k, v in asdict(s).items() if k != "inputs"} for s in self.steps],
-                "totals": {"bake_seconds": sum(s.seconds for s in self.steps if s.action == "bake"),
-                           "bake_bytes": sum(s.bytes for s in self.steps if s.action == "bake"),
-                           "reused_bytes": sum(s.bytes for s in self.steps if s.action == "reuse")}}
+        return {
+            "scene": self.scene.source,
+            "cache": self.cache_dir,
+            "steps": [{k: v for k, v in asdict(s).items() if k != "inputs"} for s in self.steps],
+            "totals": {
+                "bake_seconds": sum(s.seconds for s in self.steps if s.action == "bake"),
+                "bake_bytes": sum(s.bytes for s in self.steps if s.action == "bake"),
+                "reused_bytes": sum(s.bytes for s in self.steps if s.action == "reuse"),
+            },
+        }
 
 
 # ----------------------------------------------------------------------------- rules
 
 
 def _contains(outer: dict, inner: dict) -> bool:
-    return all(k == "profile_weights" and outer[k] == inner[k] or
-               k != "profile_weights" and outer[k][0] <= inner[k][0] and inner[k][1] <= outer[k][1] for k in inner)
+    return all(
+        k == "profile_weights"
+        and outer[k] == inner[k]
+        or k != "profile_weights"
+        and outer[k][0] <= inner[k][0]
+        and inner[k][1] <= outer[k][1]
+        for k in inner
+    )
 
 
 def _cached(kind: str, recipe: dict, root) -> tuple[Path, bool]:
@@ -124,35 +134,77 @@ def _hrir_step(scene, ss: SceneSectors, root) -> Step:
     if tab["restrict"]:
         space = restricted_space(ss, base["sectors"]["space"])
         recipe = resolve_recipe({**tab["hrir"], "sectors": {**tab["hrir"].get("sectors", {}), "space": space}})
-        details["space"] = {k: {"scene": space[k], "default": base["sectors"]["space"][k]} for k in space
-                            if space[k] != base["sectors"]["space"][k]}
+        details["space"] = {
+            k: {"scene": space[k], "default": base["sectors"]["space"][k]}
+            for k in space
+            if space[k] != base["sectors"]["space"][k]
+        }
     a = recipe["angles"]
     cov = {"views": grid_coverage(ss.theta_v, a["views"]), "lights": grid_coverage(ss.theta_l, a["lights"])}
     details["angle_coverage"] = cov
     nbytes, seconds = registry.get("hrir_db").estimate(recipe)
-    angle_words = (f"the scene's sectors read {100 * cov['views']:.0f} % of the {a['views']} view and "
-                   f"{100 * cov['lights']:.0f} % of the {a['lights']} light grid angles; the grid is periodic, so the "
-                   "full circle is kept")
-    restrict_words = ("sector space fitted to the scene's sectors (" +
-                      ", ".join(f"{k} {v['scene'][0]:.3g}–{v['scene'][1]:.3g}" for k, v in details.get("space", {}).items())
-                      + ")") if tab["restrict"] else "sector space as given (tables.restrict = false)"
+    angle_words = (
+        f"the scene's sectors read {100 * cov['views']:.0f} % of the {a['views']} view and "
+        f"{100 * cov['lights']:.0f} % of the {a['lights']} light grid angles; the grid is periodic, so the "
+        "full circle is kept"
+    )
+    restrict_words = (
+        (
+            "sector space fitted to the scene's sectors ("
+            + ", ".join(f"{k} {v['scene'][0]:.3g}–{v['scene'][1]:.3g}" for k, v in details.get("space", {}).items())
+            + ")"
+        )
+        if tab["restrict"]
+        else "sector space as given (tables.restrict = false)"
+    )
     path, hit = _cached("hrir_db", recipe, root)
     if hit:
-        return Step("hrir_db", "reuse", f"recipe hash matches the cache; {angle_words}", "hrir_db", recipe, str(path),
-                    path.stat().st_size, 0.0, details)
+        return Step(
+            "hrir_db",
+            "reuse",
+            f"recipe hash matches the cache; {angle_words}",
+            "hrir_db",
+            recipe,
+            str(path),
+            path.stat().st_size,
+            0.0,
+            details,
+        )
     for e in cache.entries(root):
         if e.kind != "hrir_db":
             continue
         other = cache.recipe_of(e.path)
         same = {k: v for k, v in other.items() if k != "sectors"} == {k: v for k, v in recipe.items() if k != "sectors"}
         so, sr = other.get("sectors", {}), recipe["sectors"]
-        if same and all(so.get(k) == sr[k] for k in ("grid", "density_scale", "features")) and \
-                so.get("count", 0) >= sr["count"] and _contains(so["space"], sr["space"]):
-            return Step("hrir_db", "reuse", f"cached database {e.path.name} samples a sector space that contains the "
-                        f"scene's, with ≥ {sr['count']} records; {angle_words}", "hrir_db", other, str(e.path), e.bytes,
-                        0.0, details)
-    return Step("hrir_db", "bake", f"the SATF lookup needs it; {restrict_words}; {angle_words}", "hrir_db", recipe,
-                str(path), nbytes, seconds, details)
+        if (
+            same
+            and all(so.get(k) == sr[k] for k in ("grid", "density_scale", "features"))
+            and so.get("count", 0) >= sr["count"]
+            and _contains(so["space"], sr["space"])
+        ):
+            return Step(
+                "hrir_db",
+                "reuse",
+                f"cached database {e.path.name} samples a sector space that contains the "
+                f"scene's, with ≥ {sr['count']} records; {angle_words}",
+                "hrir_db",
+                other,
+                str(e.path),
+                e.bytes,
+                0.0,
+                details,
+            )
+    return Step(
+        "hrir_db",
+        "bake",
+        f"the SATF lookup needs it; {restrict_words}; {angle_words}",
+        "hrir_db",
+        recipe,
+        str(path),
+        nbytes,
+        seconds,
+        details,
+    )
 
 
 def _sh_step(scene, root) -> Step:
@@ -160,12 +212,19 @@ def _sh_step(scene, root) -> Step:
 
     env = scene.environment
     if env is None:
-        return Step("sh_tables", "skip", "no environment light: the scene is lit by its "
-                    f"{len(scene.lights)} directional light(s) alone, so no SH tables are needed")
+        return Step(
+            "sh_tables",
+            "skip",
+            "no environment light: the scene is lit by its "
+            f"{len(scene.lights)} directional light(s) alone, so no SH tables are needed",
+        )
     given = sh_recipe(scene)
     if given is None:
-        return Step("sh_tables", "skip", "the environment light has nothing to shade: kd = 0 and ks_I = ks_II = 0 "
-                    "(or those effects are off)")
+        return Step(
+            "sh_tables",
+            "skip",
+            "the environment light has nothing to shade: kd = 0 and ks_I = ks_II = 0 (or those effects are off)",
+        )
     light = environment_light(scene)
     recipe = full_recipe(given, light)
     k, b = recipe["kernel"], recipe["bands"]
@@ -176,23 +235,33 @@ def _sh_step(scene, root) -> Step:
         eb = environment_bands(scene)
         details["specular_truncation_error"] = err
         details["environment_bands"] = eb
-        how = (f"the fewest within environment.tolerance = {env['tolerance']:g}" if env["bands"] == "auto"
-               else "environment.bands")
-        words.append(f"{b['light_specular']} light bands ({how}): the environment radiance is within "
-                     f"{100 * eb['error']:.1f} % RMS of 30 bands (window {env['window']}; {100 * eb['clamped']:.1f} % of "
-                     f"(tangent, θ′) samples below 0 before the clamp; the lobe keeps all but {100 * err:.0f} % of its "
-                     f"L2 energy; the paper's ⌈√p⌉ + 1 = {eb['rule']} would leave {100 * eb['rule_error']:.1f} %)")
+        how = f"the fewest within environment.tolerance = {env['tolerance']:g}" if env["bands"] == "auto" else "environment.bands"
+        words.append(
+            f"{b['light_specular']} light bands ({how}): the environment radiance is within "
+            f"{100 * eb['error']:.1f} % RMS of 30 bands (window {env['window']}; {100 * eb['clamped']:.1f} % of "
+            f"(tangent, θ′) samples below 0 before the clamp; the lobe keeps all but {100 * err:.0f} % of its "
+            f"L2 energy; the paper's ⌈√p⌉ + 1 = {eb['rule']} would leave {100 * eb['rule_error']:.1f} %)"
+        )
     else:
         words.append("ks_I = ks_II = 0: no Rs")
     if not k["diffuse"]:
         words.append("kd = 0: no Rd")
     path, hit = _cached("sh_tables", recipe, root)
     if hit:
-        return Step("sh_tables", "reuse", "recipe hash matches the cache; " + "; ".join(words), "sh_tables", recipe,
-                    str(path), path.stat().st_size, 0.0, details, {"light": light})
+        return Step(
+            "sh_tables",
+            "reuse",
+            "recipe hash matches the cache; " + "; ".join(words),
+            "sh_tables",
+            recipe,
+            str(path),
+            path.stat().st_size,
+            0.0,
+            details,
+            {"light": light},
+        )
     nbytes, seconds = registry.get("sh_tables").estimate(recipe)
-    return Step("sh_tables", "bake", "; ".join(words), "sh_tables", recipe, str(path), nbytes, seconds, details,
-                {"light": light})
+    return Step("sh_tables", "bake", "; ".join(words), "sh_tables", recipe, str(path), nbytes, seconds, details, {"light": light})
 
 
 def _transmittance_step(scene) -> Step:
@@ -203,17 +272,27 @@ def _transmittance_step(scene) -> Step:
         return Step("transmittance", "skip", "environment.self_shadow is off: the environment is unoccluded")
     n = env["voxels"]
     casts = (n // 2) ** 3 * 64 * 2 * n  # (n/stride)³ voxels × directions × steps
-    return Step("transmittance", "run", f"environment light with self-shadowing: {n}³ voxel SH transmittance of the "
-                "strands (xing §5), per scene", seconds=casts / CAST_RATE, bytes=4 * 9 * n**3,
-                details={"voxels": n, "kappa": env["kappa"]})
+    return Step(
+        "transmittance",
+        "run",
+        f"environment light with self-shadowing: {n}³ voxel SH transmittance of the strands (xing §5), per scene",
+        seconds=casts / CAST_RATE,
+        bytes=4 * 9 * n**3,
+        details={"voxels": n, "kappa": env["kappa"]},
+    )
 
 
 #: Largest share of the machine's memory a scene table may take for ``auto`` to pick the ``scene`` method.
 SCENE_MEMORY_SHARE = 0.25
 #: ``[render]`` knob of each scene_maps recipe key (for error messages).
-_MAP_FIELDS = {"table.views": "render.views", "table.terms": "render.terms", "table.lights": "render.terms",
-               "table.shading_pixels": "render.shading_pixels", "table.ratio_step": "render.ratio_step",
-               "table.dtype": "render.precision"}
+_MAP_FIELDS = {
+    "table.views": "render.views",
+    "table.terms": "render.terms",
+    "table.lights": "render.terms",
+    "table.shading_pixels": "render.shading_pixels",
+    "table.ratio_step": "render.ratio_step",
+    "table.dtype": "render.precision",
+}
 
 
 def direct_recipe(scene) -> dict:
@@ -239,11 +318,21 @@ def scene_maps_recipe(scene) -> dict:
 
     sc = as_scene(scene)
     r, rec = sc.config["render"], direct_recipe(sc)
-    given = {"hrir": {"sectors": {k: rec["sectors"][k] for k in ("grid", "density_scale")},
-                      "trace": rec["trace"], "phong": rec["phong"]},
-             "table": {"views": r["views"], "lights": 4 * r["terms"] + 1, "terms": r["terms"],
-                       "shading_pixels": r["shading_pixels"], "ratio_step": r["ratio_step"],
-                       "dtype": r["precision"]}}
+    given = {
+        "hrir": {
+            "sectors": {k: rec["sectors"][k] for k in ("grid", "density_scale")},
+            "trace": rec["trace"],
+            "phong": rec["phong"],
+        },
+        "table": {
+            "views": r["views"],
+            "lights": 4 * r["terms"] + 1,
+            "terms": r["terms"],
+            "shading_pixels": r["shading_pixels"],
+            "ratio_step": r["ratio_step"],
+            "dtype": r["precision"],
+        },
+    }
     try:
         return resolve_recipe(given, scene=sc)
     except errors.ValidationError as exc:
@@ -270,9 +359,11 @@ def map_method(scene, sectors: int | None = None, live: int | None = None) -> tu
     sc = as_scene(scene)
     r = sc.config["render"]
     method = r["method"]
-    words = {"direct": "every sector projected from its own density at the exact view and lights, each view",
-             "scene": "the groom's own sector projections, baked once, read at the exact angles of each view",
-             "satf": "the paper's SATF database lookup (no per-scene bake)"}
+    words = {
+        "direct": "every sector projected from its own density at the exact view and lights, each view",
+        "scene": "the groom's own sector projections, baked once, read at the exact angles of each view",
+        "satf": "the paper's SATF database lookup (no per-scene bake)",
+    }
     if method != "auto":
         return method, f"render.method = {method!r}: {words[method]}"
     import jax
@@ -281,16 +372,21 @@ def map_method(scene, sectors: int | None = None, live: int | None = None) -> tu
     if backend != "cpu":
         return "direct", f"auto: the device is a {backend}, so {words['direct']} (no per-scene bake; hair may move)"
     if r["animated"]:
-        return "satf", ("auto: the hair moves (render.animated) on the CPU: a per-groom table would be stale once the "
-                        f"hair moves and the exact projection costs seconds a view here, so {words['satf']}")
+        return "satf", (
+            "auto: the hair moves (render.animated) on the CPU: a per-groom table would be stale once the "
+            f"hair moves and the exact projection costs seconds a view here, so {words['satf']}"
+        )
     n = _sector_bound(sc) if sectors is None else int(sectors)
     nbytes, _ = registry.get("scene_maps").estimate(scene_maps_recipe(sc), n, live)
     mem = budget.physical_memory() or budget.FALLBACK
     if nbytes > SCENE_MEMORY_SHARE * mem:
-        return "satf", (f"auto: static hair on the CPU, but its scene table (~{nbytes / 2**20:.0f} MiB) would exceed "
-                        f"{100 * SCENE_MEMORY_SHARE:.0f} % of the memory ({mem / 2**30:.0f} GiB), so {words['satf']}")
-    return "scene", (f"auto: static hair on the CPU, so {words['scene']} (~{nbytes / 2**20:.1f} MiB, "
-                     f"{100 * nbytes / mem:.2f} % of the memory)")
+        return "satf", (
+            f"auto: static hair on the CPU, but its scene table (~{nbytes / 2**20:.0f} MiB) would exceed "
+            f"{100 * SCENE_MEMORY_SHARE:.0f} % of the memory ({mem / 2**30:.0f} GiB), so {words['satf']}"
+        )
+    return "scene", (
+        f"auto: static hair on the CPU, so {words['scene']} (~{nbytes / 2**20:.1f} MiB, {100 * nbytes / mem:.2f} % of the memory)"
+    )
 
 
 def _map_steps(sc, ss: SceneSectors, root) -> tuple[str, list[Step]]:
@@ -303,50 +399,92 @@ def _map_steps(sc, ss: SceneSectors, root) -> tuple[str, list[Step]]:
         return method, steps
     recipe = scene_maps_recipe(sc)
     t = recipe["table"]
-    words = (f"{live} of {n} sectors on {t['views']} views × {t['lights']} light angles, α ({t['dtype']}, mirror-"
-             f"symmetric half) and {2 * t['terms'] + 1} re/α Fourier terms × {t['shading_pixels']} pixel bins; keyed by "
-             f"the groom's geometry {recipe['geometry']['sha256'][:12]}…")
+    words = (
+        f"{live} of {n} sectors on {t['views']} views × {t['lights']} light angles, α ({t['dtype']}, mirror-"
+        f"symmetric half) and {2 * t['terms'] + 1} re/α Fourier terms × {t['shading_pixels']} pixel bins; keyed by "
+        f"the groom's geometry {recipe['geometry']['sha256'][:12]}…"
+    )
     path, hit = _cached("scene_maps", recipe, root)
     details = {"sectors": n, "live": live, **t}
     if hit:
-        steps.append(Step("scene_maps", "reuse", "recipe hash matches the cache; " + words, "scene_maps", recipe,
-                          str(path), path.stat().st_size, 0.0, details, {"scene": sc}))
+        steps.append(
+            Step(
+                "scene_maps",
+                "reuse",
+                "recipe hash matches the cache; " + words,
+                "scene_maps",
+                recipe,
+                str(path),
+                path.stat().st_size,
+                0.0,
+                details,
+                {"scene": sc},
+            )
+        )
     else:
         nbytes, seconds = registry.get("scene_maps").estimate(recipe, n, live)
-        steps.append(Step("scene_maps", "bake", "the scene map method reads it: " + words, "scene_maps", recipe,
-                          str(path), nbytes, seconds, details, {"scene": sc}))
+        steps.append(
+            Step(
+                "scene_maps",
+                "bake",
+                "the scene map method reads it: " + words,
+                "scene_maps",
+                recipe,
+                str(path),
+                nbytes,
+                seconds,
+                details,
+                {"scene": sc},
+            )
+        )
     return method, steps
 
 
-SHADOW_WORDS = {"light_oriented": "light-oriented density map (bertails §2–3)",
-                "opacity_maps": "opacity shadow maps (kim ch. 6)"}
+SHADOW_WORDS = {"light_oriented": "light-oriented density map (bertails §2–3)", "opacity_maps": "opacity shadow maps (kim ch. 6)"}
 
 
 def _shadow_steps(scene) -> list[Step]:
     """The shadow seam: eq 12's s-map, a light-space map per light, or nothing, and why."""
     method, given, cfg = scene.shadow_method, scene.config["shadows"]["method"], scene.config["shadows"]
-    off = ("effects.shadow is off" if not scene.config["effects"]["shadow"] else
-           "material.k_shadow = 0" if given == "smap" else "shadows.method = 'none'")
+    off = (
+        "effects.shadow is off"
+        if not scene.config["effects"]["shadow"]
+        else "material.k_shadow = 0"
+        if given == "smap"
+        else "shadows.method = 'none'"
+    )
     if method == "smap":
-        smap = Step("s_map", "run", "eq 12 s-map from the outer layers' α (shadows.method = 'smap'): one τ per texel "
-                    "for every light, no per-view map")
+        smap = Step(
+            "s_map",
+            "run",
+            "eq 12 s-map from the outer layers' α (shadows.method = 'smap'): one τ per texel for every light, no per-view map",
+        )
     elif method == "none":
         smap = Step("s_map", "skip", f"{off}: τ = 1, no shadow work")
     else:
         smap = Step("s_map", "skip", f"shadows.method = {method!r}: each light's transmittance comes from its own map")
     if method in SHADOW_WORDS:
         n, k = cfg["resolution"], cfg["kappa"]
-        size = (f"{n + 1 + 2 * cfg['padding']}³ cells" if method == "light_oriented" else
-                f"{cfg['slices']} slices of ~{n}² texels")
+        size = f"{n + 1 + 2 * cfg['padding']}³ cells" if method == "light_oriented" else f"{cfg['slices']} slices of ~{n}² texels"
         kappa = "κ = the mean strand diameter" if k == "auto" else f"κ = {k:g}"
-        maps = Step("shadow_maps", "run", f"{SHADOW_WORDS[method]} of all strands, one per light ({len(scene.lights)}), "
-                    f"{size}, {kappa}, evaluated at the texels' 3-D positions; built in prepare (independent of the "
-                    "view), rebuilt only when the lights change",
-                    details={"method": method, "lights": len(scene.lights), **{key: cfg[key] for key in
-                             ("resolution", "kappa", "padding" if method == "light_oriented" else "slices")}})
+        maps = Step(
+            "shadow_maps",
+            "run",
+            f"{SHADOW_WORDS[method]} of all strands, one per light ({len(scene.lights)}), "
+            f"{size}, {kappa}, evaluated at the texels' 3-D positions; built in prepare (independent of the "
+            "view), rebuilt only when the lights change",
+            details={
+                "method": method,
+                "lights": len(scene.lights),
+                **{key: cfg[key] for key in ("resolution", "kappa", "padding" if method == "light_oriented" else "slices")},
+            },
+        )
     else:
-        maps = Step("shadow_maps", "skip", "no light-space shadow map: " + (
-            "eq 12's s-map from the α-maps needs none" if method == "smap" else off))
+        maps = Step(
+            "shadow_maps",
+            "skip",
+            "no light-space shadow map: " + ("eq 12's s-map from the α-maps needs none" if method == "smap" else off),
+        )
     return [smap, maps]
 
 
@@ -356,21 +494,44 @@ def _online_steps(scene) -> list[Step]:
     def why(name, coeff, key):
         return f"effects.{name} is off" if not cfg[name] else f"{key} = 0"
 
-    out = [Step("diffuse", "run" if fx["diffuse"] else "skip",
-                "Kajiya–Kay diffuse, eq 9" if fx["diffuse"] else why("diffuse", m["kd"], "material.kd")),
-           Step("primary", "run" if fx["primary"] else "skip",
-                "primary highlight, eq 10" if fx["primary"] else why("primary", m["ks_I"], "material.ks_I")),
-           Step("secondary", "run" if fx["secondary"] else "skip",
-                "secondary highlight, eq 11" if fx["secondary"] else
-                why("secondary", m["ks_II"], "material.ks_II") + ": no secondary lighting and no noise")]
+    out = [
+        Step(
+            "diffuse",
+            "run" if fx["diffuse"] else "skip",
+            "Kajiya–Kay diffuse, eq 9" if fx["diffuse"] else why("diffuse", m["kd"], "material.kd"),
+        ),
+        Step(
+            "primary",
+            "run" if fx["primary"] else "skip",
+            "primary highlight, eq 10" if fx["primary"] else why("primary", m["ks_I"], "material.ks_I"),
+        ),
+        Step(
+            "secondary",
+            "run" if fx["secondary"] else "skip",
+            "secondary highlight, eq 11"
+            if fx["secondary"]
+            else why("secondary", m["ks_II"], "material.ks_II") + ": no secondary lighting and no noise",
+        ),
+    ]
     if fx["secondary"]:
-        out.append(Step("noise", "run" if fx["noise"] else "skip", "noise-modulated secondary (Scheuermann)"
-                        if fx["noise"] else ("effects.noise is off" if not cfg["noise"] else "material.noise_amount = 0")))
+        out.append(
+            Step(
+                "noise",
+                "run" if fx["noise"] else "skip",
+                "noise-modulated secondary (Scheuermann)"
+                if fx["noise"]
+                else ("effects.noise is off" if not cfg["noise"] else "material.noise_amount = 0"),
+            )
+        )
     out.extend(_shadow_steps(scene))
     kt = m["k_threshold"]
-    fetch = ("k_threshold = ∞: every HSV uniform, one fetch each" if math.isinf(kt) else
-             "k_threshold = 0: every HSV fetches two HRIRs (eq 7)" if kt == 0 else
-             f"eq 6 test at k_threshold = {kt:g}: one fetch per uniform HSV, two otherwise")
+    fetch = (
+        "k_threshold = ∞: every HSV uniform, one fetch each"
+        if math.isinf(kt)
+        else "k_threshold = 0: every HSV fetches two HRIRs (eq 7)"
+        if kt == 0
+        else f"eq 6 test at k_threshold = {kt:g}: one fetch per uniform HSV, two otherwise"
+    )
     out.append(Step("uniformity", "run", fetch))
     return out
 
@@ -381,12 +542,19 @@ def plan(scene, cache_root=None) -> Plan:
     root = cache.cache_dir(cache_root)
     ss = scene_sectors(sc)
     method, map_steps = _map_steps(sc, ss, root)
-    hrir = _hrir_step(sc, ss, root) if method == "satf" else Step(
-        "hrir_db", "skip", f"the maps come from {method!r}: no SATF database is read")
+    hrir = (
+        _hrir_step(sc, ss, root)
+        if method == "satf"
+        else Step("hrir_db", "skip", f"the maps come from {method!r}: no SATF database is read")
+    )
     online = _online_steps(sc)
     if method != "satf":
-        online = [s if s.name != "uniformity" else Step("uniformity", "skip", f"{method!r} maps: every HSV sweeps its "
-                                                        "two sectors' own rows (eq 7), no eq 6 test") for s in online]
+        online = [
+            s
+            if s.name != "uniformity"
+            else Step("uniformity", "skip", f"{method!r} maps: every HSV sweeps its two sectors' own rows (eq 7), no eq 6 test")
+            for s in online
+        ]
     steps = [*map_steps, hrir, _sh_step(sc, root), _transmittance_step(sc), *online]
     return Plan(sc, tuple(steps), str(root))
 
@@ -431,8 +599,9 @@ def find_assets(scene, cache_root=None) -> dict[str, Path]:
                     cache.check(Path(s.path), s.kind, recipe_hash(s.recipe))
                 except errors.AssetError as exc:
                     why = exc.fault if exc.path == s.path else str(exc)  # a part's fault names the part
-                    raise errors.CorruptAssetError(s.path, f"the scene's cached {s.kind} is unusable ({why}); "
-                                                   f"{bake_it} to bake it again") from None
+                    raise errors.CorruptAssetError(
+                        s.path, f"the scene's cached {s.kind} is unusable ({why}); {bake_it} to bake it again"
+                    ) from None
             raise errors.AssetNotFoundError(s.path, f"the scene's {s.kind} is not in the cache; {bake_it}")
         out[s.name] = Path(s.path)
     return out

@@ -52,10 +52,16 @@ def compare(a, b, *, flip: bool = True) -> tuple[dict, np.ndarray | None]:
         raise errors.ValidationError("b", list(rb.shape), f"frames differ in size: a is {list(ra.shape)}")
     ma, mb = float(ra[..., 3].mean()), float(rb[..., 3].mean())
     ba, bb = block_average(ra), block_average(rb)
-    out = {"rgb_rmse": _rmse(ra[..., :3], rb[..., :3]), "alpha_rmse": _rmse(ra[..., 3], rb[..., 3]),
-           "alpha_mean_a": ma, "alpha_mean_b": mb, "alpha_bias": ma - mb,
-           "alpha_bias_relative": (ma - mb) / mb if mb > 0 else None,
-           "rgb_rmse_8x8": _rmse(ba[..., :3], bb[..., :3]), "alpha_rmse_8x8": _rmse(ba[..., 3], bb[..., 3])}
+    out = {
+        "rgb_rmse": _rmse(ra[..., :3], rb[..., :3]),
+        "alpha_rmse": _rmse(ra[..., 3], rb[..., 3]),
+        "alpha_mean_a": ma,
+        "alpha_mean_b": mb,
+        "alpha_bias": ma - mb,
+        "alpha_bias_relative": (ma - mb) / mb if mb > 0 else None,
+        "rgb_rmse_8x8": _rmse(ba[..., :3], bb[..., :3]),
+        "alpha_rmse_8x8": _rmse(ba[..., 3], bb[..., 3]),
+    }
     if mb <= 0:
         out["alpha_bias_relative_undefined"] = "b's alpha is zero everywhere"
     heat = None

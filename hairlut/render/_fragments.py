@@ -33,7 +33,6 @@ import numpy as np
 from .. import budget, errors
 from ._raster import FAR, bilerp, surface_order, surfaces, texel_cell
 
-
 #: Bytes the camera pass holds per layer-surface slot of a tile: depth and (u, t) (float32), and, for a drawn
 #: fragment, its host-side index and key arrays (int64) while they are ordered.
 SLOT_BYTES = 12 + 8 * 8
@@ -80,8 +79,13 @@ def order_fragments(z, tuv, origins, size, n_t: int, n_u: int):
     C, S, th, tw = z.shape
     drawn = np.isfinite(z)
     if not drawn.any():  # a frame that catches no hair: no slabs, every pixel the composite's empty last row
-        return (np.zeros(0, np.int32), np.zeros((0, 2), np.float32), np.zeros(W * H, np.int32), (),
-                np.full((H, W), FAR, np.float32))
+        return (
+            np.zeros(0, np.int32),
+            np.zeros((0, 2), np.float32),
+            np.zeros(W * H, np.int32),
+            (),
+            np.full((H, W), FAR, np.float32),
+        )
     near = np.where(drawn, z, np.inf).min(1)  # (C, th, tw)
     ox, oy = np.asarray(origins, np.int64)[:, 0], np.asarray(origins, np.int64)[:, 1]
     # clusters at each pixel, nearest first (ties: the lower index), as in the reference's composite
@@ -120,8 +124,9 @@ def order_fragments(z, tuv, origins, size, n_t: int, n_u: int):
     # each fragment's texel cell and weights, in slab order
     u, t = tuv[fc, fs, fy, fx, 0], tuv[fc, fs, fy, fx, 1]
     layer = fc * (S // 2) + fs // 2
-    cell, weight = _cells_of(jnp.asarray(u, jnp.float32), jnp.asarray(t, jnp.float32),
-                             jnp.asarray(layer, jnp.int32), n_t=n_t, n_u=n_u)
+    cell, weight = _cells_of(
+        jnp.asarray(u, jnp.float32), jnp.asarray(t, jnp.float32), jnp.asarray(layer, jnp.int32), n_t=n_t, n_u=n_u
+    )
     inv = np.empty(len(dest), np.int64)
     inv[dest] = np.arange(len(dest))
     cell, weight = np.asarray(cell)[inv], np.asarray(weight)[inv]
@@ -133,8 +138,7 @@ def order_fragments(z, tuv, origins, size, n_t: int, n_u: int):
     return cell, weight, source, slabs, depth.reshape(H, W)
 
 
-def plan_fragments(cam, vertices, triangles, uv, texture_shape, *, tile, origins,
-                   limit: int | None = None) -> FragmentPlan:
+def plan_fragments(cam, vertices, triangles, uv, texture_shape, *, tile, origins, limit: int | None = None) -> FragmentPlan:
     """The :class:`FragmentPlan` of (C, K, V, 3) ``vertices`` (triangles (T, 3), uv (V, 2) shared) through ``cam``,
     for textures of shape (C, K, n_t, n_u) (module docstring, step 1); ``tile``/``origins`` as ``_layered.layout``
     gives them.  Refuses (``BudgetError``) when the camera pass would not fit the memory budget (``limit``: bytes,
@@ -148,11 +152,23 @@ def plan_fragments(cam, vertices, triangles, uv, texture_shape, *, tile, origins
         raise errors.ValidationError("textures", list(texture_shape), f"need (C, K) = {list(vertices.shape[:2])} first")
     th, tw = (int(t) for t in tile)
     # the surface buffers (depth, u, t) and, at most one fragment per buffer slot, the host's fragment arrays
-    budget.check("camera.resolution", [cam.width, cam.height], budget.product(C, 2 * K, th, tw, SLOT_BYTES),
-                 f"the camera pass's {C} clusters x {2 * K} layer surfaces on {th} x {tw}-pixel tiles", limit)
+    budget.check(
+        "camera.resolution",
+        [cam.width, cam.height],
+        budget.product(C, 2 * K, th, tw, SLOT_BYTES),
+        f"the camera pass's {C} clusters x {2 * K} layer surfaces on {th} x {tw}-pixel tiles",
+        limit,
+    )
     pairs = pairs_of(triangles)
-    args = (jnp.asarray(vertices, f32), jnp.asarray(origins, jnp.int32), jnp.asarray(pairs, jnp.int32),
-            jnp.asarray(uv, f32), jnp.asarray(cam.matrix, f32), jnp.asarray(cam.eye, f32), jnp.asarray(cam.back, f32))
+    args = (
+        jnp.asarray(vertices, f32),
+        jnp.asarray(origins, jnp.int32),
+        jnp.asarray(pairs, jnp.int32),
+        jnp.asarray(uv, f32),
+        jnp.asarray(cam.matrix, f32),
+        jnp.asarray(cam.eye, f32),
+        jnp.asarray(cam.back, f32),
+    )
     size = (cam.width, cam.height)
     kw = {"size": size, "tile": tuple(int(t) for t in tile)}
     cap = _bucket(1.02 * candidates(cam, vertices, pairs, origins, tile) + 64)
@@ -163,11 +179,23 @@ def plan_fragments(cam, vertices, triangles, uv, texture_shape, *, tile, origins
     z, tuv = np.asarray(z), np.asarray(tuv)
     t1 = time.perf_counter()
     cell, weight, source, slabs, depth = order_fragments(z, tuv, origins, size, n_t, n_u)
-    info = {"fragments": int(len(cell)), "pixels": int(slabs[0]) if slabs else 0, "slabs": len(slabs),
-            "candidates_per_cluster": cap,
-            "seconds": {"surfaces": t1 - t0, "order": time.perf_counter() - t1}}
-    return FragmentPlan(jnp.asarray(cell, jnp.int32), jnp.asarray(weight, f32), jnp.asarray(source, jnp.int32),
-                        slabs, depth, size, (C, K, n_t, n_u), info)
+    info = {
+        "fragments": int(len(cell)),
+        "pixels": int(slabs[0]) if slabs else 0,
+        "slabs": len(slabs),
+        "candidates_per_cluster": cap,
+        "seconds": {"surfaces": t1 - t0, "order": time.perf_counter() - t1},
+    }
+    return FragmentPlan(
+        jnp.asarray(cell, jnp.int32),
+        jnp.asarray(weight, f32),
+        jnp.asarray(source, jnp.int32),
+        slabs,
+        depth,
+        size,
+        (C, K, n_t, n_u),
+        info,
+    )
 
 
 def texel_cells(textures):
@@ -192,8 +220,8 @@ def composite_kernel(textures, cell, weight, source, *, slabs):
     state = jnp.concatenate([jnp.zeros((n + 1, 4), jnp.float32), jnp.ones((n + 1, 1), jnp.float32)], -1)
     off = 0
     for m in slabs:  # front to back: slab d holds the d-th fragment of the first m pixels
-        g = jnp.take(cells, cell[off:off + m], axis=0, mode="clip")
-        w = weight[off:off + m]
+        g = jnp.take(cells, cell[off : off + m], axis=0, mode="clip")
+        w = weight[off : off + m]
         f = bilerp(g[:, 0:4], g[:, 4:8], g[:, 8:12], g[:, 12:16], w[:, :1], w[:, 1:])
         s = state[:m]
         state = state.at[:m].set(jnp.concatenate([s[:, :4] + s[:, 4:] * f, s[:, 4:] * (1.0 - f[:, 3:])], -1))

@@ -87,6 +87,7 @@ def read_frame(path) -> Frame:
     except errors.ValidationError as exc:
         raise errors.CorruptAssetError(path, str(exc)) from None
     if cam is not None and (cam.height, cam.width) != rgba.shape[:2]:
-        raise errors.CorruptAssetError(path, f"{CAMERA_KEY}.resolution=[{cam.width}, {cam.height}]: the image is "
-                                             f"{rgba.shape[1]} x {rgba.shape[0]} pixels")
+        raise errors.CorruptAssetError(
+            path, f"{CAMERA_KEY}.resolution=[{cam.width}, {cam.height}]: the image is {rgba.shape[1]} x {rgba.shape[0]} pixels"
+        )
     return Frame(rgba, depth, cam, {k: v for k, v in rec.items() if k != "camera"})

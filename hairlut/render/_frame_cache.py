@@ -68,8 +68,12 @@ def _plain(x):
 
 def frame_key(scene, record: dict) -> str:
     """The SHA-256 (hex) of the scene's record, ``record`` and :func:`code_record`."""
-    text = json.dumps({"scene": scene_record(scene), "frame": record, "code": code_record()}, sort_keys=True,
-                      separators=(",", ":"), default=_plain)  # Infinity (k_threshold = inf) is keyed as the token
+    text = json.dumps(
+        {"scene": scene_record(scene), "frame": record, "code": code_record()},
+        sort_keys=True,
+        separators=(",", ":"),
+        default=_plain,
+    )  # Infinity (k_threshold = inf) is keyed as the token
     return hashlib.sha256(text.encode()).hexdigest()
 
 
@@ -127,5 +131,9 @@ def strands_frame(scene, camera, *, levels, root=None, strands=None) -> Frame:
     :func:`cached_frame` (the camera's record and the levels are the frame's record)."""
     from ._render import render_strands
 
-    return cached_frame(scene, {"what": "strands", "camera": camera.to_json(), "levels": list(levels)},
-                        lambda: render_strands(scene, camera, levels=list(levels), strands=strands), root)
+    return cached_frame(
+        scene,
+        {"what": "strands", "camera": camera.to_json(), "levels": list(levels)},
+        lambda: render_strands(scene, camera, levels=list(levels), strands=strands),
+        root,
+    )

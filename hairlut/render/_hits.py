@@ -50,7 +50,7 @@ def tile_groups(buckets, group: int):
     start = np.concatenate([[0], np.cumsum(count)])
     for s in range(0, len(tiles), group):
         e = min(s + group, len(tiles))
-        yield tiles[s:e], count[s:e], cand[start[s]:start[e]]
+        yield tiles[s:e], count[s:e], cand[start[s] : start[e]]
 
 
 def near_pairs(o, d, count: np.ndarray, cand: np.ndarray, per_tile: int, dev: tuple, s_lo: float):
@@ -63,7 +63,7 @@ def near_pairs(o, d, count: np.ndarray, cand: np.ndarray, per_tile: int, dev: tu
     rays, segs, total, t0 = [], [], int(block.sum()), 0
     while t0 < len(count):
         t1 = t0 + max(1, int(np.searchsorted(np.cumsum(block[t0:]), HOST_PAIRS, side="right")))
-        c, b = count[t0:t1], block[t0:t1].astype(np.int32)
+        b = block[t0:t1].astype(np.int32)
         tile = np.repeat(np.arange(t0, t1, dtype=np.int32), b)
         q = np.arange(int(b.sum()), dtype=np.int32) - np.repeat(np.cumsum(b, dtype=np.int32) - b, b)
         r, j = np.divmod(q, count[tile])
@@ -81,11 +81,11 @@ def keep_near(o, d, ray: np.ndarray, seg: np.ndarray, dev: tuple, s_lo: float) -
     (:func:`hit_kernel`, ``PAIRS`` at a time), in their order."""
     rays, segs = [np.zeros(0, np.int32)], [np.zeros(0, np.int32)]
     for s in range(0, len(ray), PAIRS):
-        rr, gg = ray[s:s + PAIRS], seg[s:s + PAIRS]
+        rr, gg = ray[s : s + PAIRS], seg[s : s + PAIRS]
         pad = PAIRS - len(rr)
         if pad:
             rr, gg = np.concatenate([rr, np.zeros(pad, np.int32)]), np.concatenate([gg, np.full(pad, -1, np.int32)])
-        keep = np.flatnonzero(np.asarray(hit_kernel(o, d, rr, gg, *dev, s_lo))[:len(ray) - s])
+        keep = np.flatnonzero(np.asarray(hit_kernel(o, d, rr, gg, *dev, s_lo))[: len(ray) - s])
         rays.append(rr[keep])
         segs.append(gg[keep])
     return np.concatenate(rays), np.concatenate(segs)
@@ -94,7 +94,7 @@ def keep_near(o, d, ray: np.ndarray, seg: np.ndarray, dev: tuple, s_lo: float) -
 def _width(count: np.ndarray) -> np.ndarray:
     """Each count padded to a power of ``K_STEP`` times ``LEAST_K``."""
     k = np.ceil(np.log(np.maximum(count, 1) / LEAST_K) / np.log(K_STEP) - 1e-9).clip(0).astype(np.int64)
-    return LEAST_K * K_STEP ** k
+    return LEAST_K * K_STEP**k
 
 
 def compact(ray: np.ndarray, seg: np.ndarray) -> dict[int, tuple[np.ndarray, np.ndarray]]:

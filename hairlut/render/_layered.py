@@ -210,9 +210,16 @@ def rasterise(cam, vertices, triangles, uv, textures, *, tile, origins, repeat: 
     again with what it reported."""
     f32 = jnp.float32
     pairs = pairs_of(triangles)
-    args = (jnp.asarray(vertices, f32), jnp.asarray(textures, f32), jnp.asarray(origins, jnp.int32),
-            jnp.asarray(pairs, jnp.int32), jnp.asarray(uv, f32), jnp.asarray(cam.matrix, f32),
-            jnp.asarray(cam.eye, f32), jnp.asarray(cam.back, f32))
+    args = (
+        jnp.asarray(vertices, f32),
+        jnp.asarray(textures, f32),
+        jnp.asarray(origins, jnp.int32),
+        jnp.asarray(pairs, jnp.int32),
+        jnp.asarray(uv, f32),
+        jnp.asarray(cam.matrix, f32),
+        jnp.asarray(cam.eye, f32),
+        jnp.asarray(cam.back, f32),
+    )
     cap = _bucket(1.02 * candidates(cam, vertices, pairs, origins, tile) + 64)
     kw = {"size": (cam.width, cam.height), "tile": tuple(int(t) for t in tile)}
     t0 = time.perf_counter()
@@ -234,8 +241,18 @@ def rasterise(cam, vertices, triangles, uv, textures, *, tile, origins, repeat: 
     return rgba, depth, sec, cap
 
 
-def render_layered(scene, camera=None, *, db=None, sh=None, maps=None, prepared=None, repeat: int = 1,
-                   edge_pixels: float = EDGE_PIXELS, oblique: bool | str | None = None) -> Frame:
+def render_layered(
+    scene,
+    camera=None,
+    *,
+    db=None,
+    sh=None,
+    maps=None,
+    prepared=None,
+    repeat: int = 1,
+    edge_pixels: float = EDGE_PIXELS,
+    oblique: bool | str | None = None,
+) -> Frame:
     """The layered model of ``scene`` through its camera (module docstring).  ``db``/``sh``/``maps``: the
     assets ``hairlut.synth.prepare`` reads (the scene's map method decides which); ``prepared``: a
     ``hairlut.synth.Prepared`` to reuse.  ``info["seconds"]``: ``maps`` and ``shade`` (the online module's
@@ -260,8 +277,9 @@ def render_layered(scene, camera=None, *, db=None, sh=None, maps=None, prepared=
     prep = prepare(sc, db, sh, maps) if prepared is None else prepared
     law = law or ("rays" if prep.method == "direct" else "strands")
     if law == "rays" and prep.method != "direct":
-        raise errors.ValidationError("oblique", law, f"the rays law traces the direct maps; this scene's map method "
-                                     f"is {prep.method!r}")
+        raise errors.ValidationError(
+            "oblique", law, f"the rays law traces the direct maps; this scene's map method is {prep.method!r}"
+        )
     t1 = time.perf_counter()
     cam = scene_camera(sc) if camera is None else camera
     paths = sector_paths(cam, prep) if law == "rays" else (None, None)
@@ -270,18 +288,28 @@ def render_layered(scene, camera=None, *, db=None, sh=None, maps=None, prepared=
     meshes, tile, origins, subdiv = layout(cam, geometry, edge_pixels=edge_pixels)
     tex = layer_textures(result)
     if law in ("strands", "volume"):
-        path = oblique_path(cam, np.stack([pc.tangent for pc in prep.clusters]),
-                            np.stack([pc.position for pc in prep.clusters]))
+        path = oblique_path(cam, np.stack([pc.tangent for pc in prep.clusters]), np.stack([pc.position for pc in prep.clusters]))
         tex = lengthen(tex, strand_path(path, extinction(sc)) if law == "strands" else path)
     t2 = time.perf_counter()
-    rgba, depth, sec, plan = draw_layers(cam, meshes.vertices, meshes.triangles, meshes.uv, tex, tile=tile,
-                                         origins=origins, repeat=repeat)
+    rgba, depth, sec, plan = draw_layers(
+        cam, meshes.vertices, meshes.triangles, meshes.uv, tex, tile=tile, origins=origins, repeat=repeat
+    )
     cap = plan.info["candidates_per_cluster"]
     st = result.stats["seconds"]
-    info = {"method": "layered", "map_method": prep.method, "scene": sc.source,
-            "clusters": len(prep.clusters), "layers": int(tex.shape[1]), "texels": list(tex.shape[2:4]),
-            "subdivision": list(subdiv), "triangles": int(meshes.triangles.shape[0] * tex.shape[0] * tex.shape[1]),
-            "candidates_per_cluster": cap, "fragments": plan.info["fragments"], "tile": list(tile), "oblique": law, "environment": "included" if prep.environment is not None else "none in scene",
-            "seconds": {"prepare": t1 - t0, "maps": st.get("maps", 0.0), "shade": st.get("shade", 0.0),
-                        "setup": t2 - t1, **sec}}
+    info = {
+        "method": "layered",
+        "map_method": prep.method,
+        "scene": sc.source,
+        "clusters": len(prep.clusters),
+        "layers": int(tex.shape[1]),
+        "texels": list(tex.shape[2:4]),
+        "subdivision": list(subdiv),
+        "triangles": int(meshes.triangles.shape[0] * tex.shape[0] * tex.shape[1]),
+        "candidates_per_cluster": cap,
+        "fragments": plan.info["fragments"],
+        "tile": list(tile),
+        "oblique": law,
+        "environment": "included" if prep.environment is not None else "none in scene",
+        "seconds": {"prepare": t1 - t0, "maps": st.get("maps", 0.0), "shade": st.get("shade", 0.0), "setup": t2 - t1, **sec},
+    }
     return Frame(rgba, depth, cam, info)

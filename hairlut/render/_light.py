@@ -142,10 +142,10 @@ def point_depths(index: LightIndex, points, dev: tuple, stats: dict | None = Non
     kept, s = 0, 0
     while s < n_pts:
         e = min(n_pts, s + RAYS)
-        e = s + max(1, int(np.searchsorted(cum[s + 1:e + 1] - cum[s], HOST_PAIRS, side="right")))
+        e = s + max(1, int(np.searchsorted(cum[s + 1 : e + 1] - cum[s], HOST_PAIRS, side="right")))
         c = count[s:e]
         o = np.zeros((RAYS, 3), np.float32)
-        o[:e - s] = points[s:e]
+        o[: e - s] = points[s:e]
         ray = np.repeat(np.arange(e - s, dtype=np.int32), c)
         seg = index.cand[np.repeat(start[s:e], c) + np.arange(int(c.sum())) - np.repeat(cum[s:e] - cum[s], c)]
         rays, near = keep_near(f32(o), d_all, ray, seg, dev, 0.0)
@@ -186,8 +186,7 @@ def shadow_grids(segs: Segments, lights, cell: float, stats: dict | None = None)
     for axes, origin, (nx, ny, nz) in frames:
         u0, u1, v0, v1, _ = _light_boxes(segs, axes)
         o2 = origin @ axes[:2].T
-        buckets = bin_boxes((u0 - o2[0]) / cell, (u1 - o2[0]) / cell, (v0 - o2[1]) / cell, (v1 - o2[1]) / cell,
-                            (nx, ny), TILE)
+        buckets = bin_boxes((u0 - o2[0]) / cell, (u1 - o2[0]) / cell, (v0 - o2[1]) / cell, (v1 - o2[1]) / cell, (nx, ny), TILE)
         ny_p = -(-ny // TILE) * TILE
         grid = np.zeros((-(-nx // TILE) * TILE * ny_p, nz), np.float32)
         d32 = f32(axes[2])
@@ -202,7 +201,7 @@ def shadow_grids(segs: Segments, lights, cell: float, stats: dict | None = None)
         for tl, count, cand in tile_groups(buckets, group):
             g = tl[:, None, :] * TILE + ij[None]  # (n, 64, 2) node columns (i, j)
             o = np.zeros((RAYS, 3), np.float32)
-            o[:g.shape[0] * g.shape[1]] = (origin + cell * (g[..., :1] * axes[0] + g[..., 1:] * axes[1])).reshape(-1, 3)
+            o[: g.shape[0] * g.shape[1]] = (origin + cell * (g[..., :1] * axes[0] + g[..., 1:] * axes[1])).reshape(-1, 3)
             ray, seg, pairs = near_pairs(f32(o), d_all, count, cand, TILE * TILE, dev, -1e20)
             col = (g[..., 0] * ny_p + g[..., 1]).reshape(-1)
             for k, (rays, near) in compact(ray, seg).items():

@@ -32,9 +32,20 @@ def panels(*images8, gap: int = GAP) -> np.ndarray:
     return np.concatenate(out, axis=1)
 
 
-def layered_vs_strands(scene, out_dir, *, db=None, sh=None, maps=None, level: int | None = None,
-                         bound: float | None = None, max_level: int = 3, prepared=None, strands_info=None,
-                         cache=None) -> dict:
+def layered_vs_strands(
+    scene,
+    out_dir,
+    *,
+    db=None,
+    sh=None,
+    maps=None,
+    level: int | None = None,
+    bound: float | None = None,
+    max_level: int = 3,
+    prepared=None,
+    strands_info=None,
+    cache=None,
+) -> dict:
     """Render ``scene`` with the layered model and with the strand render (converged to ``bound``, or exactly
     ``level`` when given: no convergence claim), write ``layered.exr``, ``strands.exr``, ``flip.png`` and
     ``side_by_side.png`` (layered | strands | FLIP) under ``out_dir``; returns the figures, times and paths.
@@ -60,15 +71,27 @@ def layered_vs_strands(scene, out_dir, *, db=None, sh=None, maps=None, level: in
     files = {"layered": write_frame(lay, out / "layered.exr")["exr"], "strands": write_frame(strand, out / "strands.exr")["exr"]}
     heat8 = np.round(np.clip(heat, 0, 1) * 255).astype(np.uint8)
     atomic_write_bytes(out / "flip.png", encode_png(heat8))
-    atomic_write_bytes(out / "side_by_side.png",
-                       encode_png(panels(tonemap(lay.rgba[..., :3]), tonemap(strand.rgba[..., :3]), heat8)))
+    atomic_write_bytes(
+        out / "side_by_side.png", encode_png(panels(tonemap(lay.rgba[..., :3]), tonemap(strand.rgba[..., :3]), heat8))
+    )
     files.update(flip=str(out / "flip.png"), side_by_side=str(out / "side_by_side.png"))
     last = strand.info["levels"][-1]
-    return {"figures": figures, "files": files, "resolution": [lay.camera.width, lay.camera.height],
-            "layered": {"map_method": lay.info["map_method"], "seconds": lay.info["seconds"], "wall_s": t1 - t0},
-            "strands": {"level": last["level"], "samples_per_pixel": last.get("samples_per_pixel"),
-                          "steps_per_crossing": last.get("steps_per_crossing"), "converged": strand.info["converged"],
-                          "bound": strand.info["bound"], "change_from_previous": last.get("change_from_previous"),
-                          "environment": strand.info.get("environment"), "seconds": strand.info["seconds"], "wall_s": t2 - t1,
-                          "cache": strand.info.get("cache"),
-                          **(strands_info or {})}}
+    return {
+        "figures": figures,
+        "files": files,
+        "resolution": [lay.camera.width, lay.camera.height],
+        "layered": {"map_method": lay.info["map_method"], "seconds": lay.info["seconds"], "wall_s": t1 - t0},
+        "strands": {
+            "level": last["level"],
+            "samples_per_pixel": last.get("samples_per_pixel"),
+            "steps_per_crossing": last.get("steps_per_crossing"),
+            "converged": strand.info["converged"],
+            "bound": strand.info["bound"],
+            "change_from_previous": last.get("change_from_previous"),
+            "environment": strand.info.get("environment"),
+            "seconds": strand.info["seconds"],
+            "wall_s": t2 - t1,
+            "cache": strand.info.get("cache"),
+            **(strands_info or {}),
+        },
+    }

@@ -73,8 +73,9 @@ def sample_texture(tex, u, t):
     n_t, n_u = tex.shape[:2]
     i0, i1, j0, j1, ws, wr = texel_cell(u, t, n_t, n_u)
     flat = tex.reshape(-1, tex.shape[-1])
-    return bilerp(flat[i0 * n_u + j0], flat[i0 * n_u + j1], flat[i1 * n_u + j0], flat[i1 * n_u + j1],
-                  ws[..., None], wr[..., None])
+    return bilerp(
+        flat[i0 * n_u + j0], flat[i0 * n_u + j1], flat[i1 * n_u + j0], flat[i1 * n_u + j1], ws[..., None], wr[..., None]
+    )
 
 
 def _records(x, y, w, depth, uv, pairs):
@@ -132,8 +133,7 @@ def surfaces(verts, origin, pairs, uv, matrix, eye, back, *, size, tile, cap):
     csum = jnp.cumsum(n)
     start = csum - n
     total = csum[-1]
-    owner = jnp.zeros(cap, jnp.int32).at[jnp.where(n > 0, start, cap)].max(jnp.arange(K * P, dtype=jnp.int32),
-                                                                           mode="drop")
+    owner = jnp.zeros(cap, jnp.int32).at[jnp.where(n > 0, start, cap)].max(jnp.arange(K * P, dtype=jnp.int32), mode="drop")
     owner = jax.lax.cummax(owner)
     k = jnp.arange(cap, dtype=jnp.int32)
     loc = k - start[owner]
@@ -232,6 +232,6 @@ def raster_kernel(verts, tex, origins, pairs, uv, matrix, eye, back, *, size, ti
     inframe = (gx >= 0) & (gx < W) & (gy >= 0) & (gy < H)
     gidx = jnp.where(inframe, gy * W + gx, W * H).reshape(-1)
     contrib = (rgba * jnp.exp(log_t)[..., None]).reshape(-1, 4)
-    acc = jnp.zeros((W * H + 1, 4), jnp.float32).at[gidx].add(contrib)[:W * H]
-    depth = jnp.full((W * H + 1,), FAR, jnp.float32).at[gidx].min(near.reshape(-1))[:W * H]
+    acc = jnp.zeros((W * H + 1, 4), jnp.float32).at[gidx].add(contrib)[: W * H]
+    depth = jnp.full((W * H + 1,), FAR, jnp.float32).at[gidx].min(near.reshape(-1))[: W * H]
     return acc.reshape(H, W, 4), depth.reshape(H, W), jnp.max(need)

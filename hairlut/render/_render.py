@@ -36,9 +36,20 @@ def segment_lighting(scene, tangent, view, lights, colors) -> np.ndarray:
     fx = scene.effects
     mat, colours = material_arrays(scene)
     f32 = np.float32
-    lit = lighting_kernel(jnp.asarray(t, f32), jnp.asarray(n, f32), jnp.asarray(v, f32), jnp.asarray(lights, f32),
-                          jnp.asarray(colors, f32), jnp.full(len(t), 0.5, f32), mat, colours,
-                          use_diffuse=fx["diffuse"], primary=fx["primary"], secondary=fx["secondary"], noise=fx["noise"])
+    lit = lighting_kernel(
+        jnp.asarray(t, f32),
+        jnp.asarray(n, f32),
+        jnp.asarray(v, f32),
+        jnp.asarray(lights, f32),
+        jnp.asarray(colors, f32),
+        jnp.full(len(t), 0.5, f32),
+        mat,
+        colours,
+        use_diffuse=fx["diffuse"],
+        primary=fx["primary"],
+        secondary=fx["secondary"],
+        noise=fx["noise"],
+    )
     return np.asarray(lit)
 
 
@@ -69,12 +80,23 @@ def scene_camera(scene, strands=None):
 
 
 def _change(a: np.ndarray, b: np.ndarray) -> dict:
-    return {"rgb_rmse": float(np.sqrt(np.mean((a[..., :3] - b[..., :3]) ** 2))),
-            "alpha_rmse": float(np.sqrt(np.mean((a[..., 3] - b[..., 3]) ** 2)))}
+    return {
+        "rgb_rmse": float(np.sqrt(np.mean((a[..., :3] - b[..., :3]) ** 2))),
+        "alpha_rmse": float(np.sqrt(np.mean((a[..., 3] - b[..., 3]) ** 2))),
+    }
 
 
-def render_strands(scene, camera=None, *, bound: float | None = None, max_level: int = 3, min_level: int = 1,
-                     levels: list | None = None, strands=None, verify: bool = False) -> Frame:
+def render_strands(
+    scene,
+    camera=None,
+    *,
+    bound: float | None = None,
+    max_level: int = 3,
+    min_level: int = 1,
+    levels: list | None = None,
+    strands=None,
+    verify: bool = False,
+) -> Frame:
     """The converged strand render of ``scene`` (``_strand_march``): levels ``min_level − 1``, … until the
     change from the level before is below ``bound`` in both RGB and α RMSE (or ``max_level``).  With ``levels``
     (e.g. [2]) exactly those levels are rendered and the last returned (no convergence claim).  ``verify``: once
@@ -96,7 +118,7 @@ def render_strands(scene, camera=None, *, bound: float | None = None, max_level:
     lit = jnp.asarray(segment_lighting(sc, segs.tangent, cam.back, sc.lights, sc.light_colors), jnp.float32)
     shadows = sc.shadow_method != "none"
     t1 = time.perf_counter()
-    history, prev, img, stats = [], None, None, {}
+    history, prev, img = [], None, None
     run = list(levels) if levels is not None else range(max(min_level - 1, 0), max_level + 1)
     converged = False
     for lv in run:
@@ -116,10 +138,23 @@ def render_strands(scene, camera=None, *, bound: float | None = None, max_level:
         tl = time.perf_counter()
         finer = render_level(segs, cam, lit, sc.lights, level=history[-1]["level"] + 1, shadows=shadows)
         ch = _change(finer, img)
-        verified = {"level": history[-1]["level"] + 1, "change_from_returned": ch, "holds": max(ch.values()) < bound,
-                    "seconds": time.perf_counter() - tl}
-    info = {"method": "strands", "scene": sc.source, "bound": bound if levels is None else None,
-            "converged": converged, "verified": verified, "levels": history, "segments": segs.n, "extinction_kappa": extinction(sc),
-            "shadows": shadows, "environment": "not included",
-            "seconds": {"setup": t1 - t0, "frame": time.perf_counter() - t1}}
+        verified = {
+            "level": history[-1]["level"] + 1,
+            "change_from_returned": ch,
+            "holds": max(ch.values()) < bound,
+            "seconds": time.perf_counter() - tl,
+        }
+    info = {
+        "method": "strands",
+        "scene": sc.source,
+        "bound": bound if levels is None else None,
+        "converged": converged,
+        "verified": verified,
+        "levels": history,
+        "segments": segs.n,
+        "extinction_kappa": extinction(sc),
+        "shadows": shadows,
+        "environment": "not included",
+        "seconds": {"setup": t1 - t0, "frame": time.perf_counter() - t1},
+    }
     return Frame(img[..., :4], img[..., 4], cam, info)

@@ -93,8 +93,8 @@ def camera_rays(tiles, cam, *, tile: int, ss: int, perspective: bool, lattice: b
     eye, right, up, back, half = cam[0], cam[1], cam[2], cam[3], cam[4]
     sub = jnp.asarray(pixel_offsets(ss, lattice), jnp.float32)
     pix = jnp.arange(tile, dtype=jnp.float32)
-    px = (tiles[:, 0, None, None, None] * tile + pix[None, None, :, None] + sub[None, None, None, :, 0])
-    py = (tiles[:, 1, None, None, None] * tile + pix[None, :, None, None] + sub[None, None, None, :, 1])
+    px = tiles[:, 0, None, None, None] * tile + pix[None, None, :, None] + sub[None, None, None, :, 0]
+    py = tiles[:, 1, None, None, None] * tile + pix[None, :, None, None] + sub[None, None, None, :, 1]
     px, py = jnp.broadcast_arrays(px, py)  # (T, y, x, i)
     sx = (2.0 * px / cam[5, 0] - 1.0) * half[0]
     sy = (1.0 - 2.0 * py / cam[5, 1]) * half[1]
@@ -118,8 +118,9 @@ def step_points(o, d, cand, p0, t, length, radius, sigma_t, *, steps: int, persp
     here; :func:`strand_march_kernel` composites these sorted steps."""
     valid = cand >= 0
     ix = jnp.where(valid, cand, 0)
-    tau, s = crossings(o[:, None], d[:, None], *(a[ix] for a in (p0, t, length, radius, sigma_t)),
-                       0.0 if perspective else -1e20, steps)
+    tau, s = crossings(
+        o[:, None], d[:, None], *(a[ix] for a in (p0, t, length, radius, sigma_t)), 0.0 if perspective else -1e20, steps
+    )
     tau = jnp.where(valid[..., None], tau, 0.0)
     n = tau.shape[0]
     seg = jnp.broadcast_to(ix[..., None], tau.shape)
@@ -169,8 +170,19 @@ def segment_boxes(segs: Segments, camera):
     return np.minimum(xa, xb) - px - 1, np.maximum(xa, xb) + px + 1, np.minimum(ya, yb) - px - 1, np.maximum(ya, yb) + px + 1
 
 
-def render_level(segs: Segments, camera, lit, lights, *, level: int, shadows: bool, stats: dict | None = None,
-                 samples: int | None = None, steps: int | None = None, lattice: bool | None = None) -> np.ndarray:
+def render_level(
+    segs: Segments,
+    camera,
+    lit,
+    lights,
+    *,
+    level: int,
+    shadows: bool,
+    stats: dict | None = None,
+    samples: int | None = None,
+    steps: int | None = None,
+    lattice: bool | None = None,
+) -> np.ndarray:
     """The (h, w, 5) RGBA + depth of one convergence level (module docstring).  ``stats`` gets where the shadows came
     from (``grid`` or ``rays``), the seconds of the lights' grids or indexes, of the shadow lookups (``_light``), of
     the first pass (``_hits``) and of the second (:func:`strand_march_kernel`), and the pair counts."""
@@ -237,16 +249,31 @@ def render_level(segs: Segments, camera, lit, lights, *, level: int, shadows: bo
             st["rays_hit"] += len(rays)
     queue.flush()
     per = (acc / (ss * ss)).T.reshape(hp, wp, 6).astype(np.float32)
-    out = np.concatenate([per[..., :4], np.where(per[..., 5:] > 0, per[..., 4:5] / np.where(per[..., 5:] > 0, per[..., 5:], 1.0),
-                                                 np.float32(BACKGROUND_DEPTH))], -1)
+    out = np.concatenate(
+        [
+            per[..., :4],
+            np.where(
+                per[..., 5:] > 0, per[..., 4:5] / np.where(per[..., 5:] > 0, per[..., 5:], 1.0), np.float32(BACKGROUND_DEPTH)
+            ),
+        ],
+        -1,
+    )
     if stats is not None:
         t2 = time.perf_counter()
         comp, shade_s = st.pop("composite_seconds"), st.pop("shadow_seconds")
-        stats.update(shadow_source=source, shadow_cell=cell if source == "grid" else None,
-                     setup_seconds=t1 - t0, shadow_seconds=shade_s, march_seconds=t2 - t1,
-                     hits_seconds=t2 - t1 - comp, composite_seconds=comp - shade_s,
-                     samples_per_pixel=ss * ss, steps_per_crossing=steps,
-                     pattern="lattice" if lattice else "grid", **st)
+        stats.update(
+            shadow_source=source,
+            shadow_cell=cell if source == "grid" else None,
+            setup_seconds=t1 - t0,
+            shadow_seconds=shade_s,
+            march_seconds=t2 - t1,
+            hits_seconds=t2 - t1 - comp,
+            composite_seconds=comp - shade_s,
+            samples_per_pixel=ss * ss,
+            steps_per_crossing=steps,
+            pattern="lattice" if lattice else "grid",
+            **st,
+        )
     out = out[:h, :w]
     if not np.isfinite(out).all():
         raise errors.ValidationError("strands", "non-finite", "the strand render produced non-finite pixels")

@@ -66,7 +66,7 @@ def bin_boxes(x0, x1, y0, y1, shape: tuple[int, int], tile: int) -> list[Bucket]
         sel = np.flatnonzero(widths == wd)
         index = np.full((sel.size, wd), -1, np.int64)
         for row, j in enumerate(sel):
-            index[row, :n[j]] = cand[start[j]:start[j] + n[j]]
+            index[row, : n[j]] = cand[start[j] : start[j] + n[j]]
         out.append(Bucket(np.stack([ids[sel] % nx, ids[sel] // nx], 1), index))
     return out
 
@@ -78,7 +78,7 @@ def chunks(bucket: Bucket, per_tile: int, budget: int):
     size = 1 << max(0, int(np.log2(max(budget // max(per_tile, 1), 1))))
     size = min(size, _bucket_width(n, 1))
     for s in range(0, n, size):
-        t, ix = bucket.tiles[s:s + size], bucket.index[s:s + size]
+        t, ix = bucket.tiles[s : s + size], bucket.index[s : s + size]
         pad = size - len(t)
         if pad:
             t = np.concatenate([t, np.repeat(t[:1], pad, 0)])

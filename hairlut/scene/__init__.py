@@ -10,17 +10,39 @@ everything else build on it.  NumPy and JAX load on first use of a name."""
 from .._lazy import lazy_exports
 
 _LAZY = {
-    "MAP_KEYS": "_schema", "MAP_KNOBS": "_schema", "SCHEMA": "_schema", "SHADOW_KEYS": "_schema", "SHADOW_METHODS": "_schema", "Scene": "_schema", "as_scene": "_schema",
-    "load_scene": "_schema", "resolve_path": "_schema", "resolve_scene": "_schema",
+    "MAP_KEYS": "_schema",
+    "MAP_KNOBS": "_schema",
+    "SCHEMA": "_schema",
+    "SHADOW_KEYS": "_schema",
+    "SHADOW_METHODS": "_schema",
+    "Scene": "_schema",
+    "as_scene": "_schema",
+    "load_scene": "_schema",
+    "resolve_path": "_schema",
+    "resolve_scene": "_schema",
     "scene_clusters": "_clusters",
-    "CAMERA": "_camera", "Camera": "_camera", "check_camera": "_camera", "check_memory": "_camera",
-    "frame_bytes": "_camera", "make_camera": "_camera",
-    "MARGIN": "_sectors", "SceneSectors": "_sectors", "grid_coverage": "_sectors", "restricted_space": "_sectors",
+    "CAMERA": "_camera",
+    "Camera": "_camera",
+    "check_camera": "_camera",
+    "check_memory": "_camera",
+    "frame_bytes": "_camera",
+    "make_camera": "_camera",
+    "MARGIN": "_sectors",
+    "SceneSectors": "_sectors",
+    "grid_coverage": "_sectors",
+    "restricted_space": "_sectors",
     "scene_sectors": "_sectors",
 }
 
 __all__ = [
-    "Camera", "SCHEMA", "Scene", "SceneSectors", "load_scene", "make_camera", "resolve_scene", "scene_clusters",
+    "Camera",
+    "SCHEMA",
+    "Scene",
+    "SceneSectors",
+    "load_scene",
+    "make_camera",
+    "resolve_scene",
+    "scene_clusters",
     "scene_sectors",
 ]
 

@@ -62,8 +62,11 @@ DETAIL = 1024
 
 
 def _finite3(x, allow_zero=True):
-    if not isinstance(x, list) or len(x) != 3 or not all(
-            isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in x):
+    if (
+        not isinstance(x, list)
+        or len(x) != 3
+        or not all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in x)
+    ):
         return "need 3 finite numbers"
     if not allow_zero and not any(c != 0 for c in x):
         return "a direction cannot be zero"
@@ -98,8 +101,12 @@ def _resolution(x):
 
 CAMERA = {
     "view": Field(None, (list,), lambda x: _finite3(x, allow_zero=False), "direction toward the viewer"),
-    "projection": Field("orthographic", (str,), lambda x: None if x in PROJECTIONS else "'orthographic' or 'perspective'",
-                        "orthographic or perspective"),
+    "projection": Field(
+        "orthographic",
+        (str,),
+        lambda x: None if x in PROJECTIONS else "'orthographic' or 'perspective'",
+        "orthographic or perspective",
+    ),
     "position": Field("auto", (list, str), _auto_or_point, "the eye ('auto': on look_at + d·view, fitted)"),
     "look_at": Field("auto", (list, str), _auto_or_point, "the point looked at ('auto': the groom's centre)"),
     "up": Field([0.0, 1.0, 0.0], (list,), lambda x: _finite3(x, allow_zero=False), "world direction shown upward"),
@@ -117,8 +124,7 @@ def frame_bytes(width: int, height: int, samples: int = 1) -> int:
 def check_memory(resolution, samples: int = 1, key: str = "camera.resolution") -> None:
     """Refuse a frame whose buffers (:func:`frame_bytes`) exceed the memory budget
     (:func:`hairlut.budget.memory_limit`: ``$HAIRLUT_MEMORY_LIMIT`` or half the machine's memory)."""
-    budget.check(key, list(resolution), frame_bytes(*resolution, samples),
-                 f"the frame's buffers ({samples} sample(s) per pixel)")
+    budget.check(key, list(resolution), frame_bytes(*resolution, samples), f"the frame's buffers ({samples} sample(s) per pixel)")
 
 
 def _unit(x) -> np.ndarray:
@@ -165,10 +171,14 @@ def check_camera(cam: dict) -> None:
         if d is None:
             raise errors.ValidationError("camera.position", cam["position"], "equals camera.look_at: no view direction")
         if float(d @ view) < 1.0 - 1e-6:
-            raise errors.ValidationError("camera.position", cam["position"], f"disagrees with camera.view {cam['view']}: "
-                                         f"the eye must lie on camera.look_at {cam['look_at']} + d·view with d > 0 (the "
-                                         f"direction from look_at to position is {np.round(d, 6).tolist()}; give view "
-                                         "or drop it to derive it)")
+            raise errors.ValidationError(
+                "camera.position",
+                cam["position"],
+                f"disagrees with camera.view {cam['view']}: "
+                f"the eye must lie on camera.look_at {cam['look_at']} + d·view with d > 0 (the "
+                f"direction from look_at to position is {np.round(d, 6).tolist()}; give view "
+                "or drop it to derive it)",
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -245,10 +255,19 @@ class Camera:
     def to_json(self) -> dict:
         """The camera as a JSON object (projection, resolution, ``world_to_clip`` and the frame): what a render's
         EXR stores as ``hairlut:camera``."""
-        return {"projection": self.projection, "resolution": [self.width, self.height],
-                "world_to_clip": self.matrix.tolist(), "eye": self.eye.tolist(), "right": self.right.tolist(),
-                "up": self.up.tolist(), "view": self.back.tolist(), "extent": self.extent, "fov": self.fov,
-                "near": self.near, "far": self.far}
+        return {
+            "projection": self.projection,
+            "resolution": [self.width, self.height],
+            "world_to_clip": self.matrix.tolist(),
+            "eye": self.eye.tolist(),
+            "right": self.right.tolist(),
+            "up": self.up.tolist(),
+            "view": self.back.tolist(),
+            "extent": self.extent,
+            "fov": self.fov,
+            "near": self.near,
+            "far": self.far,
+        }
 
     @classmethod
     def from_json(cls, d) -> Camera:
@@ -304,8 +323,19 @@ def _record(d) -> tuple:
     if not d["far"] > d["near"]:
         raise bad("far", f"the far plane lies beyond the near plane ({d['near']})")
     w, h = d["resolution"]
-    cam = (d["projection"], axes["eye"], axes["right"], axes["up"], axes["view"], w, h,
-           float(d["extent"]), float(d["fov"]), float(d["near"]), float(d["far"]))
+    cam = (
+        d["projection"],
+        axes["eye"],
+        axes["right"],
+        axes["up"],
+        axes["view"],
+        w,
+        h,
+        float(d["extent"]),
+        float(d["fov"]),
+        float(d["near"]),
+        float(d["far"]),
+    )
     m = d["world_to_clip"]
     if not (isinstance(m, list) and len(m) == 4 and all(isinstance(r, list) and len(r) == 4 and all(map(_number, r)) for r in m)):
         raise bad("world_to_clip", "need a 4 x 4 matrix of finite numbers")
@@ -341,15 +371,21 @@ def make_camera(cam: dict, points, detail: float | None = None) -> Camera:
         ext = cam["extent"]
         if ext == "auto":
             ext = (1 + 2 * MARGIN) * max(2 * np.abs(ys).max(), 2 * np.abs(xs).max() / aspect, 1e-12)
-        dist = float(along.max()) + MARGIN * radius + 1e-9 if not given_eye else \
-            float((np.asarray(cam["position"], np.float64) - centre) @ back)
+        dist = (
+            float(along.max()) + MARGIN * radius + 1e-9
+            if not given_eye
+            else float((np.asarray(cam["position"], np.float64) - centre) @ back)
+        )
         fov = float(cam["fov"])
     else:
         fov = float(cam["fov"])
         half = math.radians(fov) / 2
         half = min(half, math.atan(math.tan(half) * aspect))
-        dist = radius * (1 + MARGIN) / math.sin(half) if not given_eye else \
-            float((np.asarray(cam["position"], np.float64) - centre) @ back)
+        dist = (
+            radius * (1 + MARGIN) / math.sin(half)
+            if not given_eye
+            else float((np.asarray(cam["position"], np.float64) - centre) @ back)
+        )
         ext = float(cam["extent"]) if cam["extent"] != "auto" else 2 * dist * math.tan(math.radians(fov) / 2)
     eye = centre + back * dist
     if np.all((eye >= lo) & (eye <= hi)):
@@ -361,13 +397,24 @@ def make_camera(cam: dict, points, detail: float | None = None) -> Camera:
     near = near_need * 0.5 if cam["projection"] == "perspective" else 0.0
     far = float(depth.max()) * 1.5 + 1e-9
     camera = Camera(cam["projection"], eye, right, up, back, int(w), int(h), float(ext), fov, near, far)
-    _check_precision(cam, camera, pts, centre, near_need, *((radius / DETAIL, f"the hair's radius / {DETAIL}")
-                                                            if detail is None else (float(detail), "the thinnest strand's radius")))
+    _check_precision(
+        cam,
+        camera,
+        pts,
+        centre,
+        near_need,
+        *(
+            (radius / DETAIL, f"the hair's radius / {DETAIL}")
+            if detail is None
+            else (float(detail), "the thinnest strand's radius")
+        ),
+    )
     return camera
 
 
-def _check_precision(cam: dict, camera: Camera, pts: np.ndarray, centre: np.ndarray, nearest: float, detail: float,
-                     what: str) -> None:
+def _check_precision(
+    cam: dict, camera: Camera, pts: np.ndarray, centre: np.ndarray, nearest: float, detail: float, what: str
+) -> None:
     """Refuse a camera the float32 renderers cannot draw (module docstring, *Precision*), naming the key that put
     the eye or the frame there: float32's spacing at the eye's distance from the farthest hair must be at most
     ``detail`` / :data:`RESOLVE`, and at most a 1 / :data:`RESOLVE` of a pixel at the nearest hair."""
@@ -375,18 +422,31 @@ def _check_precision(cam: dict, camera: Camera, pts: np.ndarray, centre: np.ndar
     spacing = FLOAT32_EPS * reach
     if spacing * RESOLVE > detail:  # the eye is given far away, or fitted far for a tiny fov, or beside a far look_at
         fitted = float(np.linalg.norm(camera.eye - centre))
-        key = "position" if cam["position"] != "auto" else \
-            "fov" if camera.projection == "perspective" and FLOAT32_EPS * RESOLVE * fitted > detail else "look_at"
-        raise errors.ValidationError(f"camera.{key}", cam[key], f"puts the eye {reach:.3g} from the hair: float32 (the "
-                                     f"renderers' precision) then resolves only {spacing:.2g} there, coarser than "
-                                     f"1/{RESOLVE} of the detail the frame must show ({detail:.2g}, {what}); keep the eye within {detail / (RESOLVE * FLOAT32_EPS):.3g} of the hair"
-                                     + (" (a wider fov fits it closer)" if key == "fov" else ""))
+        key = (
+            "position"
+            if cam["position"] != "auto"
+            else "fov"
+            if camera.projection == "perspective" and FLOAT32_EPS * RESOLVE * fitted > detail
+            else "look_at"
+        )
+        raise errors.ValidationError(
+            f"camera.{key}",
+            cam[key],
+            f"puts the eye {reach:.3g} from the hair: float32 (the "
+            f"renderers' precision) then resolves only {spacing:.2g} there, coarser than "
+            f"1/{RESOLVE} of the detail the frame must show ({detail:.2g}, {what}); keep the eye within {detail / (RESOLVE * FLOAT32_EPS):.3g} of the hair"
+            + (" (a wider fov fits it closer)" if key == "fov" else ""),
+        )
     if camera.projection == "perspective":
         pixel = 2 * nearest * math.tan(math.radians(camera.fov) / 2) / camera.height
         key = "position" if cam["position"] != "auto" else "fov"
     else:
         pixel, key = camera.extent / camera.height, "extent"
     if spacing * RESOLVE > pixel:
-        raise errors.ValidationError(f"camera.{key}", cam[key], f"makes a pixel {pixel:.2g} wide at the hair, but float32 "
-                                     f"(the renderers' precision) steps by {spacing:.2g} at {reach:.3g} from the eye, and "
-                                     f"a pixel must span {RESOLVE} steps")
+        raise errors.ValidationError(
+            f"camera.{key}",
+            cam[key],
+            f"makes a pixel {pixel:.2g} wide at the hair, but float32 "
+            f"(the renderers' precision) steps by {spacing:.2g} at {reach:.3g} from the eye, and "
+            f"a pixel must span {RESOLVE} steps",
+        )

@@ -16,7 +16,6 @@ import numpy as np
 
 from ._schema import Scene
 
-
 #: The last few scenes' clusters, by :func:`_key`: the planner, the scene-maps bake, the synthesis and the camera
 #: frame each ask for the same scene's clusters, and fitting a groom is seconds of work (issue 29: a warm demo fitted
 #: each groom five times).  Callers get fresh copies of the arrays, so none can change another's.
@@ -36,9 +35,15 @@ def _key(scene: Scene) -> str:
 
 
 def _copy(pairs: list) -> list:
-    return [(spec, dataclasses.replace(s, **{f.name: np.array(getattr(s, f.name)) for f in dataclasses.fields(s)
-                                              if getattr(s, f.name) is not None}))
-            for spec, s in pairs]
+    return [
+        (
+            spec,
+            dataclasses.replace(
+                s, **{f.name: np.array(getattr(s, f.name)) for f in dataclasses.fields(s) if getattr(s, f.name) is not None}
+            ),
+        )
+        for spec, s in pairs
+    ]
 
 
 def scene_clusters(scene: Scene) -> list:
@@ -59,22 +64,35 @@ def _build(scene: Scene) -> list:
         g = scene.config["groom"]
         strands = read_strands(scene.groom_path)
         if strands.thickness is None:
-            strands = Strands(strands.points, strands.counts,
-                              thickness=np.full(strands.n_points, 2.0 * g["radius"], np.float32))
-        batch, labels = fit_clusters(strands, min(g["clusters"], strands.n_strands), layer_radii=g["layer_radii"],
-                                     core_radius=g["core_radius"], s_t=g["s_t"], s_u=g["s_u"], seed=g["seed"])
+            strands = Strands(strands.points, strands.counts, thickness=np.full(strands.n_points, 2.0 * g["radius"], np.float32))
+        batch, labels = fit_clusters(
+            strands,
+            min(g["clusters"], strands.n_strands),
+            layer_radii=g["layer_radii"],
+            core_radius=g["core_radius"],
+            s_t=g["s_t"],
+            s_u=g["s_u"],
+            seed=g["seed"],
+        )
         off = strands.offsets
         out = []
         for c, spec in enumerate(batch.specs):
             idx = np.flatnonzero(labels == c)
-            pts = np.concatenate([strands.points[off[i]:off[i + 1]] for i in idx])
-            thick = np.concatenate([strands.thickness[off[i]:off[i + 1]] for i in idx])
+            pts = np.concatenate([strands.points[off[i] : off[i + 1]] for i in idx])
+            thick = np.concatenate([strands.thickness[off[i] : off[i + 1]] for i in idx])
             out.append((spec, Strands(pts, strands.counts[idx], thickness=thick)))
         return out
     s = scene.config["strands"]
     out = []
     for spec, seed in zip(scene.specs, scene.cluster_seeds):
-        strands, _ = generate_strands(ClusterGeometry(spec), s["count"], radius=s["radius"], profile=s["profile"],
-                                      spread=s["spread"], jitter=s["jitter"], seed=int(seed))
+        strands, _ = generate_strands(
+            ClusterGeometry(spec),
+            s["count"],
+            radius=s["radius"],
+            profile=s["profile"],
+            spread=s["spread"],
+            jitter=s["jitter"],
+            seed=int(seed),
+        )
         out.append((spec, strands))
     return out

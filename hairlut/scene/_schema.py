@@ -24,22 +24,21 @@ import hashlib
 import json
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
 from .. import budget, errors
-from ..geometry.cluster_defaults import STRUCTURE_DEFAULTS as _D
 from ..files import regular_file
+from ..geometry.cluster_defaults import STRUCTURE_DEFAULTS as _D
 from ..recipes import Field, get_path, load_toml, resolve
 from ..validate import at_least as _int_at_least
 from ..validate import auto_or, direction, float32, in_range, one_of
 from ..validate import nonneg as _nonneg
 from ..validate import positive as _pos
 from ..validate import unit_interval as _unit_interval
-from ..validate import vec3 as _vec3
 from ._camera import CAMERA, check_camera, derive_view
 
 
@@ -54,28 +53,33 @@ def _pair(check):
         if len(x) != 2 or not all(isinstance(c, int) and not isinstance(c, bool) for c in x):
             return "need 2 integers"
         return check(min(x))
+
     return run
 
 
 #: Keys without a default, and why each is refused when missing.
-REQUIRED = {"camera.view": "missing required key (or give both camera.position and camera.look_at: the view is "
-                           "derived from them)",
-            "lights.directions": "missing required key"}
+REQUIRED = {
+    "camera.view": "missing required key (or give both camera.position and camera.look_at: the view is derived from them)",
+    "lights.directions": "missing required key",
+}
 #: Keys that were renamed: old dotted key → new one (an old key is refused naming the new one).
 RENAMED = {"render.reference_bound": "render.strands_bound"}
 
 #: ``[shadows] method``: where each light's transmittance at a texel comes from (eq 13 with one τ per light).
 SHADOW_METHODS = ("smap", "light_oriented", "opacity_maps", "none")
 #: The ``[shadows]`` keys each method reads (``smap`` reads material.k_shadow and material.shadow_form).
-SHADOW_KEYS = {"smap": (), "none": (), "light_oriented": ("resolution", "kappa", "padding"),
-               "opacity_maps": ("resolution", "slices", "kappa")}
+SHADOW_KEYS = {
+    "smap": (),
+    "none": (),
+    "light_oriented": ("resolution", "kappa", "padding"),
+    "opacity_maps": ("resolution", "slices", "kappa"),
+}
 
 
 #: ``[render] method``: how the online re- and α-maps are made.
 MAP_METHODS = ("auto", "direct", "scene", "satf")
 #: The ``[render]`` knobs each map method reads (``auto`` accepts them all: the planner picks the method).
-MAP_KEYS = {"direct": ("rays",), "scene": ("rays", "views", "terms", "shading_pixels", "ratio_step", "precision"),
-            "satf": ()}
+MAP_KEYS = {"direct": ("rays",), "scene": ("rays", "views", "terms", "shading_pixels", "ratio_step", "precision"), "satf": ()}
 MAP_KNOBS = ("rays", "views", "terms", "shading_pixels", "ratio_step", "precision")
 
 
@@ -85,6 +89,8 @@ def _kappa(x):
     if isinstance(x, str) or not (math.isfinite(x) and x > 0):
         return "'auto' (the mean strand diameter) or a fibre width > 0"
     return None
+
+
 _F, _I, _B, _L, _S = (float, int), (int,), (bool,), (list,), (str,)
 
 SCHEMA = {
@@ -93,28 +99,40 @@ SCHEMA = {
         "background": Field([0.0, 0.0, 0.0], _L, _colour, "RGB behind the innermost layer (eq 14)"),
         "neighbours": Field(4, _I, _int_at_least(1), "k of the SATF k-NN lookup"),
         "preview_size": Field(256, _I, _int_at_least(16), "pixels of the orthographic preview"),
-        "method": Field("auto", _S, one_of(*MAP_METHODS),
-                        "how the re-/α-maps are made: auto (the planner chooses), direct, scene or satf"),
+        "method": Field(
+            "auto", _S, one_of(*MAP_METHODS), "how the re-/α-maps are made: auto (the planner chooses), direct, scene or satf"
+        ),
         "animated": Field(False, _B, None, "the hair moves between frames (auto then never picks a per-groom table)"),
-        "rays": Field(2, _I, in_range(1, 64),
-                      "direct and scene: rays per pixel of each sector's projection"),
-        "views": Field(64, _I, lambda x: None if 8 <= x <= 1024 and x % 2 == 0 else "an even number in [8, 1024]",
-                       "scene: view angles of the per-groom table"),
-        "terms": Field(2, _I, in_range(0, 16),
-                       "scene: Fourier terms of each sector's re/α ratio in θl − θv"),
-        "shading_pixels": Field(8, _I, in_range(1, 8192),
-                                "scene: pixel bins of the re/α ratio (a divisor of tables.hrir trace.pixels)"),
-        "ratio_step": Field(2, _I, in_range(1, 1024),
-                            "scene: the re/α terms are kept on every ratio_step-th view (a divisor of views)"),
-        "precision": Field("float16", _S, one_of("float16", "float32"),
-                           "scene: storage precision of the per-groom table"),
-        "strands_bound": Field(0.01, _F, in_range(1e-6, 1.0),
-                                 "the strand render (render --strands): stop refining once one more level changes "
-                               "the RGB and α RMSE by less than this; the bound is stored in the frame"),
-        "layer_reads": Field("pair", _S, one_of("pair", "track"),
-                             "what a layer texel reads: pair (eq 7: its HSV's two sectors) or track (every sector "
-                             "its in-plane ray crosses in its track, on its side of the chord: closer to the strands, "
-                             "a sweep ~5x costlier at paper scale, about as costly on the vendored grooms)"),
+        "rays": Field(2, _I, in_range(1, 64), "direct and scene: rays per pixel of each sector's projection"),
+        "views": Field(
+            64,
+            _I,
+            lambda x: None if 8 <= x <= 1024 and x % 2 == 0 else "an even number in [8, 1024]",
+            "scene: view angles of the per-groom table",
+        ),
+        "terms": Field(2, _I, in_range(0, 16), "scene: Fourier terms of each sector's re/α ratio in θl − θv"),
+        "shading_pixels": Field(
+            8, _I, in_range(1, 8192), "scene: pixel bins of the re/α ratio (a divisor of tables.hrir trace.pixels)"
+        ),
+        "ratio_step": Field(
+            2, _I, in_range(1, 1024), "scene: the re/α terms are kept on every ratio_step-th view (a divisor of views)"
+        ),
+        "precision": Field("float16", _S, one_of("float16", "float32"), "scene: storage precision of the per-groom table"),
+        "strands_bound": Field(
+            0.01,
+            _F,
+            in_range(1e-6, 1.0),
+            "the strand render (render --strands): stop refining once one more level changes "
+            "the RGB and α RMSE by less than this; the bound is stored in the frame",
+        ),
+        "layer_reads": Field(
+            "pair",
+            _S,
+            one_of("pair", "track"),
+            "what a layer texel reads: pair (eq 7: its HSV's two sectors) or track (every sector "
+            "its in-plane ray crosses in its track, on its side of the chord: closer to the strands, "
+            "a sweep ~5x costlier at paper scale, about as costly on the vendored grooms)",
+        ),
     },
     "camera": CAMERA,
     "lights": {
@@ -145,30 +163,50 @@ SCHEMA = {
     | {"noise": Field(False, _B, None, "")},
     "environment": {
         "map": Field("", _S, None, "environment light: an EXR map (lat-long or cube), 'sky' (built in) or '' (none)"),
-        "layout": Field("auto", _S, one_of("auto", "latlong", "cube"),
-                        "layout of an EXR map"),
+        "layout": Field("auto", _S, one_of("auto", "latlong", "cube"), "layout of an EXR map"),
         "up": Field("z", _S, one_of("z", "y"), "up axis of the map"),
         "intensity": Field(1.0, _F, _nonneg, "scale of the environment radiance"),
-        "bands": Field("auto", (int, str), auto_or(in_range(1, 65)),
-                       "light bands for Rs; auto: the fewest whose radiance is within tolerance of a 30-band reference"),
-        "tolerance": Field(0.015, _F, lambda x: None if 0 < x < 1 else "must lie in (0, 1)",
-                           "relative RMS radiance error that bands = auto allows (against 30 bands)"),
-        "window": Field("none", _S, one_of("none", "hanning", "lanczos"),
-                        "σ-factors against SH ringing on the light and the voxel transmittance"),
+        "bands": Field(
+            "auto",
+            (int, str),
+            auto_or(in_range(1, 65)),
+            "light bands for Rs; auto: the fewest whose radiance is within tolerance of a 30-band reference",
+        ),
+        "tolerance": Field(
+            0.015,
+            _F,
+            lambda x: None if 0 < x < 1 else "must lie in (0, 1)",
+            "relative RMS radiance error that bands = auto allows (against 30 bands)",
+        ),
+        "window": Field(
+            "none",
+            _S,
+            one_of("none", "hanning", "lanczos"),
+            "σ-factors against SH ringing on the light and the voxel transmittance",
+        ),
         "self_shadow": Field(False, _B, None, "shadow the environment with the strands' voxel SH transmittance (xing §5)"),
         "kappa": Field(0.5, _F, _pos, "extinction per unit of voxel strand density"),
         "voxels": Field(32, _I, in_range(8, 256), "voxel grid side"),
     },
     "shadows": {
-        "method": Field("smap", _S, one_of(*SHADOW_METHODS),
-                        "smap (eq 12 from the α-maps), light_oriented (bertails), opacity_maps (kim ch. 6) or none"),
-        "resolution": Field(32, _I, in_range(2, 512),
-                            "cells (light_oriented) or texels (opacity_maps) along the hair's longest extent"),
+        "method": Field(
+            "smap",
+            _S,
+            one_of(*SHADOW_METHODS),
+            "smap (eq 12 from the α-maps), light_oriented (bertails), opacity_maps (kim ch. 6) or none",
+        ),
+        "resolution": Field(
+            32, _I, in_range(2, 512), "cells (light_oriented) or texels (opacity_maps) along the hair's longest extent"
+        ),
         "slices": Field(16, _I, in_range(1, 256), "opacity_maps: depth slices"),
-        "kappa": Field("auto", (float, int, str), _kappa, "light-blocking width of a fibre, scene units ('auto': the "
-                       "mean strand diameter); τ = exp(−κ · hair length per unit area toward the light)"),
-        "padding": Field(2, _I, in_range(0, 16),
-                         "light_oriented: empty cells around the hair"),
+        "kappa": Field(
+            "auto",
+            (float, int, str),
+            _kappa,
+            "light-blocking width of a fibre, scene units ('auto': the "
+            "mean strand diameter); τ = exp(−κ · hair length per unit area toward the light)",
+        ),
+        "padding": Field(2, _I, in_range(0, 16), "light_oriented: empty cells around the hair"),
     },
     "tables": {
         "hrir": Field({}, (dict,), None, "hrir_db recipe keys over the defaults (as hairlut bake hrir --set)"),
@@ -202,7 +240,9 @@ GROOM = {
     "clusters": Field(4, _I, _int_at_least(1), "number of fitted clusters"),
     "radius": Field(0.1, _F, _pos, "metric strand radius when the file has no thickness"),
     "layer_radii": Field(list(_D["layer_radii"]), _L, None, ""),
-    "core_radius": Field(0.0, _F, _nonneg, "no core: a groom's strands fill the whole cross-section (a 0.25 core held 6–30 % of their length)"),
+    "core_radius": Field(
+        0.0, _F, _nonneg, "no core: a groom's strands fill the whole cross-section (a 0.25 core held 6–30 % of their length)"
+    ),
     "s_t": Field(_D["s_t"], _I, _int_at_least(1), ""),
     "s_u": Field(_D["s_u"], _I, _int_at_least(1), ""),
     "seed": Field(0, _I, _int_at_least(0), ""),
@@ -232,8 +272,12 @@ class Scene:
         """The switches the online module obeys: each effect as configured, and off when its
         coefficient is zero (no work is done for a term that contributes nothing)."""
         fx, m = self.config["effects"], self.material
-        out = {"diffuse": fx["diffuse"] and m["kd"] > 0, "primary": fx["primary"] and m["ks_I"] > 0,
-               "secondary": fx["secondary"] and m["ks_II"] > 0, "shadow": self.shadow_method != "none"}
+        out = {
+            "diffuse": fx["diffuse"] and m["kd"] > 0,
+            "primary": fx["primary"] and m["ks_I"] > 0,
+            "secondary": fx["secondary"] and m["ks_II"] > 0,
+            "shadow": self.shadow_method != "none",
+        }
         out["noise"] = fx["noise"] and out["secondary"] and m["noise_amount"] > 0
         return out
 
@@ -261,8 +305,9 @@ def resolve_path(path: str, base: Path) -> Path:
     """A groom or environment-map path: absolute, or relative to ``base`` (the scene file's folder)."""
     p = Path(path)
     full = p if p.is_absolute() else base / p
-    return regular_file(full, "a groom or environment map",
-                        missing=f"file not found ({path!r} is resolved next to the scene file)")
+    return regular_file(
+        full, "a groom or environment map", missing=f"file not found ({path!r} is resolved next to the scene file)"
+    )
 
 
 def _cluster(i: int, given, strand_seed: int):
@@ -304,13 +349,21 @@ def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -
     method, shadow_given = cfg["shadows"]["method"], given.get("shadows", {})
     for key in shadow_given:
         if key != "method" and key not in SHADOW_KEYS[method]:
-            raise errors.ValidationError(f"shadows.{key}", shadow_given[key], f"shadows.method = {method!r} does not read "
-                                         f"it (it reads: {', '.join(SHADOW_KEYS[method]) or 'no [shadows] keys'})")
+            raise errors.ValidationError(
+                f"shadows.{key}",
+                shadow_given[key],
+                f"shadows.method = {method!r} does not read "
+                f"it (it reads: {', '.join(SHADOW_KEYS[method]) or 'no [shadows] keys'})",
+            )
     map_method, render_given = cfg["render"]["method"], given.get("render", {})
     for key in MAP_KNOBS:
         if key in render_given and map_method != "auto" and key not in MAP_KEYS[map_method]:
-            raise errors.ValidationError(f"render.{key}", render_given[key], f"render.method = {map_method!r} does not "
-                                         f"read it (it reads: {', '.join(MAP_KEYS[map_method]) or 'none of ' + ', '.join(MAP_KNOBS)})")
+            raise errors.ValidationError(
+                f"render.{key}",
+                render_given[key],
+                f"render.method = {map_method!r} does not "
+                f"read it (it reads: {', '.join(MAP_KEYS[map_method]) or 'none of ' + ', '.join(MAP_KNOBS)})",
+            )
     view = _unit("camera.view", cfg["camera"]["view"])
     check_camera(cfg["camera"])
     dirs = cfg["lights"]["directions"]
@@ -344,14 +397,31 @@ def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -
         specs, seeds, gpath = tuple(m[0] for m in made), tuple(m[1] for m in made), None
         for i, s in enumerate(specs):
             if s.structure() != specs[0].structure():
-                raise errors.ValidationError(f"clusters[{i}]", s.structure(), "layer count, s_t, s_v and s_u must "
-                                             f"agree across clusters ({specs[0].structure()})")
-    budget.check_scene(cfg, len(specs) if specs else cfg["groom"]["clusters"],
-                       specs[0].n_layers if specs else len(cfg["groom"]["layer_radii"]), len(lights),
-                       structure=("clusters[0]", specs[0].s_t, specs[0].s_u, _D) if specs else
-                       ("groom", cfg["groom"]["s_t"], cfg["groom"]["s_u"], _D))
-    return Scene(cfg, specs, seeds, gpath, view, lights, np.asarray(cols, np.float64), source,
-                 {**given, **({"clusters": clusters} if clusters is not None else {"groom": groom})})
+                raise errors.ValidationError(
+                    f"clusters[{i}]",
+                    s.structure(),
+                    f"layer count, s_t, s_v and s_u must agree across clusters ({specs[0].structure()})",
+                )
+    budget.check_scene(
+        cfg,
+        len(specs) if specs else cfg["groom"]["clusters"],
+        specs[0].n_layers if specs else len(cfg["groom"]["layer_radii"]),
+        len(lights),
+        structure=("clusters[0]", specs[0].s_t, specs[0].s_u, _D)
+        if specs
+        else ("groom", cfg["groom"]["s_t"], cfg["groom"]["s_u"], _D),
+    )
+    return Scene(
+        cfg,
+        specs,
+        seeds,
+        gpath,
+        view,
+        lights,
+        np.asarray(cols, np.float64),
+        source,
+        {**given, **({"clusters": clusters} if clusters is not None else {"groom": groom})},
+    )
 
 
 def load_scene(path) -> Scene:

@@ -15,15 +15,34 @@ from .._lazy import lazy_exports
 from ._kind import BAKER, KIND
 
 _LAZY = {
-    "SCHEMA": "_recipe", "geometry_key": "_recipe", "resolve_recipe": "_recipe", "hrir_recipe": "_recipe",
-    "SceneMaps": "_bake", "bake": "_parts", "load_scene_maps": "_bake", "scene_inputs": "_bake", "compress": "_bake",
+    "SCHEMA": "_recipe",
+    "geometry_key": "_recipe",
+    "resolve_recipe": "_recipe",
+    "hrir_recipe": "_recipe",
+    "SceneMaps": "_bake",
+    "bake": "_parts",
+    "load_scene_maps": "_bake",
+    "scene_inputs": "_bake",
+    "compress": "_bake",
     "ratio_terms": "_bake",
-    "fetch_kernel": "_fetch", "fetch_rows": "_fetch", "fetch_terms": "_fetch", "fetch_index": "_fetch",
-    "fetch_gathered": "_fetch", "index_kernel": "_fetch", "terms_kernel": "_fetch",
+    "fetch_kernel": "_fetch",
+    "fetch_rows": "_fetch",
+    "fetch_terms": "_fetch",
+    "fetch_index": "_fetch",
+    "fetch_gathered": "_fetch",
+    "index_kernel": "_fetch",
+    "terms_kernel": "_fetch",
 }
 
 __all__ = [
-    "BAKER", "KIND", "SCHEMA", "SceneMaps", "bake", "fetch_rows", "geometry_key", "load_scene_maps",
+    "BAKER",
+    "KIND",
+    "SCHEMA",
+    "SceneMaps",
+    "bake",
+    "fetch_rows",
+    "geometry_key",
+    "load_scene_maps",
     "resolve_recipe",
 ]
 

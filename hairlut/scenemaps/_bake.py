@@ -69,8 +69,8 @@ def scene_inputs(scene, recipe: dict) -> tuple[np.ndarray, np.ndarray]:
     """density (N, n_s, n_r) and geometry (N, 11) of every sector of every cluster of ``scene``
     (prepare's order), for the recipe's density grid and trace settings."""
     from ..geometry import ClusterGeometry, build_sectors
-    from ..scene import as_scene, scene_clusters
     from ..march import scene_sector_inputs
+    from ..scene import as_scene, scene_clusters
 
     full = hrir_recipe(recipe)
     dens, geom = [], []
@@ -104,7 +104,7 @@ def ratio_terms(ab, rb, views: int, terms: int, step: int = 1) -> np.ndarray:
     c = np.fft.fft(ratio, axis=2) / L  # ρ(θl) = Σ_k c_k e^{ikθl}
     k = np.arange(terms + 1)
     tv = 2 * np.pi * np.arange(0, views, step)[:Vr] / views
-    d = c[:, :, :terms + 1] * np.exp(1j * k[None, None, :, None] * tv[None, :, None, None])  # in Δ = θl − θv
+    d = c[:, :, : terms + 1] * np.exp(1j * k[None, None, :, None] * tv[None, :, None, None])  # in Δ = θl − θv
     coef = np.empty((n, Vr, Q, 2 * terms + 1))
     coef[..., 0] = d[:, :, 0].real
     coef[..., 1::2] = np.moveaxis(2 * d[:, :, 1:].real, 2, -1)
@@ -118,8 +118,9 @@ def load_scene_maps(path) -> SceneMaps:
     t = read_table(path, kind=KIND, required=("alpha", "ratio", "row"))
     alpha, ratio, row = t["alpha"], t["ratio"], np.asarray(t["row"], np.int64)
     n = len(alpha)
-    if (ratio.shape[0] != n or not ratio.shape[1] or alpha.shape[1] * 2 % ratio.shape[1] or (row >= n).any()
-            or (row < -1).any()):
-        raise errors.CorruptAssetError(str(path), f"inconsistent scene_maps tables: alpha {alpha.shape}, ratio "
-                                       f"{ratio.shape}, rows up to {row.max(initial=-1)}")
+    if ratio.shape[0] != n or not ratio.shape[1] or alpha.shape[1] * 2 % ratio.shape[1] or (row >= n).any() or (row < -1).any():
+        raise errors.CorruptAssetError(
+            str(path),
+            f"inconsistent scene_maps tables: alpha {alpha.shape}, ratio {ratio.shape}, rows up to {row.max(initial=-1)}",
+        )
     return SceneMaps(alpha, ratio, row, t.recipe, Path(path), dict(t.attrs))

@@ -47,8 +47,17 @@ def fetch_index(row, theta_v, *, half: int, views: int):
 
     i0, i1, w = grid(2 * half)
     j0, j1, u = grid(views)
-    return {"ia0": stored(i0), "ia1": stored(i1), "mirror0": i0 >= half, "mirror1": i1 >= half, "w": w,
-            "ic0": r * views + j0, "ic1": r * views + j1, "u": u, "live": live}
+    return {
+        "ia0": stored(i0),
+        "ia1": stored(i1),
+        "mirror0": i0 >= half,
+        "mirror1": i1 >= half,
+        "w": w,
+        "ic0": r * views + j0,
+        "ic1": r * views + j1,
+        "u": u,
+        "live": live,
+    }
 
 
 def fetch_gathered(alpha_t, ratio_t, index, theta_v, theta_l, *, shade: bool = True):
@@ -69,8 +78,9 @@ def fetch_gathered(alpha_t, ratio_t, index, theta_v, theta_l, *, shade: bool = T
         return jnp.where(mirror[:, None], a[:, ::-1], a)
 
     w = ix["w"][:, None]
-    alpha = jnp.where(ix["live"][:, None], (1 - w) * alpha_at(ix["ia0"], ix["mirror0"]) +
-                      w * alpha_at(ix["ia1"], ix["mirror1"]), 0.0)
+    alpha = jnp.where(
+        ix["live"][:, None], (1 - w) * alpha_at(ix["ia0"], ix["mirror0"]) + w * alpha_at(ix["ia1"], ix["mirror1"]), 0.0
+    )
     if not shade:
         return alpha, jnp.zeros((alpha.shape[0], 0, Q), jnp.float32)
     rows_c = ratio_t.reshape(n * Vr, Q * T)
@@ -83,8 +93,9 @@ def fetch_gathered(alpha_t, ratio_t, index, theta_v, theta_l, *, shade: bool = T
     d = theta_l - theta_v[:, None]  # (S, L)
     k = jnp.arange(1, K + 1, dtype=jnp.float32)
     kd = d[..., None] * k  # (S, L, K)
-    basis = jnp.concatenate([jnp.ones_like(d)[..., None], jnp.stack([jnp.cos(kd), jnp.sin(kd)], -1).reshape(
-        *d.shape, 2 * K)], -1)  # (S, L, T)
+    basis = jnp.concatenate(
+        [jnp.ones_like(d)[..., None], jnp.stack([jnp.cos(kd), jnp.sin(kd)], -1).reshape(*d.shape, 2 * K)], -1
+    )  # (S, L, T)
     return alpha, jnp.einsum("sqt,slt->slq", c, basis, precision=HIGHEST)
 
 
@@ -129,14 +140,19 @@ def fetch_rows(maps, row, theta_v, theta_l) -> tuple[np.ndarray, np.ndarray]:
     tv, tl = np.asarray(theta_v, np.float64), np.asarray(theta_l, np.float64)
     rw = np.asarray(row)
     if tv.ndim != 1 or tl.ndim != 2 or tl.shape[0] != tv.shape[0] or rw.shape != tv.shape:
-        raise errors.ValidationError("theta_l", tl.shape, f"need theta_v (S,), theta_l (S, L), row (S,); got {tv.shape}, "
-                                     f"{tl.shape}, {rw.shape}")
+        raise errors.ValidationError(
+            "theta_l", tl.shape, f"need theta_v (S,), theta_l (S, L), row (S,); got {tv.shape}, {tl.shape}, {rw.shape}"
+        )
     if not (np.isfinite(tv).all() and np.isfinite(tl).all()):
         raise errors.ValidationError("theta_v", "non-finite", "angles must be finite")
-    a, r = fetch_kernel(jnp.asarray(maps.alpha), jnp.asarray(maps.ratio), jnp.asarray(rw, jnp.int32),
-                        jnp.asarray(np.mod(tv, 2 * np.pi), jnp.float32),
-                        jnp.asarray(np.mod(tl, 2 * np.pi) if tl.shape[1] else np.zeros((len(tv), 1)), jnp.float32),
-                        shade=tl.shape[1] > 0)
+    a, r = fetch_kernel(
+        jnp.asarray(maps.alpha),
+        jnp.asarray(maps.ratio),
+        jnp.asarray(rw, jnp.int32),
+        jnp.asarray(np.mod(tv, 2 * np.pi), jnp.float32),
+        jnp.asarray(np.mod(tl, 2 * np.pi) if tl.shape[1] else np.zeros((len(tv), 1)), jnp.float32),
+        shade=tl.shape[1] > 0,
+    )
     a, r = np.asarray(a), np.asarray(r)
     if not (np.isfinite(a).all() and np.isfinite(r).all()):
         raise errors.HairlutError("scene_maps fetch: non-finite maps")

@@ -30,8 +30,14 @@ LIVE_FRACTION = 0.75
 
 
 #: The recipe keys that drive the traced tables (named when a table is refused).
-KEYS = ("hrir.trace.extinction", "hrir.sectors.density_scale", "hrir.phong.ambient", "hrir.phong.diffuse",
-        "hrir.phong.specular", "hrir.phong.shininess")
+KEYS = (
+    "hrir.trace.extinction",
+    "hrir.sectors.density_scale",
+    "hrir.phong.ambient",
+    "hrir.phong.diffuse",
+    "hrir.phong.specular",
+    "hrir.phong.shininess",
+)
 
 
 def _reflect(recipe: dict, tables=None) -> float:
@@ -55,10 +61,19 @@ def estimate(recipe: dict, sectors: int = 1296, live: int | None = None) -> tupl
     t, tr = r["table"], hrir_recipe(r)["trace"]
     n = int(sectors * LIVE_FRACTION) if live is None else int(live)
     item = 2 if t["dtype"] == "float16" else 4
-    nbytes = item * n * (t["views"] // 2 * tr["pixels"] + t["views"] // t["ratio_step"] * t["shading_pixels"] * (2 * t["terms"] + 1))
+    nbytes = (
+        item * n * (t["views"] // 2 * tr["pixels"] + t["views"] // t["ratio_step"] * t["shading_pixels"] * (2 * t["terms"] + 1))
+    )
     lanes, m = tr["pixels"] * tr["rays_per_pixel"], t["alpha_grid"]
-    shade = t["views"] // t["ratio_step"] * t["lights"] * tr["pixels"] * (t["shade_rays"] or tr["rays_per_pixel"]) \
-        * (t["shade_steps"] or tr["steps"]) / SHADE_RATE
+    shade = (
+        t["views"]
+        // t["ratio_step"]
+        * t["lights"]
+        * tr["pixels"]
+        * (t["shade_rays"] or tr["rays_per_pixel"])
+        * (t["shade_steps"] or tr["steps"])
+        / SHADE_RATE
+    )
     alpha = 2 * m * m * t["views"] // 2 * lanes / PROJECT_RATE if m else t["views"] // 2 * lanes * tr["steps"] / MARCH_RATE
     return int(nbytes + 4 * sectors), BAKE_OVERHEAD + n * (shade + alpha)
 
@@ -77,11 +92,13 @@ def describe(report: dict) -> list[str]:
     t = report["recipe"]["table"]
     lo, hi = report["unit_range"]
     rows = f"rows {lo}..{hi - 1} of {report['total_units']}, " if report["kind"] == SHARD_KIND else ""
-    return [f"wrote {report['out']} ({report['kind']}, {rows}{report['bytes'] / 2**20:.1f} MiB) in {report['seconds']:.1f} s",
-            f"  {report['total_units']} of {report['sectors']} sectors are table rows: traced {report['computed']}, resumed "
-            f"{report['resumed']}, on {t['views']} views × {t['lights']} lights; {2 * t['terms'] + 1} ratio terms × "
-            f"{t['shading_pixels']} bins ({t['dtype']}) on 1 view in {t['ratio_step']}; alpha "
-            + (f"through a {t['alpha_grid']}² node grid" if t["alpha_grid"] else "by the tracer's march")]
+    return [
+        f"wrote {report['out']} ({report['kind']}, {rows}{report['bytes'] / 2**20:.1f} MiB) in {report['seconds']:.1f} s",
+        f"  {report['total_units']} of {report['sectors']} sectors are table rows: traced {report['computed']}, resumed "
+        f"{report['resumed']}, on {t['views']} views × {t['lights']} lights; {2 * t['terms'] + 1} ratio terms × "
+        f"{t['shading_pixels']} bins ({t['dtype']}) on 1 view in {t['ratio_step']}; alpha "
+        + (f"through a {t['alpha_grid']}² node grid" if t["alpha_grid"] else "by the tracer's march"),
+    ]
 
 
 BAKER = Baker(
@@ -101,17 +118,29 @@ BAKER = Baker(
     shard_kind=SHARD_KIND,
     shard_required=("alpha", "ratio", "scene_index"),
     bounds=BOUNDS,
-    units=Units("sector", _part("count"), _part("bake_part"), _part("join"), _part("assemble"), _part("whole"),
-                block=BLOCK, check=_part("check"), index=_part("part_index"), start=_part("start"),
-                report=_part("report")),
+    units=Units(
+        "sector",
+        _part("count"),
+        _part("bake_part"),
+        _part("join"),
+        _part("assemble"),
+        _part("whole"),
+        block=BLOCK,
+        check=_part("check"),
+        index=_part("part_index"),
+        start=_part("start"),
+        report=_part("report"),
+    ),
     help="""Per-groom scene table: each sector's own projections (the `scene` map method).
 
     Traces every non-empty sector of the scene's groom on a grid of views and lights once;
     online, each sector's alpha and re rows are read at its exact angles.  Usually baked by
     the planner (hairlut bake --scene SCENE.toml) when the scene's render.method resolves to
     scene; its units are the table rows (the non-empty sectors).""",
-    examples=("hairlut bake scene_maps --scene tables/scenes/sintel-groom.toml",
-              "hairlut bake scene_maps --scene tables/scenes/sintel-groom.toml --set table.views=128",
-              "hairlut bake scene_maps --scene tables/scenes/sintel-groom.toml --out s0.h5 --shard 0/2   # and 1/2; then",
-              "hairlut merge s0.h5 s1.h5 --out sintel-maps.h5"),
+    examples=(
+        "hairlut bake scene_maps --scene tables/scenes/sintel-groom.toml",
+        "hairlut bake scene_maps --scene tables/scenes/sintel-groom.toml --set table.views=128",
+        "hairlut bake scene_maps --scene tables/scenes/sintel-groom.toml --out s0.h5 --shard 0/2   # and 1/2; then",
+        "hairlut merge s0.h5 s1.h5 --out sintel-maps.h5",
+    ),
 )

@@ -34,23 +34,46 @@ from ..recipes import Field, resolve
 SCHEMA = {
     "hrir": Field({}, (dict,), None, "hrir_db recipe keys (sectors.grid, sectors.density_scale, trace, phong)"),
     "table": {
-        "views": Field(64, (int,), lambda v: None if 8 <= v <= 1024 and v % 2 == 0 else "an even number in [8, 1024]",
-                       "view angles θv = 2πi/V"),
-        "lights": Field(9, (int,), lambda v: None if 1 <= v <= 1024 else "must lie in [1, 1024]",
-                        "light angles of the bake θl = 2πj/L"),
-        "terms": Field(2, (int,), lambda v: None if 0 <= v <= 16 else "must lie in [0, 16]",
-                       "Fourier terms K of the re/α ratio in θl − θv"),
-        "ratio_step": Field(2, (int,), lambda v: None if v >= 1 else "must be ≥ 1",
-                            "the re/α terms are stored on every ratio_step-th view (linear in θv between them)"),
+        "views": Field(
+            64,
+            (int,),
+            lambda v: None if 8 <= v <= 1024 and v % 2 == 0 else "an even number in [8, 1024]",
+            "view angles θv = 2πi/V",
+        ),
+        "lights": Field(
+            9, (int,), lambda v: None if 1 <= v <= 1024 else "must lie in [1, 1024]", "light angles of the bake θl = 2πj/L"
+        ),
+        "terms": Field(
+            2, (int,), lambda v: None if 0 <= v <= 16 else "must lie in [0, 16]", "Fourier terms K of the re/α ratio in θl − θv"
+        ),
+        "ratio_step": Field(
+            2,
+            (int,),
+            lambda v: None if v >= 1 else "must be ≥ 1",
+            "the re/α terms are stored on every ratio_step-th view (linear in θv between them)",
+        ),
         "shading_pixels": Field(8, (int,), lambda v: None if v >= 1 else "must be ≥ 1", "pixel bins Q of the ratio"),
-        "dtype": Field("float16", (str,), lambda v: None if v in ("float16", "float32") else "use float16 or float32",
-                       "storage precision"),
-        "alpha_grid": Field(0, (int,), lambda v: None if v == 0 or 2 <= v <= 256 else "0 or in [2, 256]",
-                            "side m of the Cartesian node grid α is projected through (0: the tracer's march per view)"),
-        "shade_rays": Field(0, (int,), lambda v: None if 0 <= v <= 64 else "must lie in [0, 64]",
-                            "rays per pixel of the re/α march (0: trace.rays_per_pixel)"),
-        "shade_steps": Field(0, (int,), lambda v: None if v == 0 or 2 <= v <= 4096 else "0 or in [2, 4096]",
-                             "steps of the re/α march (0: trace.steps)"),
+        "dtype": Field(
+            "float16", (str,), lambda v: None if v in ("float16", "float32") else "use float16 or float32", "storage precision"
+        ),
+        "alpha_grid": Field(
+            0,
+            (int,),
+            lambda v: None if v == 0 or 2 <= v <= 256 else "0 or in [2, 256]",
+            "side m of the Cartesian node grid α is projected through (0: the tracer's march per view)",
+        ),
+        "shade_rays": Field(
+            0,
+            (int,),
+            lambda v: None if 0 <= v <= 64 else "must lie in [0, 64]",
+            "rays per pixel of the re/α march (0: trace.rays_per_pixel)",
+        ),
+        "shade_steps": Field(
+            0,
+            (int,),
+            lambda v: None if v == 0 or 2 <= v <= 4096 else "0 or in [2, 4096]",
+            "steps of the re/α march (0: trace.steps)",
+        ),
     },
     "geometry": {"sha256": Field("", (str,), None, "the groom's geometry key (hairlut.scenemaps.geometry_key)")},
 }
@@ -85,8 +108,10 @@ def geometry_key(scene) -> str:
 
     sc = as_scene(scene)
     if sc.groom_path is not None:
-        doc = {"groom": {k: v for k, v in sc.config["groom"].items() if k != "path"},
-               "file_sha256": _file_sha256(Path(sc.groom_path))}
+        doc = {
+            "groom": {k: v for k, v in sc.config["groom"].items() if k != "path"},
+            "file_sha256": _file_sha256(Path(sc.groom_path)),
+        }
     else:
         doc = {"clusters": sc.raw.get("clusters"), "strands": sc.config["strands"]}
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
@@ -97,8 +122,10 @@ def resolve_recipe(given: dict | None = None, *, scene=None) -> dict:
     :func:`geometry_key` into ``geometry.sha256``.  Raises ValidationError naming the key."""
     r = resolve(SCHEMA, dict(given or {}))
     full = hrir_recipe(r)
-    r["hrir"] = {"sectors": {"grid": list(full["sectors"]["grid"]), "density_scale": float(full["sectors"]["density_scale"])},
-                 **{k: dict(full[k]) for k in HRIR_PARTS}}
+    r["hrir"] = {
+        "sectors": {"grid": list(full["sectors"]["grid"]), "density_scale": float(full["sectors"]["density_scale"])},
+        **{k: dict(full[k]) for k in HRIR_PARTS},
+    }
     t, P = r["table"], full["trace"]["pixels"]
     if t["lights"] < 2 * t["terms"] + 1:
         raise errors.ValidationError("table.lights", t["lights"], f"need ≥ 2·terms + 1 = {2 * t['terms'] + 1} light angles")

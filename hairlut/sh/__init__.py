@@ -23,13 +23,33 @@ jitted kernel behind :func:`real_sh`), ``real_sh_soa`` (its unrolled form, for u
 (a second reference, through SciPy).
 """
 
-from ._basis import (MAX_LMAX, check_dirs, index_lm, lm_arrays, lm_index, n_coeffs, normalize_dirs, real_sh,
-                     real_sh_kernel, real_sh_soa)
+from ._basis import (
+    MAX_LMAX,
+    check_dirs,
+    index_lm,
+    lm_arrays,
+    lm_index,
+    n_coeffs,
+    normalize_dirs,
+    real_sh,
+    real_sh_kernel,
+    real_sh_soa,
+)
 from ._gaunt import gaunt, gaunt_quadrature, gaunt_sparse, selection_mask
 from ._quadrature import GaussLegendreGrid, evaluate, project, project_function, sphere_grid
 from ._reference import real_sh_reference, real_sh_scipy
 
 __all__ = [
-    "GaussLegendreGrid", "evaluate", "gaunt", "gaunt_sparse", "index_lm", "lm_index", "n_coeffs", "project",
-    "project_function", "real_sh", "real_sh_reference", "sphere_grid",
+    "GaussLegendreGrid",
+    "evaluate",
+    "gaunt",
+    "gaunt_sparse",
+    "index_lm",
+    "lm_index",
+    "n_coeffs",
+    "project",
+    "project_function",
+    "real_sh",
+    "real_sh_reference",
+    "sphere_grid",
 ]

@@ -98,7 +98,7 @@ def check_lmax(lmax, field: str = "lmax") -> int:
     return lmax
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _tables(lmax: int):
     """Float64 constants for the kernel, cached per lmax.
 

@@ -74,9 +74,9 @@ def _grid(L: int) -> GaussLegendreGrid:
     nphi = 2 * L + 1
     phi = 2.0 * np.pi * np.arange(nphi) / nphi
     s = np.sqrt((1.0 - z) * (1.0 + z))  # sin θ, accurate near the poles
-    dirs = np.stack(
-        [np.outer(s, np.cos(phi)), np.outer(s, np.sin(phi)), np.repeat(z[:, None], nphi, axis=1)], axis=-1
-    ).reshape(-1, 3)
+    dirs = np.stack([np.outer(s, np.cos(phi)), np.outer(s, np.sin(phi)), np.repeat(z[:, None], nphi, axis=1)], axis=-1).reshape(
+        -1, 3
+    )
     weights = np.repeat(wz * (2.0 * np.pi / nphi), nphi)
     for a in (z, phi, dirs, weights):
         a.setflags(write=False)

@@ -52,9 +52,7 @@ def _angles(lmax, dirs, normalize: bool):
 def log_norm(l: int, m: int) -> float:
     """log N_lm, N_lm = √((2−δ_m0)(2l+1)/(4π) · (l−|m|)!/(l+|m|)!), via lgamma."""
     m = abs(m)
-    return 0.5 * (
-        math.log((2.0 if m else 1.0) * (2 * l + 1) / (4.0 * math.pi)) + math.lgamma(l - m + 1) - math.lgamma(l + m + 1)
-    )
+    return 0.5 * (math.log((2.0 if m else 1.0) * (2 * l + 1) / (4.0 * math.pi)) + math.lgamma(l - m + 1) - math.lgamma(l + m + 1))
 
 
 def legendre_unnormalised(lmax: int, t: np.ndarray, s: np.ndarray) -> dict[tuple[int, int], np.ndarray]:

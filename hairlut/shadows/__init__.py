@@ -14,6 +14,14 @@ from ._transmittance import Transmittance, transmittance
 from ._volume import Volume, gradient, trilinear, voxelize
 
 __all__ = [
-    "LightOrientedMap", "OpacityMaps", "Transmittance", "Volume", "light_oriented_map", "light_transmittance",
-    "opacity_shadow_maps", "ray_march", "transmittance", "voxelize",
+    "LightOrientedMap",
+    "OpacityMaps",
+    "Transmittance",
+    "Volume",
+    "light_oriented_map",
+    "light_transmittance",
+    "opacity_shadow_maps",
+    "ray_march",
+    "transmittance",
+    "voxelize",
 ]

@@ -34,10 +34,11 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ..validate import check_int, direction, points as check_points
+from ..geometry.strands import Strands
+from ..validate import check_int, direction
+from ..validate import points as check_points
 from ._light import check_kappa, light_frame
 from ._volume import trilinear
-from ..geometry.strands import Strands
 
 HIGHEST = jax.lax.Precision.HIGHEST  # stated, not inherited: XLA would use TF32 on NVIDIA GPUs
 
@@ -157,7 +158,8 @@ def light_oriented_map(strands: Strands, light, *, resolution=64, kappa: float, 
     longest = float(np.linalg.norm(b - a, axis=1).max()) if len(seg) else 0.0
     n_sub = 1 << max(0, int(np.ceil(np.log2(max(1.0, np.ceil(longest / ds * SUBSTEPS))))))  # power of two: few recompiles
     with jax.enable_x64(True):
-        density, trans = _map_kernel(jnp.asarray(a), jnp.asarray(b), jnp.asarray(frame), jnp.asarray(origin),
-                                     ds, kappa, shape, n_sub)
+        density, trans = _map_kernel(
+            jnp.asarray(a), jnp.asarray(b), jnp.asarray(frame), jnp.asarray(origin), ds, kappa, shape, n_sub
+        )
         density, trans = np.asarray(density), np.asarray(trans)
     return LightOrientedMap(frame, origin, ds, density, trans, kappa)

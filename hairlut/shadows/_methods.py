@@ -36,8 +36,9 @@ def fibre_width(strands) -> float:
     return float(np.mean(strands.thickness))
 
 
-def light_transmittance(strands, lights, points, *, method: str, resolution: int = 32, kappa: float | None = None,
-                        slices: int = 16, padding: int = 2) -> np.ndarray:
+def light_transmittance(
+    strands, lights, points, *, method: str, resolution: int = 32, kappa: float | None = None, slices: int = 16, padding: int = 2
+) -> np.ndarray:
     """T (..., L) in [0, 1] toward each light (L, 3) at ``points`` (..., 3), from ``strands``.
 
     ``method``: ``light_oriented`` (``resolution`` cells along the hair's longest extent in

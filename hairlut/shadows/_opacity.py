@@ -35,7 +35,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ..validate import check_int, check_real, points as check_points
+from ..validate import check_int, check_real
+from ..validate import points as check_points
 from ._light import check_kappa, light_frame
 from ._volume import trilinear
 
@@ -76,8 +77,17 @@ class OpacityMaps:
         pts = check_points(points)
         dz = float(self.depths[0] - self.near)
         with jax.enable_x64(True):
-            return np.asarray(_lookup(jnp.asarray(pts), jnp.asarray(self.maps), jnp.asarray(self.frame),
-                                      jnp.asarray(self.origin), self.spacing, self.near, dz))
+            return np.asarray(
+                _lookup(
+                    jnp.asarray(pts),
+                    jnp.asarray(self.maps),
+                    jnp.asarray(self.frame),
+                    jnp.asarray(self.origin),
+                    self.spacing,
+                    self.near,
+                    dz,
+                )
+            )
 
     def at(self, points) -> np.ndarray:
         """(n,) transmittance τ = exp(−κΩ) ∈ [0, 1] toward the light at world points (n, 3)."""
@@ -133,8 +143,17 @@ def map_grid(q: np.ndarray, n_slices: int, resolution: int):
     return lo[:2] - PADDING * h, h, float(lo[2]), float(ext[2]) / n_slices or h, shape
 
 
-def opacity_shadow_maps(strands, light, *, n_slices: int = 16, resolution: int = 128, kappa: float = 1.0,
-                        width: float | None = None, spacing: float | None = None, up=None) -> OpacityMaps:
+def opacity_shadow_maps(
+    strands,
+    light,
+    *,
+    n_slices: int = 16,
+    resolution: int = 128,
+    kappa: float = 1.0,
+    width: float | None = None,
+    spacing: float | None = None,
+    up=None,
+) -> OpacityMaps:
     """Opacity shadow maps of ``strands`` (a :class:`hairlut.geometry.Strands`) for a directional light.
 
     ``light`` points toward the light.  ``resolution`` texels span the longer side of the hair's
@@ -172,8 +191,19 @@ def opacity_shadow_maps(strands, light, *, n_slices: int = 16, resolution: int =
     if count.sum() > 2**31 - 1:
         raise errors.ValidationError("spacing", step, f"would cut the hair into {count.sum()} pieces")
     with jax.enable_x64(True):
-        maps = _build(jnp.asarray(a), jnp.asarray(b), jnp.asarray(wid), jnp.asarray(count), jnp.asarray(frame),
-                      jnp.asarray(origin), h, near, dz, shape=(n_slices, H, W), total=_bucket(int(count.sum())))
+        maps = _build(
+            jnp.asarray(a),
+            jnp.asarray(b),
+            jnp.asarray(wid),
+            jnp.asarray(count),
+            jnp.asarray(frame),
+            jnp.asarray(origin),
+            h,
+            near,
+            dz,
+            shape=(n_slices, H, W),
+            total=_bucket(int(count.sum())),
+        )
         maps = np.asarray(maps)
     depths = near + dz * np.arange(1, n_slices + 1)
     return OpacityMaps(frame, origin, h, near, depths, maps, float(kappa))

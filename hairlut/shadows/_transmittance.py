@@ -72,8 +72,17 @@ class Transmittance:
             return np.asarray(trilinear(jnp.asarray(self.coeffs), jnp.asarray(g)))
 
 
-def transmittance(volume: Volume, kappa: float, *, lmax: int = 2, stride: int = 2, order: int = 8, step: float = 0.5,
-                  neighbours: int = 8, use_gradient: bool = True) -> Transmittance:
+def transmittance(
+    volume: Volume,
+    kappa: float,
+    *,
+    lmax: int = 2,
+    stride: int = 2,
+    order: int = 8,
+    step: float = 0.5,
+    neighbours: int = 8,
+    use_gradient: bool = True,
+) -> Transmittance:
     """Compute SH transmittance coefficients for every non-empty voxel (see module doc)."""
     for name, v, lo in (("lmax", lmax, 0), ("stride", stride, 1), ("order", order, 1), ("neighbours", neighbours, 1)):
         if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
@@ -96,8 +105,18 @@ def transmittance(volume: Volume, kappa: float, *, lmax: int = 2, stride: int = 
     n_steps = int(np.ceil(np.linalg.norm(volume.shape) / step))
     with jax.enable_x64(True):
         dens = jnp.asarray(rho)
-        b, db = _cast_kernel(jnp.asarray(samples, jnp.float64), jnp.asarray(grid.dirs), jnp.asarray(grid.weights),
-                             jnp.asarray(ylm), dens, gradient(dens), step, float(volume.size), float(kappa), n_steps)
+        b, db = _cast_kernel(
+            jnp.asarray(samples, jnp.float64),
+            jnp.asarray(grid.dirs),
+            jnp.asarray(grid.weights),
+            jnp.asarray(ylm),
+            dens,
+            gradient(dens),
+            step,
+            float(volume.size),
+            float(kappa),
+            n_steps,
+        )
         b, db = np.asarray(b), np.asarray(db)
     # eq (7) at every non-empty voxel and its one-voxel ring
     valid = np.zeros(rho.shape, bool)

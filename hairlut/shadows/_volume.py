@@ -75,9 +75,14 @@ def voxelize(strands, resolution: int = 64, padding: int = 2) -> Volume:
 def gradient(density) -> jax.Array:
     """Central differences (eq 6): u·∇ρ(x) = (ρ(x+u) − ρ(x−u)) / 2, per voxel edge; zero outside. → (..., 3)."""
     p = jnp.pad(jnp.asarray(density), 1)
-    return jnp.stack([(p[2:, 1:-1, 1:-1] - p[:-2, 1:-1, 1:-1]) / 2,
-                      (p[1:-1, 2:, 1:-1] - p[1:-1, :-2, 1:-1]) / 2,
-                      (p[1:-1, 1:-1, 2:] - p[1:-1, 1:-1, :-2]) / 2], axis=-1)
+    return jnp.stack(
+        [
+            (p[2:, 1:-1, 1:-1] - p[:-2, 1:-1, 1:-1]) / 2,
+            (p[1:-1, 2:, 1:-1] - p[1:-1, :-2, 1:-1]) / 2,
+            (p[1:-1, 1:-1, 2:] - p[1:-1, 1:-1, :-2]) / 2,
+        ],
+        axis=-1,
+    )
 
 
 def trilinear(field, coords):

@@ -7,16 +7,24 @@
 loads the declaration only (no JAX); the rest loads on first use of one of its names."""
 
 from .._lazy import lazy_exports
-
 from ._kind import BAKE_OVERHEAD, BAKER, KIND, LIGHT_KIND, estimate
 from ._recipe import METHOD, SCHEMA, full_recipe, light_identity, resolve_recipe, specular_band_rule
 
 _LAZY = {
-    "bake": "_bake", "compute": "_bake", "bake_compact": "_bake", "band_truncation_error": "_bake",
+    "bake": "_bake",
+    "compute": "_bake",
+    "bake_compact": "_bake",
+    "band_truncation_error": "_bake",
     "truncation_error": "_bake",
-    "write_sh_tables": "_io", "write_textures": "_io", "cube_strip": "_io",
-    "paper_tables": "_paper", "reference_r": "_reference",
-    "Bands": "_tables", "Contracted": "_tables", "SHTables": "_tables", "load_sh_tables": "_tables",
+    "write_sh_tables": "_io",
+    "write_textures": "_io",
+    "cube_strip": "_io",
+    "paper_tables": "_paper",
+    "reference_r": "_reference",
+    "Bands": "_tables",
+    "Contracted": "_tables",
+    "SHTables": "_tables",
+    "load_sh_tables": "_tables",
 }
 
 __all__ = ["BAKER", "KIND", "SCHEMA", "SHTables", "bake", "compute", "load_sh_tables", "resolve_recipe"]

@@ -31,8 +31,8 @@ from ..assets import canonical_json, read_table, recipe_hash
 from ..bake.devices import map_units
 from ..sh import gaunt
 from ._io import concat_parts, read_part, whole_tables, write_part, write_sh_tables, write_textures
-from ._kind import BLOCK, KIND
-from ._recipe import full_recipe, resolve_recipe, specular_band_rule
+from ._kind import KIND
+from ._recipe import full_recipe, resolve_recipe
 from ._tables import Bands, SHTables, _l_of_k, _rd_kernel, _rs_kernel
 from ._zonal import cheb_coeffs, diffuse_coeffs, diffuse_nodes, lobatto_nodes, specular_coeffs, specular_nodes
 
@@ -53,8 +53,12 @@ def _zonal_kernel(p, nodes, lmax_d, lmax_s, n_d, n_s):
 def _zonal(p, nodes, lmax_d, lmax_s):
     with jax.enable_x64(True):
         kd, ks = _zonal_kernel(
-            jnp.float64(p), jnp.asarray(nodes, jnp.float64), lmax_d, lmax_s,
-            diffuse_nodes(max(lmax_d, 0)), specular_nodes(max(lmax_s, 0), p),
+            jnp.float64(p),
+            jnp.asarray(nodes, jnp.float64),
+            lmax_d,
+            lmax_s,
+            diffuse_nodes(max(lmax_d, 0)),
+            specular_nodes(max(lmax_s, 0), p),
         )
         return (None if kd is None else np.asarray(kd)), (None if ks is None else np.asarray(ks))
 
@@ -82,8 +86,11 @@ def bake_compact(recipe: dict) -> tuple[SHTables, dict]:
         n *= 2
     info.update({"chebyshev_nodes": n, "chebyshev_tail": tail, "specular_nodes": ks})
     l_out = max(lmax_d, lmax_s)
-    g = gaunt(l_out, max(b.light_diffuse if kern["diffuse"] else 0, b.light_specular if kern["specular"] else 0) - 1,
-              b.transmittance - 1)
+    g = gaunt(
+        l_out,
+        max(b.light_diffuse if kern["diffuse"] else 0, b.light_specular if kern["specular"] else 0) - 1,
+        b.transmittance - 1,
+    )
     tables = SHTables(b, p, kd, None if ks is None else cheb_coeffs(ks), g, recipe)
     return tables, info
 
@@ -125,9 +132,11 @@ def _compact(text: str) -> tuple[SHTables, dict]:
     for name, arr in (("kernel/diffuse_k", tables.kd_l), ("kernel/specular_k", tables.ks_cheb), ("gaunt", tables.gaunt)):
         if arr is not None and not np.all(np.isfinite(arr)):  # finite or refused: never write NaN/Inf
             r = tables.recipe
-            raise errors.NonFiniteError(f"sh_tables: {name} is not finite for kernel.p={r['kernel']['p']}, "
-                                        f"bands.light_specular={r['bands']['light_specular']}, "
-                                        f"bands.transmittance={r['bands']['transmittance']}")
+            raise errors.NonFiniteError(
+                f"sh_tables: {name} is not finite for kernel.p={r['kernel']['p']}, "
+                f"bands.light_specular={r['bands']['light_specular']}, "
+                f"bands.transmittance={r['bands']['transmittance']}"
+            )
     info["theta_v_nodes"] = lobatto_nodes(info["chebyshev_nodes"])
     if tables.has_specular:
         info["truncation_error"] = truncation_error(tables, np.linspace(0.0, np.pi, 65))
@@ -171,13 +180,31 @@ def dense_block(tables: SHTables, t_dirs, theta_v, start: int, stop: int, light=
         con = tables.contract(light.coeffs)
         hd = np.asarray(con.hd).transpose(0, 2, 1) if d else zero
         hs = np.asarray(con.hs).transpose(0, 2, 1) if s else zero
-    rep = (np.asarray(theta_v, np.float64), kd, tables.ks_cheb if s else zero, gd, gs, hd, hs,
-           _l_of_k(tables.lmax_s) if s else np.zeros(1, np.int64))
+    rep = (
+        np.asarray(theta_v, np.float64),
+        kd,
+        tables.ks_cheb if s else zero,
+        gd,
+        gs,
+        hd,
+        hs,
+        _l_of_k(tables.lmax_s) if s else np.zeros(1, np.int64),
+    )
     with jax.enable_x64(True):
-        outs = list(map_units(_dense_units, (np.asarray(t_dirs[lo:hi], np.float64),), rep, micro=MICRO,
-                              lmax_d=max(tables.lmax_d, 0), lmax_s=max(tables.lmax_s, 0), diffuse=d, specular=s,
-                              light=light is not None))
-    outs = [o[start - lo:stop - lo] for o in outs]
+        outs = list(
+            map_units(
+                _dense_units,
+                (np.asarray(t_dirs[lo:hi], np.float64),),
+                rep,
+                micro=MICRO,
+                lmax_d=max(tables.lmax_d, 0),
+                lmax_s=max(tables.lmax_s, 0),
+                diffuse=d,
+                specular=s,
+                light=light is not None,
+            )
+        )
+    outs = [o[start - lo : stop - lo] for o in outs]
     dense = {"t_dirs": np.asarray(t_dirs[start:stop]), "theta_v": np.asarray(theta_v)}
     for key, ok in (("rd", d), ("rs", s)):
         if ok:
@@ -247,8 +274,19 @@ def whole_parts(recipe: dict, parts, **_):
     return whole_tables(tables, info, {"total": total, "theta_v": dense["theta_v"]}, light)
 
 
-def bake(recipe: dict | None, out, *, progress=None, shard=None, light=None, textures=None, block: int | None = None,
-         keep_parts: bool = False, distributed=False, merge: str | None = None) -> dict:
+def bake(
+    recipe: dict | None,
+    out,
+    *,
+    progress=None,
+    shard=None,
+    light=None,
+    textures=None,
+    block: int | None = None,
+    keep_parts: bool = False,
+    distributed=False,
+    merge: str | None = None,
+) -> dict:
     """Bake a recipe into the ``sh_tables`` asset ``out`` (written atomically): ``hairlut.bake.registry.bake`` of
     this kind.
 
@@ -260,14 +298,25 @@ def bake(recipe: dict | None, out, *, progress=None, shard=None, light=None, tex
     counts tangents, else the two stages (tables, file)."""
     from ..bake import registry
 
-    return registry.bake(KIND, recipe, out, progress=progress, shard=shard, distributed=distributed, merge=merge,
-                         options={"block": block, "keep_parts": keep_parts, "light": light, "textures": textures})
+    return registry.bake(
+        KIND,
+        recipe,
+        out,
+        progress=progress,
+        shard=shard,
+        distributed=distributed,
+        merge=merge,
+        options={"block": block, "keep_parts": keep_parts, "light": light, "textures": textures},
+    )
 
 
 def _check_light(r: dict, light, textures) -> None:
     if "light" in r and light is None:
-        raise errors.ValidationError("light", None, "the recipe names an environment light (source sha256 "
-                                     f"{str(r['light']['source_sha256'])[:16]}…): pass that light")
+        raise errors.ValidationError(
+            "light",
+            None,
+            f"the recipe names an environment light (source sha256 {str(r['light']['source_sha256'])[:16]}…): pass that light",
+        )
     if textures and (light is None or r["dense"]["t_resolution"] == 0):
         raise errors.ValidationError("textures", str(textures), "needs --light and dense.t_resolution > 0")
 
@@ -291,8 +340,9 @@ def start(r: dict, shard=None, light=None, textures=None, **_) -> None:
     """Refuse a split bake's inputs before any work: a missing light, textures without one or of a shard."""
     _check_light(r, light, textures)
     if textures and shard is not None:
-        raise errors.ValidationError("textures", str(textures), "a --shard file holds a slice: write textures "
-                                     "from the merged asset")
+        raise errors.ValidationError(
+            "textures", str(textures), "a --shard file holds a slice: write textures from the merged asset"
+        )
 
 
 def report(r: dict, rep: dict, light=None, textures=None, **_) -> dict:
@@ -300,9 +350,14 @@ def report(r: dict, rep: dict, light=None, textures=None, **_) -> dict:
     tex = None
     if textures and rep["process"] == 0:
         t = read_table(rep["out"], kind=KIND)
-        tex = write_textures(textures, t["light/cd"] if "light/cd" in t.variables else None,
-                             t["light/cs"] if "light/cs" in t.variables else None, r["dense"]["t_resolution"],
-                             light.channels, r)
+        tex = write_textures(
+            textures,
+            t["light/cd"] if "light/cd" in t.variables else None,
+            t["light/cs"] if "light/cs" in t.variables else None,
+            r["dense"]["t_resolution"],
+            light.channels,
+            r,
+        )
     _, info = compact(r)
     facts = _report(r, info, rep["out"], time.perf_counter(), kind=rep["kind"])
     del facts["seconds"]
@@ -318,7 +373,6 @@ def load_checked(path):
     """The ``sh_tables`` asset at ``path``; a virtual asset's parts are checked first (every part present and of
     this recipe)."""
     from ..assets.virtual_write import check_virtual
-
     from ._tables import load_sh_tables
 
     check_virtual(path)
@@ -326,7 +380,15 @@ def load_checked(path):
 
 
 def _report(r: dict, info: dict, path, t0: float, kind: str = KIND) -> dict:
-    return {"out": str(path), "kind": kind, "textures": None, "seconds": time.perf_counter() - t0,
-            "bytes": Path(path).stat().st_size, "recipe": r, "recipe_hash": recipe_hash(r),
-            "chebyshev_nodes": info["chebyshev_nodes"], "chebyshev_tail": info["chebyshev_tail"],
-            "specular_truncation_error": info.get("truncation_error")}
+    return {
+        "out": str(path),
+        "kind": kind,
+        "textures": None,
+        "seconds": time.perf_counter() - t0,
+        "bytes": Path(path).stat().st_size,
+        "recipe": r,
+        "recipe_hash": recipe_hash(r),
+        "chebyshev_nodes": info["chebyshev_nodes"],
+        "chebyshev_tail": info["chebyshev_tail"],
+        "specular_truncation_error": info.get("truncation_error"),
+    }

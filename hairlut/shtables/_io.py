@@ -59,22 +59,30 @@ def table_axes(tables: SHTables, info: dict) -> list[Axis]:
 
 def table_variables(tables: SHTables, info: dict) -> list[Variable]:
     """The compact exact tables: the Gaunt tensor and the kernels' Legendre coefficients."""
-    variables = [Variable("gaunt", tables.gaunt, ("sh_k", "light", "trans"), "1",
-                          "real Gaunt coefficients: integral of Y_k Y_i Y_j")]
+    variables = [
+        Variable("gaunt", tables.gaunt, ("sh_k", "light", "trans"), "1", "real Gaunt coefficients: integral of Y_k Y_i Y_j")
+    ]
     if tables.has_diffuse:
         variables.append(Variable("kernel/diffuse_k", tables.kd_l, ("l_d",), "sr", "Legendre coefficients k_l of sin(theta)"))
     if tables.has_specular:
-        variables.append(Variable(
-            "kernel/specular_k", info["specular_nodes"].reshape(-1, info["specular_nodes"].shape[-1]), ("theta_v_node", "l_s"),
-            "sr", "Legendre coefficients k_l(theta') of max(0, cos(pi - theta - theta'))^p",
-        ))
+        variables.append(
+            Variable(
+                "kernel/specular_k",
+                info["specular_nodes"].reshape(-1, info["specular_nodes"].shape[-1]),
+                ("theta_v_node", "l_s"),
+                "sr",
+                "Legendre coefficients k_l(theta') of max(0, cos(pi - theta - theta'))^p",
+            )
+        )
     return variables
 
 
 def light_axes(light: dict) -> list[Axis]:
     a = light["a"]
-    return [_index_axis("light_coeff", a.shape[0], "light SH index"),
-            Axis("channel", np.arange(a.shape[1], dtype=np.int32), "1", "colour channel: " + ",".join(light["channels"]))]
+    return [
+        _index_axis("light_coeff", a.shape[0], "light SH index"),
+        Axis("channel", np.arange(a.shape[1], dtype=np.int32), "1", "colour channel: " + ",".join(light["channels"])),
+    ]
 
 
 def light_variables(light: dict) -> list[Variable]:
@@ -84,9 +92,11 @@ def light_variables(light: dict) -> list[Variable]:
 def dense_axes(tables: SHTables, n: int, theta_v, start: int = 0) -> list[Axis]:
     """The axes of the per-tangent tables of tangents [start, start + n) (the split axis ``t`` first)."""
     b = tables.bands
-    axes = [_index_axis("t", n, "tangent direction index (cube-map texel centres)", start),
-            Axis("xyz", np.arange(3, dtype=np.int32), "1", "x, y, z"),
-            Axis("theta_v", np.asarray(theta_v), "rad", "theta' = angle(tangent, view)")]
+    axes = [
+        _index_axis("t", n, "tangent direction index (cube-map texel centres)", start),
+        Axis("xyz", np.arange(3, dtype=np.int32), "1", "x, y, z"),
+        Axis("theta_v", np.asarray(theta_v), "rad", "theta' = angle(tangent, view)"),
+    ]
     if tables.has_diffuse:
         axes.append(_index_axis("light_d", b.n_light_diffuse, "light SH index (diffuse)"))
     if tables.has_specular:
@@ -114,26 +124,53 @@ def dense_variables(tables: SHTables, dense: dict, light: dict | None = None) ->
     b, r = tables.bands, tables.recipe
     st = np.dtype(r["dense"]["storage"])
     n = len(dense["t_dirs"])
-    keys = (f"the recipe drives it: kernel.p={r['kernel']['p']}, bands.light_diffuse={b.light_diffuse}, "
-            f"bands.light_specular={b.light_specular}, bands.transmittance={b.transmittance}, dense.storage={st.name}")
+    keys = (
+        f"the recipe drives it: kernel.p={r['kernel']['p']}, bands.light_diffuse={b.light_diffuse}, "
+        f"bands.light_specular={b.light_specular}, bands.transmittance={b.transmittance}, dense.storage={st.name}"
+    )
     variables = [Variable("dense/t_dirs", dense["t_dirs"], ("t", "xyz"), "1", "unit tangent directions")]
     if "rd" in dense:
-        variables.append(Variable("dense/rd", _finite_in("dense/rd", dense["rd"], st, keys), ("t", "light_d", "trans"), "sr",
-                                  "Rd(i, j, t)", chunks=(min(64, n), b.n_light_diffuse, b.n_trans)))
+        variables.append(
+            Variable(
+                "dense/rd",
+                _finite_in("dense/rd", dense["rd"], st, keys),
+                ("t", "light_d", "trans"),
+                "sr",
+                "Rd(i, j, t)",
+                chunks=(min(64, n), b.n_light_diffuse, b.n_trans),
+            )
+        )
     if "rs" in dense:
-        variables.append(Variable("dense/rs", _finite_in("dense/rs", dense["rs"], st, keys), ("t", "theta_v", "light_s", "trans"),
-                                  "sr", "Rs(i, j, t, theta')", chunks=(min(16, n), len(dense["theta_v"]),
-                                                                       b.n_light_specular, b.n_trans)))
+        variables.append(
+            Variable(
+                "dense/rs",
+                _finite_in("dense/rs", dense["rs"], st, keys),
+                ("t", "theta_v", "light_s", "trans"),
+                "sr",
+                "Rs(i, j, t, theta')",
+                chunks=(min(16, n), len(dense["theta_v"]), b.n_light_specular, b.n_trans),
+            )
+        )
     if light:
         a = np.asarray(light["a"], np.float64)
-        lit = (f"the light drives it: its SH coefficients reach |a| = {float(np.max(np.abs(a), initial=0.0)):.3g} "
-               "(the environment map's values times environment.intensity)")
+        lit = (
+            f"the light drives it: its SH coefficients reach |a| = {float(np.max(np.abs(a), initial=0.0)):.3g} "
+            "(the environment map's values times environment.intensity)"
+        )
     if light and "cd" in light:
-        variables.append(Variable("light/cd", _finite_in("light/cd", light["cd"], np.float32, lit), ("t", "trans", "channel"),
-                                  "1", "Cd(j, t)"))
+        variables.append(
+            Variable("light/cd", _finite_in("light/cd", light["cd"], np.float32, lit), ("t", "trans", "channel"), "1", "Cd(j, t)")
+        )
     if light and "cs" in light:
-        variables.append(Variable("light/cs", _finite_in("light/cs", light["cs"], np.float32, lit),
-                                  ("t", "theta_v", "trans", "channel"), "1", "Cs(j, t, theta')"))
+        variables.append(
+            Variable(
+                "light/cs",
+                _finite_in("light/cs", light["cs"], np.float32, lit),
+                ("t", "theta_v", "trans", "channel"),
+                "1",
+                "Cs(j, t, theta')",
+            )
+        )
     return variables
 
 
@@ -175,8 +212,9 @@ def write_part(path, tables: SHTables, dense: dict, light: dict | None, start: i
     """Tangents [start, start + n) of a bake as an ``sh_shard`` file: the per-tangent tables, and the light's
     coefficients (so that parts alone make the asset)."""
     n = len(dense["t_dirs"])
-    axes = dense_axes(tables, n, dense["theta_v"], start) + [_index_axis("trans", tables.bands.n_trans,
-                                                                         "transmittance SH index j")]
+    axes = dense_axes(tables, n, dense["theta_v"], start) + [
+        _index_axis("trans", tables.bands.n_trans, "transmittance SH index j")
+    ]
     variables = dense_variables(tables, dense, light)
     attrs = {"t_start": np.int64(start), "t_stop": np.int64(start + n), "t_total": np.int64(total)}
     if light:
@@ -195,14 +233,20 @@ def read_part(path, recipe: dict) -> tuple[dict, dict | None, int, int]:
         want += ["light/a", *(["light/cd"] if kern["diffuse"] else []), *(["light/cs"] if kern["specular"] else [])]
     try:
         start, stop, total = (int(t.attrs[f"t_{k}"]) for k in ("start", "stop", "total"))
-        dense = {"t_dirs": t["dense/t_dirs"], "theta_v": t.axes["theta_v"].values,
-                 **{k: t[f"dense/{k}"] for k in ("rd", "rs") if f"dense/{k}" in want}}
+        dense = {
+            "t_dirs": t["dense/t_dirs"],
+            "theta_v": t.axes["theta_v"].values,
+            **{k: t[f"dense/{k}"] for k in ("rd", "rs") if f"dense/{k}" in want},
+        }
         light = None
         if "light" in recipe:
             channels = t.attrs["channels"]
             channels = channels.decode() if isinstance(channels, bytes) else str(channels)
-            light = {"a": t["light/a"], "channels": channels.split(","),
-                     **{k: t[f"light/{k}"] for k in ("cd", "cs") if f"light/{k}" in want}}
+            light = {
+                "a": t["light/a"],
+                "channels": channels.split(","),
+                **{k: t[f"light/{k}"] for k in ("cd", "cs") if f"light/{k}" in want},
+            }
     except KeyError as exc:
         raise errors.MissingDatasetError(path, f"sh_shard lacks {exc}") from None
     if len(dense["t_dirs"]) != stop - start:
@@ -216,8 +260,11 @@ def concat_parts(read: list[tuple[dict, dict | None, int, int]]) -> tuple[dict, 
     dense["theta_v"] = read[0][0]["theta_v"]
     light = None
     if read[0][1] is not None:
-        light = {"a": read[0][1]["a"], "channels": read[0][1]["channels"],
-                 **{k: np.concatenate([r[1][k] for r in read]) for k in ("cd", "cs") if k in read[0][1]}}
+        light = {
+            "a": read[0][1]["a"],
+            "channels": read[0][1]["channels"],
+            **{k: np.concatenate([r[1][k] for r in read]) for k in ("cd", "cs") if k in read[0][1]},
+        }
     return dense, light
 
 

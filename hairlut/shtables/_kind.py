@@ -79,15 +79,19 @@ def _count(recipe, **_):
 def describe(report: dict) -> list[str]:
     r = report["recipe"]
     b = r["bands"]
-    lines = [f"wrote {report['out']} ({report['bytes'] / 1024:.1f} KiB) in {report['seconds']:.2f} s",
-             f"  p = {r['kernel']['p']:.6g}; light bands diffuse {b['light_diffuse']} ({b['light_diffuse']**2} coeffs), "
-             f"specular {b['light_specular']} ({b['light_specular']**2}); transmittance {b['transmittance']} "
-             f"({b['transmittance']**2})"]
+    lines = [
+        f"wrote {report['out']} ({report['bytes'] / 1024:.1f} KiB) in {report['seconds']:.2f} s",
+        f"  p = {r['kernel']['p']:.6g}; light bands diffuse {b['light_diffuse']} ({b['light_diffuse'] ** 2} coeffs), "
+        f"specular {b['light_specular']} ({b['light_specular'] ** 2}); transmittance {b['transmittance']} "
+        f"({b['transmittance'] ** 2})",
+    ]
     if r["kernel"]["specular"]:
-        lines.append(f"  θ′ dependence: {report['chebyshev_nodes']} Chebyshev nodes per half, series tail "
-                     f"{report['chebyshev_tail']:.1e}")
-        lines.append("  specular energy beyond the light bands (relative L2, worst θ′): "
-                     f"{report['specular_truncation_error']:.3e}")
+        lines.append(
+            f"  θ′ dependence: {report['chebyshev_nodes']} Chebyshev nodes per half, series tail {report['chebyshev_tail']:.1e}"
+        )
+        lines.append(
+            f"  specular energy beyond the light bands (relative L2, worst θ′): {report['specular_truncation_error']:.3e}"
+        )
     if report.get("textures"):
         lines.append(f"wrote {report['textures']}")
     return lines
@@ -106,23 +110,41 @@ BAKER = Baker(
     describe=describe,
     options=(
         Option("p", float, None, "Shortcut for --set kernel.p=P.", sets="kernel.p"),
-        Option("light", "path", None, "Environment map (.exr), sh_light table or `sky` (built-in): also bake Cd/Cs.",
-               load=load_light_option),
+        Option(
+            "light",
+            "path",
+            None,
+            "Environment map (.exr), sh_light table or `sky` (built-in): also bake Cd/Cs.",
+            load=load_light_option,
+        ),
         Option("layout", LAYOUTS, "auto", "Layout of an EXR --light."),
         Option("up", ("z", "y"), "z", "Up axis of an EXR --light."),
-        Option("textures", "path", None, "Also write Cd/Cs shader textures (EXR); needs --light and "
-               "dense.t_resolution > 0.", cached=False),
+        Option(
+            "textures",
+            "path",
+            None,
+            "Also write Cd/Cs shader textures (EXR); needs --light and dense.t_resolution > 0.",
+            cached=False,
+        ),
     ),
     keyed=("light",),
     unit=None,  # a bake of seconds: no progress bar
     shard_kind=SHARD_KIND,
     shard_required=("dense/t_dirs",),
     bounds=BOUNDS,
-    units=Units("t", _count, *(_bake(f) for f in ("bake_part", "join_parts", "assemble_parts", "whole_parts")),
-                block=BLOCK, check=_bake("check_part"), splits=lambda recipe: recipe["dense"]["t_resolution"] > 0,
-                unsplit="SH tables split over their dense tangent grid: set dense.t_resolution > 0 (without dense "
-                        "tables a bake takes a second)", start=_bake("start"), report=_bake("report"),
-                block_help=f"Default: {BLOCK} (dense tables only)."),
+    units=Units(
+        "t",
+        _count,
+        *(_bake(f) for f in ("bake_part", "join_parts", "assemble_parts", "whole_parts")),
+        block=BLOCK,
+        check=_bake("check_part"),
+        splits=lambda recipe: recipe["dense"]["t_resolution"] > 0,
+        unsplit="SH tables split over their dense tangent grid: set dense.t_resolution > 0 (without dense "
+        "tables a bake takes a second)",
+        start=_bake("start"),
+        report=_bake("report"),
+        block_help=f"Default: {BLOCK} (dense tables only).",
+    ),
     assets=((LIGHT_KIND, ("a",), "SH coefficients of an environment light (xing §4)"),),
     help="""Exact SH convolution tables Rd, Rs for Kajiya–Kay hair (xing §4).
 
@@ -130,10 +152,12 @@ BAKER = Baker(
     Gaunt tensor), optional dense Rd/Rs on cube-map tangents, and with --light
     the contracted Cd/Cs.  Only a bake with dense tables (dense.t_resolution > 0)
     splits, over its tangents t.""",
-    examples=("hairlut bake sh --recipe tables/sh-default.toml --out tables/sh.h5",
-              "hairlut bake sh --recipe tables/sh-paper.toml --out paper.h5 --light sky --textures paper_tex.exr",
-              "hairlut bake sh --out p200.h5 --p 200 --set bands.light_specular=auto",
-              "hairlut bake sh --p 16                     # into the table cache (tables/), reused when baked",
-              "hairlut bake sh --set dense.t_resolution=64 --out s0.h5 --shard 0/2   # and 1/2; then",
-              "hairlut merge s0.h5 s1.h5 --out sh64.h5"),
+    examples=(
+        "hairlut bake sh --recipe tables/sh-default.toml --out tables/sh.h5",
+        "hairlut bake sh --recipe tables/sh-paper.toml --out paper.h5 --light sky --textures paper_tex.exr",
+        "hairlut bake sh --out p200.h5 --p 200 --set bands.light_specular=auto",
+        "hairlut bake sh --p 16                     # into the table cache (tables/), reused when baked",
+        "hairlut bake sh --set dense.t_resolution=64 --out s0.h5 --shard 0/2   # and 1/2; then",
+        "hairlut merge s0.h5 s1.h5 --out sh64.h5",
+    ),
 )

@@ -37,8 +37,13 @@ def paper_tables(n_omega: int, t_dirs, theta_v, p: float, lmax_light_d: int, lma
     """Rd (T, I_d, J) and Rs (T, Θ, I_s, J) by the paper's cube-map quadrature (float64)."""
     omega, weight = cube_dirs(n_omega)
     with jax.enable_x64(True):
-        args = (jnp.asarray(t_dirs, jnp.float64), jnp.asarray(theta_v, jnp.float64), jnp.asarray(omega), jnp.asarray(weight),
-                jnp.float64(p))
+        args = (
+            jnp.asarray(t_dirs, jnp.float64),
+            jnp.asarray(theta_v, jnp.float64),
+            jnp.asarray(omega),
+            jnp.asarray(weight),
+            jnp.float64(p),
+        )
         rd = _quadrature(*args, lmax_i=lmax_light_d, lmax_j=lmax_trans, specular=False)
         rs = _quadrature(*args, lmax_i=lmax_light_s, lmax_j=lmax_trans, specular=True)
         return np.asarray(rd), np.asarray(rs)

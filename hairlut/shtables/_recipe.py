@@ -31,8 +31,7 @@ SCHEMA = {
     },
     "bands": {
         "light_diffuse": Field(3, (int,), at_least(1), "light bands for Rd (9 coefficients)"),
-        "light_specular": Field("auto", (int, str), auto_or(at_least(1)),
-                                "light bands (lmax + 1) for Rs; auto = ceil(√p) + 1"),
+        "light_specular": Field("auto", (int, str), auto_or(at_least(1)), "light bands (lmax + 1) for Rs; auto = ceil(√p) + 1"),
         "transmittance": Field(3, (int,), at_least(1), "transmittance bands"),
     },
     "quadrature": {
@@ -59,8 +58,13 @@ def light_bands(recipe: dict) -> int:
 def light_identity(light) -> dict:
     """The identity of an :class:`hairlut.envlight.EnvLight` that a recipe records."""
     coeffs = hashlib.sha256(np.ascontiguousarray(light.coeffs, np.float64).tobytes()).hexdigest()
-    return {"lmax": int(light.lmax), "channels": list(light.channels), "layout": light.layout,
-            "source_sha256": light.source_sha256, "coeffs_sha256": coeffs}
+    return {
+        "lmax": int(light.lmax),
+        "channels": list(light.channels),
+        "layout": light.layout,
+        "source_sha256": light.source_sha256,
+        "coeffs_sha256": coeffs,
+    }
 
 
 def _check_light_section(section) -> dict:
@@ -88,8 +92,12 @@ def resolve_recipe(given: dict | None = None, light=None, *, budget: bool = True
     if r["bands"]["light_specular"] == "auto":
         auto = specular_band_rule(r["kernel"]["p"]) if r["kernel"]["p"] <= 64.0**2 else None
         if auto is None and r["kernel"]["specular"]:  # name the key the user set, not the derived band count
-            raise errors.ValidationError("kernel.p", r["kernel"]["p"], "bands.light_specular = 'auto' takes ceil(√p) + 1 "
-                                         "bands, at most 65: p ≤ 4096, or set bands.light_specular (≤ 65) yourself")
+            raise errors.ValidationError(
+                "kernel.p",
+                r["kernel"]["p"],
+                "bands.light_specular = 'auto' takes ceil(√p) + 1 "
+                "bands, at most 65: p ≤ 4096, or set bands.light_specular (≤ 65) yourself",
+            )
         r["bands"]["light_specular"] = auto if auto is not None else 65
     for key, limit in (("light_diffuse", 33), ("light_specular", 65), ("transmittance", 33)):
         if r["bands"][key] > limit:
@@ -98,8 +106,11 @@ def resolve_recipe(given: dict | None = None, light=None, *, budget: bool = True
     if light is not None:
         ident = light_identity(light)
         if named is not None and _check_light_section(named) != ident:
-            raise errors.ValidationError("light", ident["source_sha256"], "the recipe names another light "
-                                         f"(source sha256 {str(named.get('source_sha256'))[:16]}…)")
+            raise errors.ValidationError(
+                "light",
+                ident["source_sha256"],
+                f"the recipe names another light (source sha256 {str(named.get('source_sha256'))[:16]}…)",
+            )
         r["light"] = ident
     elif named is not None:
         r["light"] = _check_light_section(named)

@@ -84,8 +84,9 @@ def _radiance_block(t, theta_v, b, kd, ks, kd_k, hd, cheb, hs, l_of_k_s, lmax_d,
 @functools.partial(jax.jit, static_argnames=("lmax_d", "lmax_s"))
 def _radiance_kernel(t, theta_v, b, kd, ks, kd_k, hd, cheb, hs, l_of_k_s, lmax_d, lmax_s):
     """Radiance for flat (N,) vertices, evaluated block by block."""
-    return map_blocks(lambda *blk: _radiance_block(*blk, kd_k, hd, cheb, hs, l_of_k_s, lmax_d, lmax_s),
-                      (t, theta_v, b, kd, ks), BLOCK)
+    return map_blocks(
+        lambda *blk: _radiance_block(*blk, kd_k, hd, cheb, hs, l_of_k_s, lmax_d, lmax_s), (t, theta_v, b, kd, ks), BLOCK
+    )
 
 
 def _l_of_k(lmax: int) -> np.ndarray:
@@ -175,8 +176,11 @@ class SHTables:
         tv = _check_theta_v(theta_v)
         with jax.enable_x64(True):
             return _rs_kernel(
-                jnp.asarray(t), jnp.asarray(tv), jnp.asarray(self.ks_cheb),
-                jnp.asarray(self._g(self.lmax_s, self.bands.n_light_specular)), self.lmax_s,
+                jnp.asarray(t),
+                jnp.asarray(tv),
+                jnp.asarray(self.ks_cheb),
+                jnp.asarray(self._g(self.lmax_s, self.bands.n_light_specular)),
+                self.lmax_s,
                 jnp.asarray(_l_of_k(self.lmax_s)),
             )
 
@@ -200,12 +204,14 @@ class SHTables:
             hd = hs = None
             if self.has_diffuse:
                 g = jnp.asarray(self._g(self.lmax_d, self.bands.n_light_diffuse))
-                hd = jnp.einsum("kij,ic->kjc", g, jnp.asarray(a[: self.bands.n_light_diffuse]),
-                                precision=jax.lax.Precision.HIGHEST)
+                hd = jnp.einsum(
+                    "kij,ic->kjc", g, jnp.asarray(a[: self.bands.n_light_diffuse]), precision=jax.lax.Precision.HIGHEST
+                )
             if self.has_specular:
                 g = jnp.asarray(self._g(self.lmax_s, self.bands.n_light_specular))
-                hs = jnp.einsum("kij,ic->kjc", g, jnp.asarray(a[: self.bands.n_light_specular]),
-                                precision=jax.lax.Precision.HIGHEST)
+                hs = jnp.einsum(
+                    "kij,ic->kjc", g, jnp.asarray(a[: self.bands.n_light_specular]), precision=jax.lax.Precision.HIGHEST
+                )
         return Contracted(self, hd, hs, squeeze)
 
     def radiance(self, a, b, t, theta_v, kd=1.0, ks=1.0) -> Array:
@@ -238,8 +244,14 @@ class Contracted:
         t = check_dirs(t, field="t").astype(np.float64)
         tv = _check_theta_v(theta_v)
         with jax.enable_x64(True):
-            out = _rs_kernel(jnp.asarray(t), jnp.asarray(tv), jnp.asarray(tb.ks_cheb), self.hs.transpose(0, 2, 1),
-                             tb.lmax_s, jnp.asarray(_l_of_k(tb.lmax_s)))
+            out = _rs_kernel(
+                jnp.asarray(t),
+                jnp.asarray(tv),
+                jnp.asarray(tb.ks_cheb),
+                self.hs.transpose(0, 2, 1),
+                tb.lmax_s,
+                jnp.asarray(_l_of_k(tb.lmax_s)),
+            )
             return self._out(out.swapaxes(-1, -2))
 
     def radiance(self, b, t, theta_v, kd=1.0, ks=1.0, dtype="float64") -> Array:
@@ -268,11 +280,18 @@ class Contracted:
 
         with jax.enable_x64(True):
             out = _radiance_kernel(
-                arr(t, (3,)), arr(tv), arr(b, b.shape[-1:]), arr(np.asarray(kd, np.float64)), arr(np.asarray(ks, np.float64)),
-                None if self.hd is None else const(tb.kd_l[_l_of_k(tb.lmax_d)]), const(self.hd),
-                None if self.hs is None else const(tb.ks_cheb), const(self.hs),
+                arr(t, (3,)),
+                arr(tv),
+                arr(b, b.shape[-1:]),
+                arr(np.asarray(kd, np.float64)),
+                arr(np.asarray(ks, np.float64)),
+                None if self.hd is None else const(tb.kd_l[_l_of_k(tb.lmax_d)]),
+                const(self.hd),
+                None if self.hs is None else const(tb.ks_cheb),
+                const(self.hs),
                 None if self.hs is None else jnp.asarray(_l_of_k(tb.lmax_s)),
-                max(tb.lmax_d, 0), max(tb.lmax_s, 0),
+                max(tb.lmax_d, 0),
+                max(tb.lmax_s, 0),
             ).reshape(*shape, -1)
             return self._out(out)
 
@@ -318,13 +337,17 @@ def load_sh_tables(path: str | os.PathLike) -> SHTables:
         values = t["kernel/specular_k"]
         _shape_fault(path, "kernel/specular_k", values.shape, (4, lmax_s + 1), why)
         if values.shape[0] % 2:
-            raise errors.CorruptAssetError(path, f"table 'kernel/specular_k' has {values.shape[0]} rows; "
-                                           "it holds two equal θ′ halves (an even count)")
+            raise errors.CorruptAssetError(
+                path, f"table 'kernel/specular_k' has {values.shape[0]} rows; it holds two equal θ′ halves (an even count)"
+            )
         ks = cheb_coeffs(values.reshape(2, values.shape[0] // 2, values.shape[1]))
     if "light/a" in t.variables:
         _shape_fault(path, "light/a", t["light/a"].shape, (n_light, 1), why)
-    dense = {"dense/t_dirs": (None, 3), "dense/rd": (None, bands.n_light_diffuse, bands.n_trans),
-             "dense/rs": (None, None, bands.n_light_specular, bands.n_trans)}
+    dense = {
+        "dense/t_dirs": (None, 3),
+        "dense/rd": (None, bands.n_light_diffuse, bands.n_trans),
+        "dense/rs": (None, None, bands.n_light_specular, bands.n_trans),
+    }
     for name, want in dense.items():
         if name in t.variables:
             _shape_fault(path, name, t[name].shape, want, why)

@@ -45,7 +45,7 @@ def legendre_p(lmax: int, c):
 EIGEN_NODES = 128  # above this, Newton on the recurrence: O(n²) instead of the companion matrix's O(n³)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def gauss_legendre_01(n: int) -> tuple[np.ndarray, np.ndarray]:
     """Gauss–Legendre nodes and weights on [0, 1]."""
     x, w = np.polynomial.legendre.leggauss(n) if n <= EIGEN_NODES else gauss_legendre_newton(n)

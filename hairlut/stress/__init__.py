@@ -13,9 +13,17 @@ JAX loads on first use of a name."""
 from .._lazy import lazy_exports
 
 _LAZY = {
-    "CASES": "_cases", "case_names": "_cases", "run_case": "_cases", "run_stress": "_cases", "select": "_cases",
-    "Report": "_report", "machine": "_report",
-    "Case": "_tally", "Context": "_tally", "Result": "_tally", "Tally": "_tally",
+    "CASES": "_cases",
+    "case_names": "_cases",
+    "run_case": "_cases",
+    "run_stress": "_cases",
+    "select": "_cases",
+    "Report": "_report",
+    "machine": "_report",
+    "Case": "_tally",
+    "Context": "_tally",
+    "Result": "_tally",
+    "Tally": "_tally",
 }
 
 __all__ = ["CASES", "Case", "Report", "Result", "run_stress"]

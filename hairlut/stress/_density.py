@@ -58,8 +58,13 @@ def _bounds(tally, label, alpha, refl, recipe):
         tally.count("α > 1 (float32 rounding)", int((a > 1).sum()))
         tally.peak("max α − 1", float(a.max() - 1))
     tally.within(f"re {label}", refl, 0.0, None)
-    tally.within(f"re − α·max(re) {label}", np.asarray(refl, np.float64) - a[..., None, :] * _phong_max(recipe), None, 0.0,
-                 slack=F32_SLACK * _phong_max(recipe))
+    tally.within(
+        f"re − α·max(re) {label}",
+        np.asarray(refl, np.float64) - a[..., None, :] * _phong_max(recipe),
+        None,
+        0.0,
+        slack=F32_SLACK * _phong_max(recipe),
+    )
 
 
 def step_law(geom_row, columns, view: float, density: float, n_pix: int, n_steps: int, eps: float) -> np.ndarray:
@@ -90,16 +95,19 @@ def _densities(tally, ctx):
     g = sector_geometry(disc_params(1), kappa=1.0, n_pix=P)
     rho = np.stack([np.full((8, 8), v, np.float32) for v in DENSITIES])
     geom = np.repeat(g, len(DENSITIES), axis=0)
-    alpha, refl = trace_sectors(rho, geom, r, views=np.array(DISC_VIEWS), lights=np.array([0.3, np.pi / 2]), smooth=False,
-                                shadow=True)
+    alpha, refl = trace_sectors(
+        rho, geom, r, views=np.array(DISC_VIEWS), lights=np.array([0.3, np.pi / 2]), smooth=False, shadow=True
+    )
     alpha, refl = np.asarray(alpha), np.asarray(refl)
     _bounds(tally, "disc", alpha, refl, r)
     for i, v in enumerate(DENSITIES):
         ref = np.stack([ctx.reference(g[0], GEOM, th, v, P, K, float(r["trace"]["termination"])) for th in DISC_VIEWS])
         tally.compare(f"ρ={v:g}", alpha[i], ref, scale=1.0)
     tally.count("saturated pixels (α = 1)", int((alpha == 1.0).sum()))
-    tally.note(f"ρ ∈ {{{', '.join(f'{v:g}' for v in DENSITIES)}}}, {K} steps; α(ρ=1e6) max {alpha[-1].max():.6f}, "
-               f"α(ρ=0) max {alpha[0].max():g}")
+    tally.note(
+        f"ρ ∈ {{{', '.join(f'{v:g}' for v in DENSITIES)}}}, {K} steps; α(ρ=1e6) max {alpha[-1].max():.6f}, "
+        f"α(ρ=0) max {alpha[0].max():g}"
+    )
 
 
 def _hrir_reference(rho, geom, views, lights, phong, **cfg):
@@ -120,8 +128,17 @@ def _against_loop(tally, ctx, label, rho, geom, views, lights, *, smooth: bool, 
     if shadow:  # the loop marches toward the light differently (hrir._reference): bounds only
         return alpha
     for i in range(len(rho)):
-        ra, rr = ctx.reference(np.asarray(rho[i], np.float64), np.asarray(geom[i], np.float64), views, lights, phong,
-                               n_pix=P, n_steps=K, smooth=smooth, eps=float(r["trace"]["termination"]))
+        ra, rr = ctx.reference(
+            np.asarray(rho[i], np.float64),
+            np.asarray(geom[i], np.float64),
+            views,
+            lights,
+            phong,
+            n_pix=P,
+            n_steps=K,
+            smooth=smooth,
+            eps=float(r["trace"]["termination"]),
+        )
         tally.compare(f"{label} α sector {i}", alpha[i], ra, scale=1.0)
         tally.compare(f"{label} re sector {i}", refl[i], rr, scale=1.0)
     return alpha
@@ -154,8 +171,9 @@ def _corner(tally, ctx):
     rho[1, -1, -1] = 50.0  # a dense strand at the opposite corner
     views = np.array([0.0, 0.4, np.pi / 2, np.pi, 3 * np.pi / 2])
     for smooth in (False, True):
-        alpha = _against_loop(tally, ctx, f"corner smooth={smooth}", rho, g, views, views[:3], smooth=smooth,
-                              shadow=False, P=P, K=K)
+        alpha = _against_loop(
+            tally, ctx, f"corner smooth={smooth}", rho, g, views, views[:3], smooth=smooth, shadow=False, P=P, K=K
+        )
         if alpha.max() <= 0:
             tally.fault(f"corner smooth={smooth}: the corner strand is invisible from every view")
     _against_loop(tally, ctx, "corner self-shadow", rho, g, views, views[:3], smooth=True, shadow=True, P=P, K=K)
@@ -167,19 +185,56 @@ def _corner(tally, ctx):
         r = _recipe(P, K)
         phong = _phong(r)
         with jax.enable_x64(True):
-            a64, _ = trace_kernel(rho.astype(np.float64), g, views, views[:3], phong, n_pix=P, n_steps=K, smooth=False,
-                                  shadow=False, eps=float(r["trace"]["termination"]))
-        ra, _ = ctx.reference(rho[1].astype(np.float64), g[1], views, views[:3], phong, n_pix=P, n_steps=K, smooth=False,
-                              eps=float(r["trace"]["termination"]))
+            a64, _ = trace_kernel(
+                rho.astype(np.float64),
+                g,
+                views,
+                views[:3],
+                phong,
+                n_pix=P,
+                n_steps=K,
+                smooth=False,
+                shadow=False,
+                eps=float(r["trace"]["termination"]),
+            )
+        ra, _ = ctx.reference(
+            rho[1].astype(np.float64),
+            g[1],
+            views,
+            views[:3],
+            phong,
+            n_pix=P,
+            n_steps=K,
+            smooth=False,
+            eps=float(r["trace"]["termination"]),
+        )
         tally.note(f"the kernel in float64 vs the loop: {np.abs(np.asarray(a64)[1] - ra).max():.1e}")
     tally.note("one non-zero density cell at each sector's corner (ρ = 1 and 50)")
 
 
 CASES = (
-    Case("hrir.densities", "uniform disc, ρ = 0 … 1e6: α saturates in [0, 1], exact per-step law", ALPHA_TOL,
-         "float32 exp and step sums; measured ~1e-7", step_law, _densities),
-    Case("hrir.grazing", "views and lights tangent to the shell vs the per-ray float64 loop", TRACE_TOL,
-         "float32 tracer vs float64 loop; tests allow 5e-5", _hrir_reference, _grazing),
-    Case("hrir.corner_strand", "one strand at a sector's corner vs the per-ray float64 loop", CORNER_TOL,
-         "float32 coordinates on a steep (ρ = 50) edge; float64 kernel matches to 2e-15", _hrir_reference, _corner),
+    Case(
+        "hrir.densities",
+        "uniform disc, ρ = 0 … 1e6: α saturates in [0, 1], exact per-step law",
+        ALPHA_TOL,
+        "float32 exp and step sums; measured ~1e-7",
+        step_law,
+        _densities,
+    ),
+    Case(
+        "hrir.grazing",
+        "views and lights tangent to the shell vs the per-ray float64 loop",
+        TRACE_TOL,
+        "float32 tracer vs float64 loop; tests allow 5e-5",
+        _hrir_reference,
+        _grazing,
+    ),
+    Case(
+        "hrir.corner_strand",
+        "one strand at a sector's corner vs the per-ray float64 loop",
+        CORNER_TOL,
+        "float32 coordinates on a steep (ρ = 50) edge; float64 kernel matches to 2e-15",
+        _hrir_reference,
+        _corner,
+    ),
 )

@@ -41,6 +41,12 @@ def _gpu(tally, ctx):
 
 
 CASES = (
-    Case("gpu.float32", "the float32 cases on a GPU against their CPU tolerances", GPU_RATIO_TOL,
-         "a GPU must meet the CPU tolerance of every float32 case (error / tolerance ≤ 1)", None, _gpu),
+    Case(
+        "gpu.float32",
+        "the float32 cases on a GPU against their CPU tolerances",
+        GPU_RATIO_TOL,
+        "a GPU must meet the CPU tolerance of every float32 case (error / tolerance ≤ 1)",
+        None,
+        _gpu,
+    ),
 )

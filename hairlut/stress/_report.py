@@ -21,10 +21,17 @@ def machine() -> dict:
     except OSError:
         pass
     devices = jax.devices()
-    return {"cpu": cpu, "cores": os.cpu_count(), "backend": jax.default_backend(),
-            "devices": [str(d.device_kind) for d in devices], "gpu": any(d.platform == "gpu" for d in devices),
-            "jax": jax.__version__, "numpy": np.__version__, "h5py": h5py.__version__,
-            "python": platform.python_version()}
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "backend": jax.default_backend(),
+        "devices": [str(d.device_kind) for d in devices],
+        "gpu": any(d.platform == "gpu" for d in devices),
+        "jax": jax.__version__,
+        "numpy": np.__version__,
+        "h5py": h5py.__version__,
+        "python": platform.python_version(),
+    }
 
 
 def _num(x) -> str:
@@ -63,9 +70,11 @@ class Report:
     def table(self) -> str:
         """A Markdown table: case, worst error, tolerance, result, notes."""
         m = self.machine
-        head = (f"hairlut stress{' --quick' if self.quick else ''}: {len(self.results)} cases in {self.seconds:.0f} s "
-                f"on {m['cpu']} ({m['cores']} cores), JAX {m['jax']} backend {m['backend']}"
-                f"{'' if m['gpu'] else ' (no GPU present)'}")
+        head = (
+            f"hairlut stress{' --quick' if self.quick else ''}: {len(self.results)} cases in {self.seconds:.0f} s "
+            f"on {m['cpu']} ({m['cores']} cores), JAX {m['jax']} backend {m['backend']}"
+            f"{'' if m['gpu'] else ' (no GPU present)'}"
+        )
         rows = ["| case | worst error | tolerance | result | notes |", "|---|---|---|---|---|"]
         for r in self.results:
             rows.append(f"| {r.name} | {_num(r.worst)} | {_num(r.tolerance)} | {r.status} | {_notes(r)} |")
@@ -80,5 +89,11 @@ class Report:
 
     def as_dict(self) -> dict:
         """The run as ``hairlut stress --json`` prints it: mode, counts, time, machine and every case."""
-        return {"quick": self.quick, "passed": self.passed, "failed": self.failed, "seconds": self.seconds,
-                "machine": self.machine, "cases": [r.as_dict() for r in self.results]}
+        return {
+            "quick": self.quick,
+            "passed": self.passed,
+            "failed": self.failed,
+            "seconds": self.seconds,
+            "machine": self.machine,
+            "cases": [r.as_dict() for r in self.results],
+        }

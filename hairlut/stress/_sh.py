@@ -91,8 +91,8 @@ def _basis(dtype):
         l_of = np.floor(np.sqrt(np.arange(err.size))).astype(int)
         worst_l = int(l_of[np.argmax(err)])
         axes = np.abs(got[:8] - ref[:8]).max() / np.abs(ref).max()
-        tally.note(f"{len(d)} directions incl. ±x ±y ±z and 1e-12 from the poles; worst at l = {worst_l}; "
-                   f"on the axes {axes:.1e}")
+        tally.note(f"{len(d)} directions incl. ±x ±y ±z and 1e-12 from the poles; worst at l = {worst_l}; on the axes {axes:.1e}")
+
     return body
 
 
@@ -140,12 +140,15 @@ def _coeffs(tally, ctx):
     p = max(exps)
     rule = specular_band_rule(p)
     if ctx.quick:
-        tally.note(f"p={p:g}: the √p rule asks {rule} light bands (recipes allow ≤ 65; the full run reports the "
-                   "truncation error there)")
+        tally.note(
+            f"p={p:g}: the √p rule asks {rule} light bands (recipes allow ≤ 65; the full run reports the truncation error there)"
+        )
         return
     capped = min(rule, 65)
-    tally.note(f"p={p:g}: the √p rule asks {rule} light bands, recipes allow ≤ 65; at {capped} the lobe's "
-               f"truncation error is {band_truncation_error(p, capped):.2f} (a band limit, not a rounding fault)")
+    tally.note(
+        f"p={p:g}: the √p rule asks {rule} light bands, recipes allow ≤ 65; at {capped} the lobe's "
+        f"truncation error is {band_truncation_error(p, capped):.2f} (a band limit, not a rounding fault)"
+    )
 
 
 def _tables_body(tally, ctx):
@@ -196,15 +199,19 @@ def _radiance(tally, ctx):
     tally.compare("I float32 vs float64", i32, ctx.reference(i64))
     # the float64 radiance itself, at the axis tangents, against Σ a_i b_j (Rd + Rs) from sphere quadrature
     ld, ls, lt = (k - 1 for k in BANDS)
-    ref = [a[: (ld + 1) ** 2] @ _r_reference(ti, v, p, ld, lt, specular=False) @ bi[: (lt + 1) ** 2]
-           + a[: (ls + 1) ** 2] @ _r_reference(ti, v, p, ls, lt) @ bi[: (lt + 1) ** 2]
-           for ti, v, bi in zip(t[:8], tv[:8], b[:8])]
+    ref = [
+        a[: (ld + 1) ** 2] @ _r_reference(ti, v, p, ld, lt, specular=False) @ bi[: (lt + 1) ** 2]
+        + a[: (ls + 1) ** 2] @ _r_reference(ti, v, p, ls, lt) @ bi[: (lt + 1) ** 2]
+        for ti, v, bi in zip(t[:8], tv[:8], b[:8])
+    ]
     e64 = tally.compare("I float64 at the axes vs quadrature", i64[:8], np.array(ref))
     tally.note(f"float64 radiance at ±x ±y ±z and the poles vs Σ a b (Rd + Rs) by sphere quadrature: {e64:.1e}")
     neg = i64 < 0
     tally.count("ringing (I < 0)", int(neg.sum()))
-    tally.note(f"p={p:g}, {BANDS[1]} light bands, a positive lobe light, T ≡ 1: {int(neg.sum())} of {neg.size} radiances < 0 "
-               f"(SH ringing, min {float(i64.min()):.2e} against max {float(i64.max()):.2e})")
+    tally.note(
+        f"p={p:g}, {BANDS[1]} light bands, a positive lobe light, T ≡ 1: {int(neg.sum())} of {neg.size} radiances < 0 "
+        f"(SH ringing, min {float(i64.min()):.2e} against max {float(i64.max()):.2e})"
+    )
 
 
 def _bad_tangents(tally, ctx):
@@ -288,24 +295,68 @@ def _kk_edge(tally, ctx):
         tally.within(f"specular_cos p={p:g}", got, 0.0, 1.0)
         tally.compare(f"p={p:g}, sines from the cross products", got, ref, scale=1.0)
         alone = max(alone, float(np.abs(specular_cos(cl, cv, p) - ref).max()))
-    tally.note(f"{len(t)} (t, ω, v) with ω = t, −t, t turned 1e-12 rad and t·v = −tilt ∈ {list(KK_EDGE_TILT)}, p ∈ "
-               f"{list(KK_EDGE_P)}; from the cosines alone (√((1 − c)(1 + c))) the worst error is {alone:.1e}: "
-               "the sine of a rounded cosine near ±1 (why callers with vectors pass |t × ω|)")
+    tally.note(
+        f"{len(t)} (t, ω, v) with ω = t, −t, t turned 1e-12 rad and t·v = −tilt ∈ {list(KK_EDGE_TILT)}, p ∈ "
+        f"{list(KK_EDGE_P)}; from the cosines alone (√((1 − c)(1 + c))) the worst error is {alone:.1e}: "
+        "the sine of a rounded cosine near ±1 (why callers with vectors pass |t × ω|)"
+    )
 
 
 CASES = (
-    Case("sh.basis_f64", f"real_sh float64 to lmax {LMAX} vs the angle-based reference", SH_F64_TOL,
-         "rounding grows ~l·ε in the recurrence; measured ~1e-14", _sh_reference, _basis(np.float64)),
-    Case("sh.basis_f32", f"real_sh float32 to lmax {LMAX} vs the float64 reference", SH_F32_TOL,
-         "hairlut.sh states ≤ 1e-4 to lmax 64 in float32", _sh_reference, _basis(np.float32)),
-    Case("sh.kk_exponents", "specular k_l(θ′) for p = 1 … 1e4 vs independent quadrature", COEFF_TOL,
-         "bake's Chebyshev tail < 1e-14; room for the reference's quadrature at p = 1e4", zonal_reference, _coeffs),
-    Case("sh.tables_poles", "Rd, Rs at ±x ±y ±z and the poles, θ′ ∈ {0, π/2, π} vs sphere quadrature", TABLES_TOL,
-         "both exact up to quadrature rounding", _r_reference, _tables_body),
-    Case("sh.radiance_f32", "radiance float32 vs float64 (SH ringing counted)", RADIANCE_F32_TOL,
-         "the radiance's stated float32 relative error is ~1e-6", lambda x: x, _radiance),
-    Case("sh.bad_tangents", "zero, non-unit, NaN tangents and θ′ outside [0, π] are rejected", 1e-12,
-         "normalize=True must give the unit direction's SH to rounding", None, _bad_tangents),
-    Case("sh.kk_cosine_edge", "Kajiya–Kay specular from cosines at t ∥ ω, the lobe's edge, p = 0.5 … 49, vs exact "
-         "arithmetic", KK_EDGE_TOL, "the float64 base's rounding through x^p: ≤ 2e-8 at p = 0.5", kk_lobe_exact, _kk_edge),
+    Case(
+        "sh.basis_f64",
+        f"real_sh float64 to lmax {LMAX} vs the angle-based reference",
+        SH_F64_TOL,
+        "rounding grows ~l·ε in the recurrence; measured ~1e-14",
+        _sh_reference,
+        _basis(np.float64),
+    ),
+    Case(
+        "sh.basis_f32",
+        f"real_sh float32 to lmax {LMAX} vs the float64 reference",
+        SH_F32_TOL,
+        "hairlut.sh states ≤ 1e-4 to lmax 64 in float32",
+        _sh_reference,
+        _basis(np.float32),
+    ),
+    Case(
+        "sh.kk_exponents",
+        "specular k_l(θ′) for p = 1 … 1e4 vs independent quadrature",
+        COEFF_TOL,
+        "bake's Chebyshev tail < 1e-14; room for the reference's quadrature at p = 1e4",
+        zonal_reference,
+        _coeffs,
+    ),
+    Case(
+        "sh.tables_poles",
+        "Rd, Rs at ±x ±y ±z and the poles, θ′ ∈ {0, π/2, π} vs sphere quadrature",
+        TABLES_TOL,
+        "both exact up to quadrature rounding",
+        _r_reference,
+        _tables_body,
+    ),
+    Case(
+        "sh.radiance_f32",
+        "radiance float32 vs float64 (SH ringing counted)",
+        RADIANCE_F32_TOL,
+        "the radiance's stated float32 relative error is ~1e-6",
+        lambda x: x,
+        _radiance,
+    ),
+    Case(
+        "sh.bad_tangents",
+        "zero, non-unit, NaN tangents and θ′ outside [0, π] are rejected",
+        1e-12,
+        "normalize=True must give the unit direction's SH to rounding",
+        None,
+        _bad_tangents,
+    ),
+    Case(
+        "sh.kk_cosine_edge",
+        "Kajiya–Kay specular from cosines at t ∥ ω, the lobe's edge, p = 0.5 … 49, vs exact arithmetic",
+        KK_EDGE_TOL,
+        "the float64 base's rounding through x^p: ≤ 2e-8 at p = 0.5",
+        kk_lobe_exact,
+        _kk_edge,
+    ),
 )

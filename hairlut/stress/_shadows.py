@@ -66,9 +66,11 @@ def probes(strands, vertices: bool = True) -> np.ndarray:
     pts = strands.points
     lo, hi = pts.min(0), pts.max(0)
     cell = max(float((hi - lo).max()), 1e-9) / RESOLUTION
+
     def axis(k, n):
         a, b = lo[k] + 1.5 * cell, hi[k] - 1.5 * cell
         return np.linspace(a, b, n) if b > a else np.array([0.5 * (lo[k] + hi[k])])
+
     uu, vv = np.meshgrid(axis(0, 7), axis(1, 5), indexing="ij")
     out = [np.stack([uu, vv, np.full_like(uu, z)], -1).reshape(-1, 3) for z in (lo[2] - 1.5 * cell, hi[2] + 1.5 * cell)]
     mid = 0.5 * (lo + hi)
@@ -140,8 +142,10 @@ def _one_strand(tally, ctx):
     ref = _methods(tally, ctx, "one strand", one_strand(), kappa=0.05)
     if ref.min() >= 1.0:
         tally.fault("one strand: the reference sees no shadow (the case is vacuous)")
-    tally.note(f"one straight strand, κ = 0.05, {RESOLUTION} cells; reference T min {ref.min():.3f} (a one-cell "
-               "shadow: each method's grid places it differently)")
+    tally.note(
+        f"one straight strand, κ = 0.05, {RESOLUTION} cells; reference T min {ref.min():.3f} (a one-cell "
+        "shadow: each method's grid places it differently)"
+    )
 
 
 def _single_voxel(tally, ctx):
@@ -159,8 +163,7 @@ def _single_voxel(tally, ctx):
             tally.count("rejected", 1)
         else:
             tally.within(f"zero-length strand {method}", T, 0.0, 1.0)
-    tally.note(f"a 1e-3 groom of three points (reference T min {ref.min():.3g}), and a zero-length strand "
-               "(one voxel, no length)")
+    tally.note(f"a 1e-3 groom of three points (reference T min {ref.min():.3g}), and a zero-length strand (one voxel, no length)")
 
 
 def _underflow(tally, ctx):
@@ -184,12 +187,36 @@ def _underflow(tally, ctx):
 
 
 CASES = (
-    Case("shadow.empty_groom", "no strands: T = 1 or rejected, never NaN (every method, s-map)", 0.0,
-         "exact: nothing blocks the light", _ray_march, _empty),
-    Case("shadow.one_strand", "one strand: light-oriented, opacity maps, voxel SH vs the ray march", SHADOW_TOL,
-         "half-cell grid offsets on a one-cell-wide shadow", _ray_march, _one_strand),
-    Case("shadow.single_voxel", "a 1e-3 groom, and a zero-length strand (one voxel)", SHADOW_TOL,
-         "half-cell grid offsets on a one-cell-wide shadow", _ray_march, _single_voxel),
-    Case("shadow.underflow", "exp(−κτ) underflows (κ up to 1e30): T = 0 behind, 1 in front, no NaN",
-         UNDERFLOW_TOL, "both sides saturate to 0 or 1; only rounding differs", _ray_march, _underflow),
+    Case(
+        "shadow.empty_groom",
+        "no strands: T = 1 or rejected, never NaN (every method, s-map)",
+        0.0,
+        "exact: nothing blocks the light",
+        _ray_march,
+        _empty,
+    ),
+    Case(
+        "shadow.one_strand",
+        "one strand: light-oriented, opacity maps, voxel SH vs the ray march",
+        SHADOW_TOL,
+        "half-cell grid offsets on a one-cell-wide shadow",
+        _ray_march,
+        _one_strand,
+    ),
+    Case(
+        "shadow.single_voxel",
+        "a 1e-3 groom, and a zero-length strand (one voxel)",
+        SHADOW_TOL,
+        "half-cell grid offsets on a one-cell-wide shadow",
+        _ray_march,
+        _single_voxel,
+    ),
+    Case(
+        "shadow.underflow",
+        "exp(−κτ) underflows (κ up to 1e30): T = 0 behind, 1 in front, no NaN",
+        UNDERFLOW_TOL,
+        "both sides saturate to 0 or 1; only rounding differs",
+        _ray_march,
+        _underflow,
+    ),
 )

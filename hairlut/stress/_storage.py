@@ -18,8 +18,7 @@ from ._tally import Case
 FLOAT16_BOUND = 2.0**-11
 SMALLEST_NORMAL = 2.0**-14
 
-HRIR = {"sectors": {"count": 6, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3},
-        "trace": {"pixels": 8, "steps": 16}}
+HRIR = {"sectors": {"count": 6, "grid": [8, 8]}, "angles": {"views": 4, "lights": 3}, "trace": {"pixels": 8, "steps": 16}}
 SH = {"kernel": {"p": 20.0}, "bands": {"transmittance": 2}, "dense": {"t_resolution": 2, "theta_v_steps": 5}}
 #: A tiny two-cluster scene (the scene schema's [[clusters]] keys) for the ``scene_maps`` kind.
 SCENE = {
@@ -27,8 +26,17 @@ SCENE = {
     "camera": {"view": [0.0, 0.2, 1.0]},
     "lights": {"directions": [[0.5, 0.7, 1.0]]},
     "strands": {"count": 20, "radius": 0.006, "seed": 3},
-    "clusters": [{"trajectory": [[0.0, 1.0, 0.0], [0.05, 0.5, 0.1], [0.1, 0.0, 0.1]], "half_axis_a": 0.08,
-                  "half_axis_b": 0.06, "layer_radii": [0.6, 1.0], "core_radius": 0.2, "s_t": 4, "s_u": 4}],
+    "clusters": [
+        {
+            "trajectory": [[0.0, 1.0, 0.0], [0.05, 0.5, 0.1], [0.1, 0.0, 0.1]],
+            "half_axis_a": 0.08,
+            "half_axis_b": 0.06,
+            "layer_radii": [0.6, 1.0],
+            "core_radius": 0.2,
+            "s_t": 4,
+            "s_u": 4,
+        }
+    ],
     "tables": {"hrir": {"sectors": {"grid": [8, 8]}, "trace": {"pixels": 8, "steps": 12}}},
 }
 
@@ -81,8 +89,8 @@ def _sh(tally, ctx):
 
 def _scene(tally, ctx):
     from ..bake import registry
-    from ..scene import resolve_scene
     from ..planner import scene_maps_recipe
+    from ..scene import resolve_scene
 
     sc = resolve_scene(SCENE)
     recipe = scene_maps_recipe(sc)
@@ -95,10 +103,23 @@ def _scene(tally, ctx):
 _REASON = "float16 round-to-nearest: half an ulp, 2^-11 relative (2^-25 absolute below 2^-14)"
 
 CASES = (
-    Case("storage.hrir_db_f16", "hrir_db α and reflectance stored as float16 vs float32", FLOAT16_BOUND, _REASON,
-         rounding_error, _hrir),
-    Case("storage.sh_tables_f16", "sh_tables dense Rd, Rs stored as float16 vs float64", FLOAT16_BOUND, _REASON,
-         rounding_error, _sh),
-    Case("storage.scene_maps_f16", "scene_maps tables stored as float16 vs float32", FLOAT16_BOUND, _REASON,
-         rounding_error, _scene),
+    Case(
+        "storage.hrir_db_f16",
+        "hrir_db α and reflectance stored as float16 vs float32",
+        FLOAT16_BOUND,
+        _REASON,
+        rounding_error,
+        _hrir,
+    ),
+    Case(
+        "storage.sh_tables_f16",
+        "sh_tables dense Rd, Rs stored as float16 vs float64",
+        FLOAT16_BOUND,
+        _REASON,
+        rounding_error,
+        _sh,
+    ),
+    Case(
+        "storage.scene_maps_f16", "scene_maps tables stored as float16 vs float32", FLOAT16_BOUND, _REASON, rounding_error, _scene
+    ),
 )

@@ -12,8 +12,8 @@ go through :meth:`Tally.count` and :meth:`Tally.peak`.  :meth:`Tally.result` tur
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -45,10 +45,20 @@ class Result:
 
     def as_dict(self) -> dict:
         """The case's result as a JSON object."""
-        return {"name": self.name, "area": self.area, "status": self.status, "worst_error": self.worst,
-                "tolerance": self.tolerance, "tolerance_reason": self.reason, "non_finite": self.non_finite,
-                "out_of_bounds": self.out_of_bounds, "counted": dict(self.counted), "faults": list(self.faults),
-                "notes": list(self.notes), "seconds": self.seconds}
+        return {
+            "name": self.name,
+            "area": self.area,
+            "status": self.status,
+            "worst_error": self.worst,
+            "tolerance": self.tolerance,
+            "tolerance_reason": self.reason,
+            "non_finite": self.non_finite,
+            "out_of_bounds": self.out_of_bounds,
+            "counted": dict(self.counted),
+            "faults": list(self.faults),
+            "notes": list(self.notes),
+            "seconds": self.seconds,
+        }
 
 
 @dataclass(frozen=True)
@@ -115,8 +125,9 @@ class Tally:
         n = int(out.sum())
         if n:
             self.out_of_bounds += n
-            self.faults.append(f"{label}: {n} of {a.size} outside [{lo}, {hi}] "
-                               f"(range {float(a.min()):.3g} … {float(a.max()):.3g})")
+            self.faults.append(
+                f"{label}: {n} of {a.size} outside [{lo}, {hi}] (range {float(a.min()):.3g} … {float(a.max()):.3g})"
+            )
 
     def error(self, label: str, err: float) -> float:
         """Record an error already measured in the case's metric (a non-finite error is a fault)."""
@@ -148,7 +159,7 @@ class Tally:
         except expected:
             self.count("rejected", 1)
             return
-        except Exception as exc:  # noqa: BLE001 - any other exception is what the case reports
+        except Exception as exc:
             self.faults.append(f"{label}: raised {type(exc).__name__} ({exc}), not a hairlut error")
             return
         try:
@@ -189,5 +200,17 @@ class Tally:
             notes = tuple(self.notes)
             if over:
                 notes = (f"worst error at {self.worst_at}", *notes)
-        return Result(case.name, case.area, status, self.worst, case.tolerance, case.reason, self.non_finite,
-                      self.out_of_bounds, dict(self.counted), tuple(self.faults), notes, seconds)
+        return Result(
+            case.name,
+            case.area,
+            status,
+            self.worst,
+            case.tolerance,
+            case.reason,
+            self.non_finite,
+            self.out_of_bounds,
+            dict(self.counted),
+            tuple(self.faults),
+            notes,
+            seconds,
+        )

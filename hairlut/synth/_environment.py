@@ -33,9 +33,11 @@ def self_transmittance(strands: list, points: np.ndarray, env: dict, n_trans: in
     from ..geometry import Strands
     from ..shadows import transmittance, voxelize
 
-    merged = Strands(np.concatenate([s.points for s in strands]), np.concatenate([s.counts for s in strands]),
-                     thickness=None if any(s.thickness is None for s in strands)
-                     else np.concatenate([s.thickness for s in strands]))
+    merged = Strands(
+        np.concatenate([s.points for s in strands]),
+        np.concatenate([s.counts for s in strands]),
+        thickness=None if any(s.thickness is None for s in strands) else np.concatenate([s.thickness for s in strands]),
+    )
     lmax = int(round(np.sqrt(n_trans))) - 1
     tr = transmittance(voxelize(merged, env["voxels"]), kappa=env["kappa"], lmax=lmax, stride=STRIDE)
     return tr.at(points.reshape(-1, 3)).reshape(points.shape[:-1] + (n_trans,))
@@ -80,8 +82,16 @@ class Environment:
         from ..envlight import hair_radiance
 
         shape = self.tangent.shape[:-1]
-        e = hair_radiance(coeffs, self.b.reshape(-1, self.b.shape[-1]), self.tangent.reshape(-1, 3),
-                          self._theta(view).reshape(-1), self.kd_rgb, self.ks, self.p, height=height)
+        e = hair_radiance(
+            coeffs,
+            self.b.reshape(-1, self.b.shape[-1]),
+            self.tangent.reshape(-1, 3),
+            self._theta(view).reshape(-1),
+            self.kd_rgb,
+            self.ks,
+            self.p,
+            height=height,
+        )
         return e.reshape(shape + (e.shape[-1],))
 
 
@@ -95,8 +105,9 @@ def prepare_environment(scene, sh, strands: list, tangent: np.ndarray, position:
     if env is None:
         return None
     if sh is None:
-        raise errors.ValidationError("sh", None, "the scene has an environment light: give its sh_tables "
-                                     "(hairlut bake --scene SCENE bakes them)")
+        raise errors.ValidationError(
+            "sh", None, "the scene has an environment light: give its sh_tables (hairlut bake --scene SCENE bakes them)"
+        )
     tables = SHTables.load(sh)
     if "light/a" not in tables.source.variables:
         raise errors.MissingDatasetError(sh, "these SH tables hold no light; bake them with the scene's light")
@@ -121,5 +132,6 @@ def prepare_environment(scene, sh, strands: list, tangent: np.ndarray, position:
         kd_rgb = m["kd"] * np.asarray(m["hair_color"], np.float64)
         diffuse = kd_rgb * np.einsum("...j,...jc->...c", b * sigma, np.asarray(con.cd(t)))
     ks = (m["ks_I"] * fx["primary"] + m["ks_II"] * fx["secondary"]) if tables.has_specular else 0.0
-    return Environment(con, t, b, diffuse, float(ks), env["self_shadow"], sigma, kd_rgb, float(m["p_I"]),
-                       tables.bands.light_diffuse)
+    return Environment(
+        con, t, b, diffuse, float(ks), env["self_shadow"], sigma, kd_rgb, float(m["p_I"]), tables.bands.light_diffuse
+    )

@@ -51,6 +51,7 @@ from ..geometry.inplane import TWO_PI, azimuths, sector_axes
 from ..hrir import projection_features, query_kernel
 from ..march import scene_sector_inputs, sector_extent
 
+
 def wrap(x):
     """Angle differences wrapped to [−π, π)."""
     return np.mod(np.asarray(x) + np.pi, TWO_PI) - np.pi
@@ -118,8 +119,20 @@ def sector_frames(geometry, table, db) -> SectorFrames:
     reference, binormal, ex, ey = sector_axes(geometry, table)
     ab, q = table.half_axes, table.twist
     centre = _ellipse(ab, table.v_range.mean(axis=1), q + table.u_range.mean(axis=1))
-    return SectorFrames(feats, centre, ex, ey, extent, ab, q, table.v_range[:, 1].copy(), reference, binormal,
-                        splats.mask.any(axis=1), table.v_range[:, 0].copy())
+    return SectorFrames(
+        feats,
+        centre,
+        ex,
+        ey,
+        extent,
+        ab,
+        q,
+        table.v_range[:, 1].copy(),
+        reference,
+        binormal,
+        splats.mask.any(axis=1),
+        table.v_range[:, 0].copy(),
+    )
 
 
 def sector_angles(fr: SectorFrames, view, lights) -> SectorParams:
@@ -243,8 +256,15 @@ def fetch(db, features, theta_v, theta_l, k: int):
     idx = np.concatenate([np.arange(m), np.zeros(pad, np.int64)])
     z = np.repeat((features[idx] - mean) / std, n_l, axis=0)
     tv = np.repeat(theta_v[idx], n_l)
-    re, a, _, _ = query_kernel(jnp.asarray(z, jnp.float32), jnp.asarray(tv, jnp.float32),
-                               jnp.asarray(theta_l[idx].ravel(), jnp.float32), zdb, alpha, refl, int(k))
+    re, a, _, _ = query_kernel(
+        jnp.asarray(z, jnp.float32),
+        jnp.asarray(tv, jnp.float32),
+        jnp.asarray(theta_l[idx].ravel(), jnp.float32),
+        zdb,
+        alpha,
+        refl,
+        int(k),
+    )
     re = np.asarray(re).reshape(len(idx), n_l, P)
     return re[:m], np.asarray(a).reshape(len(idx), n_l, P)[:m, 0]
 
@@ -283,8 +303,9 @@ class Maps:
 def build_maps(db, table, sp: SectorParams, tx: Texels, k_threshold: float, k: int = 4) -> Maps:
     """Eqs 6–7 for every HSV, then patch the re- and α-maps (module docstring)."""
     top, bot = table.hsv_sectors[:, 0], table.hsv_sectors[:, 1]
-    dist = param_distance(db, sp.features[top], sp.theta_v[top], sp.theta_l[top],
-                          sp.features[bot], sp.theta_v[bot], sp.theta_l[bot])
+    dist = param_distance(
+        db, sp.features[top], sp.theta_v[top], sp.theta_l[top], sp.features[bot], sp.theta_v[bot], sp.theta_l[bot]
+    )
     occ = np.asarray(sp.occupied, bool)
     uniform = (dist < k_threshold) & (occ[top] == occ[bot])  # a half-empty HSV sweeps its two ends (one of them 0)
     uh = np.flatnonzero(uniform)
@@ -309,9 +330,13 @@ def build_maps(db, table, sp: SectorParams, tx: Texels, k_threshold: float, k: i
     uni = uniform[hsv]
     pix1 = np.where(uni, tx.pix_ave.ravel(), tx.pix_top.ravel())
     pix2 = np.where(uni, tx.pix_ave.ravel(), tx.pix_bot.ravel())
-    re, a = sweep_kernel(*(jnp.asarray(x) for x in (re1, re2, a1, a2)), jnp.asarray(hsv, jnp.int32),
-                         jnp.asarray(tx.gamma.ravel(), jnp.float32), jnp.asarray(pix1, jnp.float32),
-                         jnp.asarray(pix2, jnp.float32))
+    re, a = sweep_kernel(
+        *(jnp.asarray(x) for x in (re1, re2, a1, a2)),
+        jnp.asarray(hsv, jnp.int32),
+        jnp.asarray(tx.gamma.ravel(), jnp.float32),
+        jnp.asarray(pix1, jnp.float32),
+        jnp.asarray(pix2, jnp.float32),
+    )
     shape = tx.hsv.shape
     re = np.moveaxis(np.asarray(re).reshape(shape + (Lt,)), -1, 2)
     return Maps(re, np.asarray(a).reshape(shape), uniform, dist, int(uh.size + need.size))

@@ -63,16 +63,22 @@ class MapSource:
             raise errors.ValidationError("path", self.method, "per-ray optical paths need the direct map method")
         tv, tl, cs, _, _ = params_kernel(ix, f32(view), f32(lights), f32(0.0), n_v=1, n_l=1)
         if self.method == "direct":
-            alpha, re = direct_sector_maps(self.density, self.geometry, np.asarray(tv, np.float64),
-                                           np.asarray(tl, np.float64), self.recipe, path=path, light_path=light_path)
+            alpha, re = direct_sector_maps(
+                self.density,
+                self.geometry,
+                np.asarray(tv, np.float64),
+                np.asarray(tl, np.float64),
+                self.recipe,
+                path=path,
+                light_path=light_path,
+            )
             alpha, re = jnp.asarray(alpha), jnp.asarray(re)
         else:
             from ..scenemaps import index_kernel, terms_kernel
 
             alpha_t, ratio_t, row = self.device
             index = index_kernel(row, tv, half=alpha_t.shape[1], views=ratio_t.shape[1])
-            re_map, a_map = scene_view_kernel(ix, *terms_kernel(alpha_t, ratio_t, index, tv, tl), cs,
-                                               *self.sectors_of(ix))
+            re_map, a_map = scene_view_kernel(ix, *terms_kernel(alpha_t, ratio_t, index, tv, tl), cs, *self.sectors_of(ix))
             return re_map, a_map, np.zeros(int(np.prod(ix.grid)), bool)
         re_map, a_map = sweep_sectors(ix, alpha, re, cs)
         return re_map, a_map, np.zeros(int(np.prod(ix.grid)), bool)
@@ -109,7 +115,7 @@ def scene_view_kernel(ix: MapIndex, alpha, ratio, cs, top, bot):
     concatenating the HSVs' two sectors.  ``cs`` (S, 2) from :func:`params_kernel`; ``top``, ``bot``
     (C, K, n_t, n_u) each texel's two sectors (:meth:`MapSource.sectors_of`); re (C, K, Lt, n_t, n_u),
     α (C, K, n_t, n_u)."""
-    (S, P), (Lt, Q) = alpha.shape, ratio.shape[1:]
+    P, (Lt, Q) = alpha.shape[1], ratio.shape[1:]
     if ix.reads == "track":  # [render] layer_reads: every sector's re row, re(p) = α(p) ρ(⌊pQ/P⌋), for sweep_track
         re = _fenced(lambda a, r: a[:, None] * jnp.repeat(r, P // Q, axis=-1), alpha, ratio)  # not per gather
         return sweep_sectors(ix, alpha, re, cs)
@@ -153,28 +159,45 @@ def prepare_map_source(scene, method: str, reason: str, tables, frames, maps=Non
     if method == "direct":
         recipe = direct_recipe(scene)
         parts = [scene_sector_inputs(tb, recipe, extent=fr.extent) for tb, fr in zip(tables, frames)]
-        return MapSource("direct", reason, recipe["trace"]["pixels"], recipe,
-                         np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]))
+        return MapSource(
+            "direct",
+            reason,
+            recipe["trace"]["pixels"],
+            recipe,
+            np.concatenate([p[0] for p in parts]),
+            np.concatenate([p[1] for p in parts]),
+        )
     if method != "scene":
         raise errors.ValidationError("render.method", method, "prepare_map_source makes direct or scene maps")
     table = _scene_maps(maps)
     if table is None:
-        raise errors.AssetNotFoundError(scene.source, "render.method resolves to 'scene' and its scene_maps table was not "
-                                        f"given: bake it with `hairlut bake --scene {scene.source}` (or `hairlut bake "
-                                        f"scene --scene {scene.source}`) and pass it as maps=")
+        raise errors.AssetNotFoundError(
+            scene.source,
+            "render.method resolves to 'scene' and its scene_maps table was not "
+            f"given: bake it with `hairlut bake --scene {scene.source}` (or `hairlut bake "
+            f"scene --scene {scene.source}`) and pass it as maps=",
+        )
     from ..scenemaps import geometry_key
 
     want = scene_maps_recipe(scene)
     key = geometry_key(scene)
     got = table.recipe.get("geometry", {}).get("sha256")
     if got != key:
-        raise errors.ValidationError("maps", str(table.path), "this scene_maps table was baked for another groom "
-                                     f"(geometry {str(got)[:12]}…, the scene's is {key[:12]}…); rebake with "
-                                     f"`hairlut bake --scene {scene.source}`")
+        raise errors.ValidationError(
+            "maps",
+            str(table.path),
+            "this scene_maps table was baked for another groom "
+            f"(geometry {str(got)[:12]}…, the scene's is {key[:12]}…); rebake with "
+            f"`hairlut bake --scene {scene.source}`",
+        )
     if len(table.row) != n:
         raise errors.ValidationError("maps", str(table.path), f"the table holds {len(table.row)} sectors, the scene {n}")
     if table.recipe.get("hrir") != want["hrir"] or table.recipe.get("table") != want["table"]:
-        raise errors.ValidationError("maps", str(table.path), "the table's trace or layout settings differ from the "
-                                     f"scene's render settings; rebake with `hairlut bake --scene {scene.source}`")
+        raise errors.ValidationError(
+            "maps",
+            str(table.path),
+            "the table's trace or layout settings differ from the "
+            f"scene's render settings; rebake with `hairlut bake --scene {scene.source}`",
+        )
     device = (jnp.asarray(table.alpha), jnp.asarray(table.ratio), jnp.asarray(table.row, jnp.int32))
     return MapSource("scene", reason, table.pixels, None, None, None, table, device)

@@ -64,8 +64,9 @@ def specular(t, n, v, l, shift, p):
 
 
 @partial(jax.jit, static_argnames=("use_diffuse", "primary", "secondary", "noise"))
-def lighting_kernel(t, n, v, lights, light_rgb, noise_map, mat, colours, *, use_diffuse=True, primary=True,
-                    secondary=True, noise=False):
+def lighting_kernel(
+    t, n, v, lights, light_rgb, noise_map, mat, colours, *, use_diffuse=True, primary=True, secondary=True, noise=False
+):
     """Eq 8 per texel and light: (..., L, 3).
 
     ``mat`` = (kd, ks_I, ks_II, p_I, p_II, shift, diffuse_scale, diffuse_bias, noise_amount);
@@ -146,14 +147,16 @@ def compose_kernel(lighting, re, alpha, k_shadow, background, *, shadow=True, li
 
 
 @partial(jax.jit, static_argnames=("shadow", "linear"))
-def compose_clusters_kernel(lighting, re, alpha, k_shadow, background, extra=None, transmittance=None, *, shadow=True,
-                            linear=False):
+def compose_clusters_kernel(
+    lighting, re, alpha, k_shadow, background, extra=None, transmittance=None, *, shadow=True, linear=False
+):
     """:func:`compose_kernel` over a leading cluster axis (every input gains it); ``extra``
     (C, K, ..., 3), when given, is added to each layer's shaded colour before blending;
     ``transmittance`` (C, K, ..., L), when given, replaces eq 12's τ by one τ per light
     (:func:`shade_lights`) and is returned as τ."""
     return jax.vmap(lambda li, r, a, e, tr: _compose(li, r, a, k_shadow, background, shadow, linear, e, tr))(
-        lighting, re, alpha, extra, transmittance)
+        lighting, re, alpha, extra, transmittance
+    )
 
 
 def value_noise(shape, frequency: float, seed: int) -> np.ndarray:

@@ -66,9 +66,11 @@ def prepare_shadows(scene, strands: list, points: np.ndarray, timing: dict | Non
     from ..geometry import Strands
 
     cfg = scene.config["shadows"]
-    merged = Strands(np.concatenate([s.points for s in strands]), np.concatenate([s.counts for s in strands]),
-                     thickness=None if any(s.thickness is None for s in strands)
-                     else np.concatenate([s.thickness for s in strands]))
+    merged = Strands(
+        np.concatenate([s.points for s in strands]),
+        np.concatenate([s.counts for s in strands]),
+        thickness=None if any(s.thickness is None for s in strands) else np.concatenate([s.thickness for s in strands]),
+    )
     params = {"resolution": cfg["resolution"], "kappa": None if cfg["kappa"] == "auto" else float(cfg["kappa"])}
     params |= {"padding": cfg["padding"]} if method == "light_oriented" else {"slices": cfg["slices"]}
     out = Shadows(method, merged, np.asarray(points, np.float64), params)

@@ -31,12 +31,12 @@ import numpy as np
 from .. import errors
 from ..assets import atomic_write_bytes, encode_png, tonemap, write_exr
 from ..scene import Scene, as_scene, scene_clusters
-from ._view import view_maps, geometry_index, map_index
-from ._maps import SectorFrames, sector_frames, texel_grid
 from ._environment import prepare_environment
+from ._maps import SectorFrames, sector_frames, texel_grid
+from ._methods import prepare_map_source
 from ._shading import compose_clusters_kernel, lighting_kernel, value_noise
 from ._shadowing import prepare_shadows
-from ._methods import prepare_map_source
+from ._view import geometry_index, map_index, view_maps
 
 KIND = "synth_maps"
 
@@ -73,6 +73,7 @@ class SynthResult:
 def _load_db(db):
     if isinstance(db, (str, Path)):
         from ..hrir import load_hrir_db
+
         return load_hrir_db(db)
     for name in ("features", "stats", "alpha", "reflectance", "theta_v", "theta_l"):
         if not hasattr(db, name):
@@ -83,8 +84,20 @@ def _load_db(db):
 def material_arrays(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
     """(mat (9,), colours (3, 3)) of the scene's ``[material]`` as :func:`lighting_kernel` takes them."""
     m = scene.material
-    mat = np.array([m["kd"], m["ks_I"], m["ks_II"], m["p_I"], m["p_II"], m["shift"], m["diffuse_scale"],
-                    m["diffuse_bias"], m["noise_amount"]], np.float32)
+    mat = np.array(
+        [
+            m["kd"],
+            m["ks_I"],
+            m["ks_II"],
+            m["p_I"],
+            m["p_II"],
+            m["shift"],
+            m["diffuse_scale"],
+            m["diffuse_bias"],
+            m["noise_amount"],
+        ],
+        np.float32,
+    )
     hair = np.asarray(m["hair_color"], np.float32)
     sec = np.asarray(m["spec_color_II"], np.float32) * (hair if m["secondary_hair_tint"] else 1.0)
     return mat, np.stack([hair, np.asarray(m["spec_color_I"], np.float32), sec])
@@ -179,8 +192,9 @@ def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
     sc = as_scene(scene)
     method, why = resolve_method(sc, db, maps)
     if method == "satf" and db is None:
-        raise errors.AssetNotFoundError(sc.source, "the satf map method reads an hrir_db: give db= (bake it with "
-                                        f"`hairlut bake --scene {sc.source}`)")
+        raise errors.AssetNotFoundError(
+            sc.source, f"the satf map method reads an hrir_db: give db= (bake it with `hairlut bake --scene {sc.source}`)"
+        )
     database = _load_db(db) if method == "satf" else _geometry_db(sc)
     k = sc.config["render"]["neighbours"]
     if method == "satf" and k > len(database.features):
@@ -193,12 +207,16 @@ def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
     if len(shapes) != 1:
         raise errors.ValidationError("clusters", sorted(shapes), "clusters must share s_t, layer count and s_u")
     n_sec, n_hsv = clusters[0].table.n_sectors, clusters[0].table.n_hsvs
-    table = SimpleNamespace(shape=(len(clusters), *shapes.pop()), n_hsvs=n_hsv * len(clusters),
-                            hsv_sectors=np.concatenate([pc.table.hsv_sectors + c * n_sec for c, pc in enumerate(clusters)]))
-    frames = SectorFrames(*(np.concatenate([getattr(pc.frames, f.name) for pc in clusters])
-                            for f in fields(SectorFrames)))
-    stacked = {name: jnp.asarray(np.stack([getattr(pc, name) for pc in clusters]), jnp.float32)
-               for name in ("tangent", "normal", "noise")}
+    table = SimpleNamespace(
+        shape=(len(clusters), *shapes.pop()),
+        n_hsvs=n_hsv * len(clusters),
+        hsv_sectors=np.concatenate([pc.table.hsv_sectors + c * n_sec for c, pc in enumerate(clusters)]),
+    )
+    frames = SectorFrames(*(np.concatenate([getattr(pc.frames, f.name) for pc in clusters]) for f in fields(SectorFrames)))
+    stacked = {
+        name: jnp.asarray(np.stack([getattr(pc, name) for pc in clusters]), jnp.float32)
+        for name in ("tangent", "normal", "noise")
+    }
     res, reads = sc.config["render"]["resolution"], sc.config["render"]["layer_reads"]
     if method == "satf":
         index, source = map_index(database, table, frames, clusters[0].spec.n_layers, res, k, reads), None
@@ -206,31 +224,51 @@ def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
         index = geometry_index(table, frames, clusters[0].spec.n_layers, res, reads)
         source = prepare_map_source(sc, method, why, [pc.table for pc in clusters], [pc.frames for pc in clusters], maps)
     t2 = time.perf_counter()
-    env = prepare_environment(sc, sh, [s for _, s in pairs], np.stack([pc.tangent for pc in clusters]),
-                              np.stack([pc.position for pc in clusters]))
+    env = prepare_environment(
+        sc, sh, [s for _, s in pairs], np.stack([pc.tangent for pc in clusters]), np.stack([pc.position for pc in clusters])
+    )
     seconds = {"strands": t1 - t0, "index": t2 - t1} | ({"environment": time.perf_counter() - t2} if env else {})
     shadows = prepare_shadows(sc, [s for _, s in pairs], np.stack([pc.position for pc in clusters]), seconds)
-    return Prepared(sc, database if method == "satf" else None, clusters, seconds, table, frames, stacked, index, env,
-                    shadows, method, source)
+    return Prepared(
+        sc, database if method == "satf" else None, clusters, seconds, table, frames, stacked, index, env, shadows, method, source
+    )
 
 
 @partial(jax.jit, static_argnames=("effects", "linear"))
-def shade_kernel(re, alpha, tangent, normal, noise, view, lights, light_rgb, mat, colours, k_shadow, background,
-                 extra=None, transmittance=None, *, effects, linear):
+def shade_kernel(
+    re,
+    alpha,
+    tangent,
+    normal,
+    noise,
+    view,
+    lights,
+    light_rgb,
+    mat,
+    colours,
+    k_shadow,
+    background,
+    extra=None,
+    transmittance=None,
+    *,
+    effects,
+    linear,
+):
     """Eqs 8–11 (lighting) and 12–14 (shadows, shading, blend) of every cluster, one kernel: τ, lighting
     summed over the lights, shaded RGBA per layer (plus ``extra``, the environment term) and the composite RGBA.
     τ is eq 12's s-map when ``effects[-1]`` (the s-map switch) is on, 1 when off, or, when ``transmittance``
     (C, K, n_t, n_u, L) is given, one τ per light (eq 13 per light)."""
     fx = dict(zip(("use_diffuse", "primary", "secondary", "noise"), effects))
     light = lighting_kernel(tangent, normal, view, lights, light_rgb, noise, mat, colours, **fx)
-    tau, rgb, final, a = compose_clusters_kernel(light, re, alpha, k_shadow, background, extra, transmittance,
-                                                 shadow=effects[-1], linear=linear)
-    return (tau, light.sum(axis=-2), jnp.concatenate([rgb, alpha[..., None]], -1),
-            jnp.concatenate([final, a[..., None]], -1))
+    tau, rgb, final, a = compose_clusters_kernel(
+        light, re, alpha, k_shadow, background, extra, transmittance, shadow=effects[-1], linear=linear
+    )
+    return (tau, light.sum(axis=-2), jnp.concatenate([rgb, alpha[..., None]], -1), jnp.concatenate([final, a[..., None]], -1))
 
 
-def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict | None = None, extra=None,
-                    paths: tuple = (None, None)) -> list:
+def render_clusters(
+    prepared: Prepared, view, lights, light_colors, timing: dict | None = None, extra=None, paths: tuple = (None, None)
+) -> list:
     """The maps and shaded layers of every prepared cluster for one view, all clusters batched: eqs 6–7 from the index
     (``_view.view_maps``: three kernels, timed as "maps"), then eqs 8–14 (:func:`shade_kernel`, "shade");
     ``extra`` (C, K, n_t, n_u, 3), the environment term, is added to each layer's shaded colour.  A light-space
@@ -253,20 +291,36 @@ def render_clusters(prepared: Prepared, view, lights, light_colors, timing: dict
     mat, colours = material_arrays(scene)
     st = prepared.stacked
     f32 = partial(np.asarray, dtype=np.float32)
-    out = shade_kernel(re, alpha, st["tangent"], st["normal"], st["noise"], f32(view), f32(lights), f32(light_colors),
-                       mat, colours, f32(scene.material["k_shadow"]), f32(cfg["render"]["background"]),
-                       None if extra is None else f32(extra), transmittance,
-                       effects=(*(fx[k] for k in ("diffuse", "primary", "secondary", "noise")), method == "smap"),
-                       linear=scene.material["shadow_form"] == "linear")
+    out = shade_kernel(
+        re,
+        alpha,
+        st["tangent"],
+        st["normal"],
+        st["noise"],
+        f32(view),
+        f32(lights),
+        f32(light_colors),
+        mat,
+        colours,
+        f32(scene.material["k_shadow"]),
+        f32(cfg["render"]["background"]),
+        None if extra is None else f32(extra),
+        transmittance,
+        effects=(*(fx[k] for k in ("diffuse", "primary", "secondary", "noise")), method == "smap"),
+        linear=scene.material["shadow_form"] == "linear",
+    )
     re, alpha, tau, light, rgba, final = (np.asarray(x) for x in jax.block_until_ready((re, alpha, *out)))
     t2 = time.perf_counter()
     for key, dt in (("maps", t1 - t0), ("shade", t2 - t1)):
         timing[key] = timing.get(key, 0.0) + dt
     uniform = uniform.reshape(len(prepared.clusters), -1)
     tau = np.moveaxis(tau, -1, 2) if transmittance is not None else tau[:, :, None]  # (C, K, Ls, n_t, n_u)
-    return [ClusterResult(re[c], alpha[c], tau[c], light[c], rgba[c], final[c], pc.position,
-                          float(uniform[c].mean()) if uniform.size else 1.0)
-            for c, pc in enumerate(prepared.clusters)]
+    return [
+        ClusterResult(
+            re[c], alpha[c], tau[c], light[c], rgba[c], final[c], pc.position, float(uniform[c].mean()) if uniform.size else 1.0
+        )
+        for c, pc in enumerate(prepared.clusters)
+    ]
 
 
 def _direction(name, d) -> np.ndarray:
@@ -296,11 +350,16 @@ def render_view(prepared: Prepared, *, view=None, lights=None, light_colors=None
         extra, env_stats["environment_clamped"] = prepared.environment.rgb(v)
         timing["environment"] += time.perf_counter() - t0
     results = render_clusters(prepared, v, ls, cols, timing, extra, (path, light_path))
-    stats = {"clusters": len(results), "layers": int(sum(r.alpha.shape[0] for r in results)),
-             "hsvs": int(sum(pc.table.n_hsvs for pc in prepared.clusters)),
-             "texels_per_layer": list(results[0].alpha.shape[1:]) if results else [],
-             "uniform_fraction": [r.uniform_fraction for r in results], "seconds": timing, "map_method": prepared.method,
-             **env_stats}
+    stats = {
+        "clusters": len(results),
+        "layers": int(sum(r.alpha.shape[0] for r in results)),
+        "hsvs": int(sum(pc.table.n_hsvs for pc in prepared.clusters)),
+        "texels_per_layer": list(results[0].alpha.shape[1:]) if results else [],
+        "uniform_fraction": [r.uniform_fraction for r in results],
+        "seconds": timing,
+        "map_method": prepared.method,
+        **env_stats,
+    }
     return SynthResult(sc, results, stats)
 
 
@@ -391,8 +450,10 @@ def write_outputs(result: SynthResult, out_dir) -> dict:
         chans = channels(res)
         bad = [name for name, arr in chans.items() if not np.all(np.isfinite(np.asarray(arr)))]
         if bad:  # finite or refused: a NaN in the inputs must not become NaN pixels with exit 0
-            raise errors.NonFiniteError(f"synth: cluster {i} has non-finite values in {', '.join(bad[:4])}"
-                                        f"{' …' if len(bad) > 4 else ''}; check the database and the [material] keys")
+            raise errors.NonFiniteError(
+                f"synth: cluster {i} has non-finite values in {', '.join(bad[:4])}"
+                f"{' …' if len(bad) > 4 else ''}; check the database and the [material] keys"
+            )
         exrs.append(str(write_exr(out / f"cluster{i:03d}.exr", chans, recipe=recipe, kind=KIND)))
         png = out / f"cluster{i:03d}.png"
         atomic_write_bytes(png, encode_png(tonemap(res.final[..., :3])))

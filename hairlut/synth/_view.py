@@ -25,7 +25,6 @@ from .. import errors
 from ..hrir import interpolate, neighbours_kernel
 from ._maps import TWO_PI, SectorFrames, _bucket, _check_k, _device_db, _sample, _texel_cells, texel_offsets
 
-
 #: Phase overlap (radians) below which a segment does not count as crossing a sector (float32 rounding at a
 #: sector border: both fragments of a chord must agree on which of them crosses it).
 EPS_PHASE = 1e-5
@@ -33,9 +32,11 @@ EPS_PHASE = 1e-5
 LAYER_READS = ("pair", "track")
 
 
-@partial(jax.tree_util.register_dataclass, data_fields=["axes", "nbr", "wgt", "dz2", "nbr_ave", "wgt_ave", "gamma", "offset",
-                                                        "track"],
-         meta_fields=["grid", "layers", "rows", "cols", "reads"])
+@partial(
+    jax.tree_util.register_dataclass,
+    data_fields=["axes", "nbr", "wgt", "dz2", "nbr_ave", "wgt_ave", "gamma", "offset", "track"],
+    meta_fields=["grid", "layers", "rows", "cols", "reads"],
+)
 @dataclass(frozen=True, eq=False)
 class MapIndex:
     """§6.2.1's index: what eqs 6–7 need that does not change with the view or the lights, as
@@ -72,10 +73,17 @@ def _track_table(fr: SectorFrames, reads: str):
         raise errors.ValidationError("render.layer_reads", reads, f"one of {', '.join(LAYER_READS)}")
     if reads == "pair":
         return None
-    cols = (fr.half_axes, fr.twist[:, None], fr.v_inner[:, None], fr.v_outer[:, None], fr.centre, fr.extent[:, None],
-            fr.ex, fr.ey)
-    return jnp.asarray(np.concatenate([np.asarray(c, np.float64).reshape(len(fr.extent), -1) for c in cols], 1),
-                       jnp.float32)
+    cols = (
+        fr.half_axes,
+        fr.twist[:, None],
+        fr.v_inner[:, None],
+        fr.v_outer[:, None],
+        fr.centre,
+        fr.extent[:, None],
+        fr.ex,
+        fr.ey,
+    )
+    return jnp.asarray(np.concatenate([np.asarray(c, np.float64).reshape(len(fr.extent), -1) for c in cols], 1), jnp.float32)
 
 
 def map_index(db, table, fr: SectorFrames, n_layers: int, resolution, k: int, reads: str = "pair") -> MapIndex:
@@ -97,15 +105,29 @@ def map_index(db, table, fr: SectorFrames, n_layers: int, resolution, k: int, re
     nbr, wgt = knn(fr.features)
     nbr_ave, wgt_ave = knn(0.5 * (fr.features[top] + fr.features[bot]))
     wgt, wgt_ave = wgt * occ[:, None], wgt_ave * (occ[top] & occ[bot])[:, None]
-    axes = np.stack([fr.ex[:, :1] * fr.reference + fr.ex[:, 1:] * fr.binormal,
-                     fr.ey[:, :1] * fr.reference + fr.ey[:, 1:] * fr.binormal])
+    axes = np.stack(
+        [fr.ex[:, :1] * fr.reference + fr.ex[:, 1:] * fr.binormal, fr.ey[:, :1] * fr.reference + fr.ey[:, 1:] * fr.binormal]
+    )
     dz2 = np.sum(((fr.features[top] - fr.features[bot]) / std) ** 2, -1)
     dz2 = np.where(occ[top] == occ[bot], dz2, np.inf)  # a half-empty HSV is never uniform: eq 7 fades to its empty end
     rows, gamma, cols = _texel_cells(table.shape, resolution)
     f32 = partial(jnp.asarray, dtype=jnp.float32)
-    return MapIndex(f32(axes), nbr, wgt, f32(dz2), nbr_ave, wgt_ave, f32(gamma),
-                    f32(texel_offsets(table, fr, n_layers, resolution)[2]), (n_c, n_i - 1, n_g, s_u), int(n_layers),
-                    tuple(rows.tolist()), tuple(cols.tolist()), track, reads)
+    return MapIndex(
+        f32(axes),
+        nbr,
+        wgt,
+        f32(dz2),
+        nbr_ave,
+        wgt_ave,
+        f32(gamma),
+        f32(texel_offsets(table, fr, n_layers, resolution)[2]),
+        (n_c, n_i - 1, n_g, s_u),
+        int(n_layers),
+        tuple(rows.tolist()),
+        tuple(cols.tolist()),
+        track,
+        reads,
+    )
 
 
 def _wrap(x):
@@ -130,7 +152,7 @@ def _split(ix: MapIndex, x):
 def _texels(ix: MapIndex, x):
     """Per-HSV values (H, …) → per texel (C, K, n_t, n_u, …)."""
     n_c, s_t, n_g, s_u = ix.grid
-    x = jnp.swapaxes(x.reshape(n_c, s_t, n_g, s_u, *x.shape[1:])[:, :, :ix.layers], 1, 2)
+    x = jnp.swapaxes(x.reshape(n_c, s_t, n_g, s_u, *x.shape[1:])[:, :, : ix.layers], 1, 2)
     return _take(_take(x, ix.rows, 2), ix.cols, 3)
 
 
@@ -138,6 +160,7 @@ def _texels(ix: MapIndex, x):
 def params_kernel(ix: MapIndex, view, lights, k_threshold, *, n_v: int, n_l: int):
     """Params(b) angles of every sector, θv (S,) and θl (S, Lt), with the view's (cos θv, sin θv)
     (S, 2), and eq 6 per HSV: the distance and the uniform mask (H,) (module docstring)."""
+
     def project(d):  # (…, 3) → components on each sector's +x, +y: (S, …) twice
         return (sum(ix.axes[i, :, j, None] * d[..., j] for j in range(3)) for i in (0, 1))
 
@@ -161,8 +184,12 @@ def fetch_kernel(ix: MapIndex, alpha, refl, tv, tl, uniform, nonuniform, scratch
     ``scratch``: two arrays of those shapes, donated, so that the rows reuse their memory."""
     u = uniform[:, None]
     (n1, n2), (w1, w2), (v1, v2), (l1, l2) = (_split(ix, x) for x in (ix.nbr, ix.wgt, tv, tl))
-    q = (jnp.where(u, ix.nbr_ave, n1), jnp.where(u, ix.wgt_ave, w1),
-         jnp.where(uniform, v1 + 0.5 * _wrap(v2 - v1), v1), jnp.where(u, l1 + 0.5 * _wrap(l2 - l1), l1))
+    q = (
+        jnp.where(u, ix.nbr_ave, n1),
+        jnp.where(u, ix.wgt_ave, w1),
+        jnp.where(uniform, v1 + 0.5 * _wrap(v2 - v1), v1),
+        jnp.where(u, l1 + 0.5 * _wrap(l2 - l1), l1),
+    )
     return interpolate(*(jnp.concatenate([a, b[nonuniform]]) for a, b in zip(q, (n2, w2, v2, l2))), alpha, refl)
 
 
@@ -190,7 +217,7 @@ def _entries(ix: MapIndex, x, used: tuple):
     """Per-sector values (S, …) → per entry (C, R, K, n_u, …): sector row ``used[r]``, track k, the phase column
     of texel column j (broadcasts, no gather, where the texel columns are the regular repeat)."""
     n_c, s_t, n_g, s_u = ix.grid
-    x = x.reshape(n_c, s_t + 1, n_g, s_u, *x.shape[1:])[:, :, :ix.layers]
+    x = x.reshape(n_c, s_t + 1, n_g, s_u, *x.shape[1:])[:, :, : ix.layers]
     if used != tuple(range(s_t + 1)):
         x = jnp.take(x, np.asarray(used), axis=1)
     return _take(x, ix.cols, 3)
@@ -253,17 +280,29 @@ def track_window(ix: MapIndex, cs, used: tuple, by_sector: bool = False):
         return over[0] if len(over) == 1 else jnp.max(jnp.stack(over), axis=0)
 
     j0 = jnp.floor(u / du).astype(jnp.int32) + jnp.zeros_like(sig)  # unwrapped column of p
-    ws = [jnp.where(crossed(j0 + sig * m, own) > EPS_PHASE, jnp.where(crossed(j0 + sig * m, other) > EPS_PHASE,
-                                                                        0.5, 1.0), 0.0)
-          for m in range(min(s_u, s_u // 4 + 2))]
+    ws = [
+        jnp.where(crossed(j0 + sig * m, own) > EPS_PHASE, jnp.where(crossed(j0 + sig * m, other) > EPS_PHASE, 0.5, 1.0), 0.0)
+        for m in range(min(s_u, s_u // 4 + 2))
+    ]
     last = jnp.max(jnp.stack([jnp.where(w > 0, m + 1, 0) for m, w in enumerate(ws)]), axis=0)
     base = sid - jnp.mod(sid, s_u)
     cell = sid // (n_g * s_u)  # c (s_t + 1) + r
     hs = base - (cell // (s_t + 1)) * (n_g * s_u)  # the HSV of which the sector is the top (r < s_t) …
     row0 = base if by_sector else jnp.where(jnp.mod(cell, s_t + 1) < s_t, hs, H + hs - n_g * s_u)  # … else the
     # bottom of the HSV before it
-    geo = {"j0": j0, "sig": sig, "front": front, "w": jnp.stack(ws, -1), "last": last, "Px": A * px, "Py": B * py,
-           "dx": dx, "dy": dy, "base": base, "row0": row0}
+    geo = {
+        "j0": j0,
+        "sig": sig,
+        "front": front,
+        "w": jnp.stack(ws, -1),
+        "last": last,
+        "Px": A * px,
+        "Py": B * py,
+        "dx": dx,
+        "dy": dy,
+        "base": base,
+        "row0": row0,
+    }
     return {k: v.reshape(-1, *v.shape[4:]) for k, v in geo.items()}
 
 
@@ -289,8 +328,9 @@ def _track_slot(m: int, geo: dict, acc, trans, flat_a, flat_re, section, s_u: in
     scale = jnp.where(a > 0, a_w / jnp.where(a > 0, a, 1.0), 0.0)
     re = jnp.stack([sample(flat_re, row * Lt + j) for j in range(Lt)], -1) * scale[..., None]
     front = geo["front"][..., None]
-    return _fenced(lambda *a: (jnp.where(front, acc + trans[..., None] * re, re + (1.0 - a_w[..., None]) * acc),
-                               trans * (1.0 - a_w)), acc)
+    return _fenced(
+        lambda *a: (jnp.where(front, acc + trans[..., None] * re, re + (1.0 - a_w[..., None]) * acc), trans * (1.0 - a_w)), acc
+    )
 
 
 def sweep_track(ix: MapIndex, rows_re, rows_a, cs, by_sector: bool = False):
@@ -317,12 +357,12 @@ def sweep_track(ix: MapIndex, rows_re, rows_a, cs, by_sector: bool = False):
     n = geo["j0"].shape[0]
     acc, trans = jnp.zeros((n, Lt), jnp.float32), jnp.ones(n, jnp.float32)
     for m in range(geo["w"].shape[1]):
+
         def slot(state, m=m):
             return _track_slot(m, geo, *state, flat_a, flat_re, section, s_u, P)
 
         # a slot no window reaches is skipped (a weight-0 slot is an exact no-op: the same numbers either way)
-        acc, trans = slot((acc, trans)) if m == 0 else jax.lax.cond(jnp.any(geo["last"] > m), slot, lambda s: s,
-                                                                    (acc, trans))
+        acc, trans = slot((acc, trans)) if m == 0 else jax.lax.cond(jnp.any(geo["last"] > m), slot, lambda s: s, (acc, trans))
     shape = (n_c, len(used), ix.layers, -1)
     ent = (acc.reshape(*shape, Lt), (1.0 - trans).reshape(shape))
     out = [[jnp.swapaxes(_take(x, pos[e], 1), 1, 2) for x in ent] for e in (0, 1)]
@@ -368,8 +408,7 @@ def view_rows(ix: MapIndex, db, view, lights, k_threshold: float):
     stay valid until the next view of ``ix``, which reuses their memory."""
     _, alpha, refl, _, _ = _device_db(db)
     f32 = partial(np.asarray, dtype=np.float32)  # NumPy in: a jnp conversion would dispatch a kernel per argument
-    tv, tl, cs, _, uni = params_kernel(ix, f32(view), f32(lights), f32(k_threshold), n_v=len(db.theta_v),
-                                       n_l=len(db.theta_l))
+    tv, tl, cs, _, uni = params_kernel(ix, f32(view), f32(lights), f32(k_threshold), n_v=len(db.theta_v), n_l=len(db.theta_l))
     if ix.reads == "track":  # the track read needs every sector's own row: no eq 6 shortcut
         uni = jnp.zeros_like(uni)
     uniform = np.asarray(uni)
@@ -377,7 +416,7 @@ def view_rows(ix: MapIndex, db, view, lights, k_threshold: float):
     slot = np.zeros(len(uniform), np.int32)
     slot[nu] = np.arange(nu.size)
     pad = np.zeros(_bucket(nu.size), np.int32)
-    pad[:nu.size] = nu
+    pad[: nu.size] = nu
     m, P = len(uniform) + pad.size, alpha.shape[-1]
     shapes = ((m, tl.shape[1], P), (m, P))
     scratch = _SCRATCH.pop(id(ix), None)
@@ -405,14 +444,28 @@ def geometry_index(table, fr: SectorFrames, n_layers: int, resolution, reads: st
     top = ((np.arange(n_c)[:, None] * n_i + np.arange(n_i - 1)) * n_g * s_u)[..., None] + np.arange(n_g * s_u)
     if not np.array_equal(table.hsv_sectors, np.stack([top.ravel(), top.ravel() + n_g * s_u], 1)):
         raise errors.ValidationError("table.hsv_sectors", table.shape, "need the sector table's HSV order")
-    axes = np.stack([fr.ex[:, :1] * fr.reference + fr.ex[:, 1:] * fr.binormal,
-                     fr.ey[:, :1] * fr.reference + fr.ey[:, 1:] * fr.binormal])
+    axes = np.stack(
+        [fr.ex[:, :1] * fr.reference + fr.ex[:, 1:] * fr.binormal, fr.ey[:, :1] * fr.reference + fr.ey[:, 1:] * fr.binormal]
+    )
     rows, gamma, cols = _texel_cells(table.shape, resolution)
     f32 = partial(jnp.asarray, dtype=jnp.float32)
     none = jnp.zeros((0, 1), jnp.int32)
-    return MapIndex(f32(axes), none, f32(none), f32(np.zeros(len(table.hsv_sectors))), none, f32(none), f32(gamma),
-                    f32(texel_offsets(table, fr, n_layers, resolution)[2]), (n_c, n_i - 1, n_g, s_u), int(n_layers),
-                    tuple(rows.tolist()), tuple(cols.tolist()), track, reads)
+    return MapIndex(
+        f32(axes),
+        none,
+        f32(none),
+        f32(np.zeros(len(table.hsv_sectors))),
+        none,
+        f32(none),
+        f32(gamma),
+        f32(texel_offsets(table, fr, n_layers, resolution)[2]),
+        (n_c, n_i - 1, n_g, s_u),
+        int(n_layers),
+        tuple(rows.tolist()),
+        tuple(cols.tolist()),
+        track,
+        reads,
+    )
 
 
 @jax.jit
@@ -425,5 +478,6 @@ def sweep_sectors(ix: MapIndex, alpha, re, cs):
     a1, a2 = _split(ix, alpha)
     r1, r2 = _split(ix, re)
     H = a1.shape[0]
-    return sweep_rows(ix, jnp.concatenate([r1, r2]), jnp.concatenate([a1, a2]), cs, jnp.zeros(H, bool),
-                      jnp.arange(H, dtype=jnp.int32))
+    return sweep_rows(
+        ix, jnp.concatenate([r1, r2]), jnp.concatenate([a1, a2]), cs, jnp.zeros(H, bool), jnp.arange(H, dtype=jnp.int32)
+    )
