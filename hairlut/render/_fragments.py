@@ -143,7 +143,7 @@ def plan_fragments(cam, vertices, triangles, uv, texture_shape, *, tile, origins
     for textures of shape (C, K, n_t, n_u) (module docstring, step 1); ``tile``/``origins`` as ``_layered.layout``
     gives them.  Refuses (``BudgetError``) when the camera pass would not fit the memory budget (``limit``: bytes,
     default ``hairlut.budget.memory_limit()``)."""
-    from ._layered import _bucket, candidates, pairs_of
+    from ._tiles import _bucket, candidates, pairs_of
 
     t0 = time.perf_counter()
     f32 = jnp.float32

@@ -34,6 +34,7 @@ from .. import errors
 from ._fragments import draw_layers
 from ._frame import Frame
 from ._raster import raster_kernel
+from ._tiles import _bucket, candidates, pairs_of
 
 #: The longest mesh edge, in pixels, the host refines the layer meshes to.
 EDGE_PIXELS = 12.0
@@ -47,37 +48,6 @@ MAX_SUBDIV = 32
 #: Beer–Lambert through randomly placed Gaussian tubes, per texel), ``volume`` (1 / sin ψ per texel, a continuous
 #: medium) or ``off``.
 OBLIQUE_LAWS = ("rays", "strands", "volume", "off")
-
-
-def _bucket(n: float) -> int:
-    """n rounded up to a multiple of an eighth of its power of two (few compile shapes, ≤ 12.5 % waste)."""
-    p = 1 << max(int(math.ceil(n)) - 1, 1).bit_length()
-    step = max(p // 8, 256)
-    return int(step * math.ceil(n / step))
-
-
-def pairs_of(triangles) -> np.ndarray:
-    """(T, 3) triangles → (⌈T/2⌉, 2, 3) consecutive pairs (a grid quad's two; an odd last one pairs with a
-    degenerate copy of itself, which covers nothing)."""
-    tri = np.asarray(triangles, np.int32).reshape(-1, 3)
-    if len(tri) % 2:
-        tri = np.concatenate([tri, tri[-1:, [0, 0, 0]]])
-    return tri.reshape(-1, 2, 3)
-
-
-def candidates(cam, vertices, pairs, origins, tile) -> int:
-    """The most candidate pixels (pair boxes clipped to the tile) any cluster needs, from a float64 projection."""
-    x, y, _ = cam.project(vertices)  # (C, K, V)
-    th, tw = tile
-    x = x - np.asarray(origins)[:, 0, None, None]
-    y = y - np.asarray(origins)[:, 1, None, None]
-    px, py = x[..., pairs], y[..., pairs]  # (C, K, P, 2, 3)
-    x0 = np.clip(np.ceil(px.min(axis=(-2, -1)) - 0.5), 0, tw)
-    x1 = np.clip(np.floor(px.max(axis=(-2, -1)) - 0.5), -1, tw - 1)
-    y0 = np.clip(np.ceil(py.min(axis=(-2, -1)) - 0.5), 0, th)
-    y1 = np.clip(np.floor(py.max(axis=(-2, -1)) - 0.5), -1, th - 1)
-    n = np.maximum(x1 - x0 + 1, 0) * np.maximum(y1 - y0 + 1, 0)
-    return int(n.reshape(len(n), -1).sum(-1).max(initial=0))
 
 
 def _edges_px(cam, verts: np.ndarray, rows: int, cols: int) -> tuple[float, float]:
