@@ -57,8 +57,8 @@ def worker(args) -> None:
         json.dumps(
             {
                 "shard": args.worker,
-                "rows": rep["rows"],
-                "live": rep["live"],
+                "rows": rep["units"],
+                "live": rep["total_units"],
                 "wall_s": time.perf_counter() - t0,
                 "cpu_s": time.process_time() - c0,
             }
@@ -165,7 +165,7 @@ def main(argv=None):
         merge([str(s) for s in shards], merged)
         end = time.perf_counter()
         size = merged.stat().st_size
-    live = reports[0]["live"]
+    live = reports[0]["total_units"]
     records = [
         {
             "path": f"end to end: {args.processes} shard processes + merge",

@@ -130,8 +130,8 @@ def test_two_processes_on_loopback_match_one_process(recipe, tmp_path):
     subprocess.run(_cmd(recipe, tmp_path / "one.h5"), env=_env(1), check=True, capture_output=True)
     out = tmp_path / "db.h5"
     docs = _finish(_launch(recipe, out, _free_port()))
-    assert [d["process"] for d in docs] == [0, 1] and [d["sector_range"] for d in docs] == [[0, 4], [4, 12]]
-    assert all(d["computed"] == d["sectors"] for d in docs)
+    assert [d["process"] for d in docs] == [0, 1] and [d["unit_range"] for d in docs] == [[0, 4], [4, 12]]
+    assert all(d["computed"] == d["units"] for d in docs)
     _assert_same_data(tmp_path / "one.h5", out)  # virtual datasets read through to the parts, bit for bit
     with h5py.File(out, "r") as f:
         assert f["reflectance"].is_virtual and not f["features"].is_virtual

@@ -10,7 +10,7 @@ from hairlut import errors
 from hairlut.bake.cache import entries
 from hairlut.planner import bake, find_assets, plan
 from hairlut.scene import grid_coverage, resolve_scene, scene_sectors
-from hairlut.shtables._bake import band_truncation_error, specular_band_rule
+from hairlut.shtables import band_truncation_error, specular_band_rule
 from hairlut_cli.main import cli
 from tests._synth_fixtures import scene as base_scene
 

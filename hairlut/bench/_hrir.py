@@ -199,8 +199,8 @@ def hrir_bake_study(quick: bool = False) -> dict:
         },
         {
             "what": f"full default DB via bake() ({rep['sectors']} sectors, incl. sampling + HDF5)",
-            "rate": rep["sectors"] * V * L / t_bake,
-            "sectors": rep["sectors"] / t_bake,
+            "rate": rep["units"] * V * L / t_bake,
+            "sectors": rep["units"] / t_bake,
         },
     ]
     out["throughput"] = {
@@ -208,7 +208,7 @@ def hrir_bake_study(quick: bool = False) -> dict:
         "float32_vs_float64": f32_err,
         "literal_vs_shared": lit_err,
         "default_db_seconds": t_bake,
-        "default_db_sectors": rep["sectors"],
+        "default_db_sectors": rep["units"],
     }
     # 2. run time against error
     rho_ref, g_err = _inputs(r, n_err, [4 * x for x in grid], 1000)

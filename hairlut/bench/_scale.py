@@ -165,7 +165,7 @@ def _bake(recipe: Path, out: Path, devices: int, cores: list[set[int]], how: str
         "compile_cpu_s": sum(sum(r["block_cpu_seconds"]) - len(r["block_cpu_seconds"]) * m for r, m in zip(reports, med_cpu)),
         "peak_rss_mib": max(peaks),
         "bytes": lead["bytes"],
-        "sectors": sum(r["sectors"] for r in reports),
+        "sectors": sum(r["units"] for r in reports),
     }
 
 
