@@ -56,6 +56,8 @@ def resample_strands(strands: Strands, n: int) -> np.ndarray:
     tot = total[owner]
     frac = np.zeros_like(cum)
     np.divide(cum - start[owner], tot, out=frac, where=tot > 0)
+    flat = tot <= 0  # a strand without length: its (equal) points spread over [0, 1], so it does not reach the next strand
+    frac[flat] = (np.arange(len(cum)) - off[owner])[flat] / np.maximum(strands.counts[owner][flat] - 1, 1)
     key = owner * 2.0 + frac  # strands' keys never overlap
     want = (np.arange(strands.n_strands)[:, None] * 2.0 + np.linspace(0.0, 1.0, n)[None, :]).ravel()
     out = np.empty((want.size, 3))

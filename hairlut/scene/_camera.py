@@ -347,7 +347,7 @@ def _record(d) -> tuple:
 
 def make_camera(cam: dict, points, detail: float | None = None) -> Camera:
     """The :class:`Camera` of a resolved ``[camera]`` table, fitted to the hair's ``points`` (n, 3) where
-    keys are 'auto'.  Raises when the eye lies inside the hair's bounds (or, perspective, any hair lies
+    keys are 'auto'.  Raises when a given eye lies inside the hair's bounds (or, perspective, any hair lies
     behind the near plane), and when float32 cannot draw the frame (module docstring, *Precision*; ``detail``:
     the smallest length the frame must resolve, the thinnest strand's radius; default the hair's radius / 1024)."""
     pts = np.asarray(points, np.float64).reshape(-1, 3)
@@ -388,7 +388,9 @@ def make_camera(cam: dict, points, detail: float | None = None) -> Camera:
         )
         ext = float(cam["extent"]) if cam["extent"] != "auto" else 2 * dist * math.tan(math.radians(fov) / 2)
     eye = centre + back * dist
-    if np.all((eye >= lo) & (eye <= hi)):
+    # a given eye inside the hair's box is refused; the fitted one lies past every strand along the view (orthographic:
+    # just past the nearest point, which for an oblique view can be inside the axis-aligned box but never in the hair)
+    if given_eye and np.all((eye >= lo) & (eye <= hi)):
         raise errors.ValidationError("camera.position", eye.tolist(), f"inside the hair's bounds {lo.tolist()}–{hi.tolist()}")
     depth = (eye - pts) @ back
     near_need = float(depth.min())

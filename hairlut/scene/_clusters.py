@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import errors
 from ._schema import Scene
 
 #: The last few scenes' clusters, by :func:`_key`: the planner, the scene-maps bake, the synthesis and the camera
@@ -57,12 +58,37 @@ def scene_clusters(scene: Scene) -> list:
     return _copy(_MEMO[key])
 
 
+def _check_groom(strands, path) -> None:
+    """Refuse a groom the cluster fit cannot use, naming ``groom.path``: fewer than 2 strands (a fitted cluster's
+    cross-section is measured from the spread of its strands, and one strand has none), or a strand without length (no
+    direction to follow: all its points within 1e-6 of the groom's extent, the fit's own test of a usable strand)."""
+    n = strands.n_strands
+    if n < 2:
+        raise errors.ValidationError(
+            "groom.path",
+            str(path),
+            f"the groom holds {n} strand{'' if n == 1 else 's'}; the cluster fit needs at least 2 "
+            "(a cluster's cross-section is measured from the spread of its strands)",
+        )
+    extent = float(np.linalg.norm(np.ptp(strands.points.astype(np.float64), axis=0)))
+    flat = np.flatnonzero(strands.lengths() <= 1e-6 * extent)
+    if flat.size:
+        i = int(flat[0])
+        raise errors.ValidationError(
+            "groom.path",
+            str(path),
+            f"{flat.size} of {n} strands {'has' if flat.size == 1 else 'have'} no length (strand {i}: its {int(strands.counts[i])} points all at "
+            f"{np.round(strands.strand(i)[0].astype(np.float64), 6).tolist()}); every strand needs a length to fit clusters to",
+        )
+
+
 def _build(scene: Scene) -> list:
     from ..geometry import ClusterGeometry, Strands, fit_clusters, generate_strands, read_strands
 
     if scene.groom_path is not None:
         g = scene.config["groom"]
         strands = read_strands(scene.groom_path)
+        _check_groom(strands, scene.groom_path)
         if strands.thickness is None:
             strands = Strands(strands.points, strands.counts, thickness=np.full(strands.n_points, 2.0 * g["radius"], np.float32))
         batch, labels = fit_clusters(
