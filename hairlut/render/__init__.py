@@ -63,6 +63,9 @@ _LAZY = {
     "cached_frame": "_frame_cache",
     "strands_frame": "_frame_cache",
     "compare": "_compare",
+    "alpha_outside": "_compare",
+    "strand_footprints": "_trim",
+    "texel_margins": "_trim",
     "block_average": "_compare",
     "side_by_side": "_compare",
 }
