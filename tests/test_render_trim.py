@@ -119,7 +119,7 @@ def ortho(w=40, h=30, extent=3.0) -> Camera:
 
 
 @pytest.mark.parametrize("margin", [0.0, 1.0, 2.5])
-def test_footprint_is_the_strands_centre_lines_widened_to_the_pixel(margin):
+def test_footprint_is_the_strands_centre_lines_widened_to_the_pixel(margin, monkeypatch):
     """Pixels within radius + margin of a projected segment are kept; none beyond that plus a pixel's diagonal."""
     cam = ortho()
     lines = [np.array([[-1.0, -0.8, 0.0], [0.3, 0.9, 0.1], [1.2, 0.7, 0.0]]), np.array([[-1.3, 1.0, 0.0], [-1.2, -1.1, 0.2]])]
@@ -132,6 +132,11 @@ def test_footprint_is_the_strands_centre_lines_widened_to_the_pixel(margin):
     # tiles: the same footprint seen through a tile at an offset
     tile = strand_footprints(cam, [s], (16, 20), np.array([[12, 9]], np.int32), margin)[0]
     assert np.array_equal(tile, keep[9:25, 12:32])
+    # the samples taken a few at a time: the same footprint
+    import hairlut.render._trim as trim
+
+    monkeypatch.setattr(trim, "CHUNK", 7)
+    assert np.array_equal(strand_footprints(cam, [s], (cam.height, cam.width), np.zeros((1, 2), np.int32), margin)[0], keep)
 
 
 def test_texel_margins_are_one_texel_and_at_least_a_pixel():

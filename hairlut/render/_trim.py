@@ -7,19 +7,20 @@ trajectory.  Where they do not, the α lands where the cluster has no hair: a fi
 (``hairlut.geometry.fit``: roots spread over the scalp make its first cross-sections wide, and its strands cross
 them at a slant), a fat ellipse seen at a slant (the in-plane ray and the camera ray part by the chord times
 cot ψ), and eq 7's interpolation between a full cross-section and an empty one.  On the Sintel groom (128², direct
-maps) 6.7 % of the frame's α lay outside the strands' silhouette dilated by 3 pixels, nearly all of it in the first
-eighth of three clusters' length: translucent sheets past the hair.
+maps) 6.7 % of the frame's α lay outside the strands' silhouette dilated by 3 pixels, most of it near the start of
+three clusters: translucent sheets past the hair (benchmarks/records.md, 2026-12-04).
 
-Trimming the surfaces where a cluster's strands are *not* is view-independent only in part: a layer texel carries
-the α of strands anywhere along its ray (the front surface of a flat curtain seen face-on holds all of the
-curtain's α, far from every strand in 3-D), and cutting texels whose own sector is empty, or clipping the mesh to
-the strands' span in t, removed next to none of that α on Sintel (the fit already lengthens every cluster just past
-its strands, and most of the outside α came from sectors that do hold strands).  So the trim is made per camera, in
+Trimming the surfaces where a cluster's strands are *not* can be view-independent only in part: a layer texel
+carries the α of strands anywhere along its ray (the front surface of a flat curtain seen face-on holds all of the
+curtain's α, far from every strand in 3-D).  Cutting texels whose own sector is empty misses the sheets (their
+sections hold strands; and with track reads a texel reads the sectors along its ray, not its own), clipping the
+meshes to the strands' span in t removes nothing (the fit lengthens each cluster only just past its strands), and
+a per-texel trim leaks a texel's width through the bilinear texture.  So the trim is made per camera, in
 the camera pass, where the silhouette is known: :func:`strand_footprints` draws each cluster's footprint, the
-pixels within its strands' projected radius plus :data:`MARGIN` pixels of their centre lines, and
+pixels within its strands' projected radius plus a margin (:func:`texel_margins`: one texel) of their centre lines, and
 ``_fragments.plan_fragments(keep=)`` drops the cluster's fragments outside it.  Inside the footprint nothing
 changes (α and colour are the maps'), so the trim removes only α that lies off the cluster's own strands; the margin
-keeps it from cutting the layers into single strands (which the texture, a few pixels a texel, does not resolve).
+keeps it from cutting the layers into single strands finer than the texture resolves.
 """
 
 from __future__ import annotations
@@ -36,31 +37,47 @@ MIN_MARGIN = 1.0
 SAMPLES_PER_PIXEL = 2.0
 
 
-def _centre_lines(cam, strands) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pixel x, y and projected radius (pixels) of points along every segment of ``strands`` (a
-    :class:`~hairlut.geometry.Strands`), at most 1 / :data:`SAMPLES_PER_PIXEL` pixel apart; ends included."""
+#: Centre-line samples held at once (bounds the memory of a big cluster's footprint).
+CHUNK = 1 << 22
+#: The most samples one segment takes (half-pixel spacing across a 16k-pixel frame and more).
+PER_SEGMENT = 1 << 16
+
+
+def _segments(cam, strands) -> tuple[np.ndarray, ...]:
+    """Pixel x, y and projected radius (pixels) of both ends of every segment of ``strands`` (a
+    :class:`~hairlut.geometry.Strands`): (x0, y0, r0, x1, y1, r1), each (S,).  A perspective camera drops the segments
+    with an end at or behind the eye."""
     p = np.asarray(strands.points, np.float64)
     if strands.thickness is None:
         raise errors.ValidationError("strands.thickness", None, "the trim needs each strand's thickness (its radius)")
     r = 0.5 * np.asarray(strands.thickness, np.float64)
-    x, y, _ = cam.project(p)
+    x, y, depth = cam.project(p)
     rx, ry, _ = cam.project(p + r[:, None] * cam.right)
     rpx = np.hypot(rx - x, ry - y)
     last = np.zeros(len(p), bool)
     last[np.asarray(strands.offsets)[1:] - 1] = True
     a = np.flatnonzero(~last)
     b = a + 1
-    n = np.maximum(np.ceil(SAMPLES_PER_PIXEL * np.hypot(x[b] - x[a], y[b] - y[a])), 1).astype(np.int64)
-    n = np.minimum(n, 1 << 16)  # a segment across the whole frame is still sampled finely enough for any frame ≤ 16k
-    seg = np.repeat(np.arange(a.size), n)
-    f = (np.arange(seg.size) - np.repeat(np.cumsum(n) - n, n)) / n[seg]
-    sa, sb = a[seg], b[seg]
+    if cam.projection == "perspective":
+        front = (depth[a] > 0) & (depth[b] > 0)
+        a, b = a[front], b[front]
+    return x[a], y[a], rpx[a], x[b], y[b], rpx[b]
 
-    def lerp(v):
-        return v[sa] + f * (v[sb] - v[sa])
 
-    ends = np.flatnonzero(last)  # each strand's last point (the segments' samples stop short of it)
-    return (np.concatenate([lerp(x), x[ends]]), np.concatenate([lerp(y), y[ends]]), np.concatenate([lerp(rpx), rpx[ends]]))
+def _counts(x0, y0, x1, y1) -> np.ndarray:
+    """Samples per segment, both ends included: 1 / :data:`SAMPLES_PER_PIXEL` pixel apart or closer."""
+    n = np.ceil(SAMPLES_PER_PIXEL * np.hypot(x1 - x0, y1 - y0))
+    return np.clip(np.nan_to_num(n, nan=1.0), 1, PER_SEGMENT).astype(np.int64) + 1
+
+
+def _samples(seg, lo: int, hi: int):
+    """Points every 1 / :data:`SAMPLES_PER_PIXEL` pixel (or closer) along segments lo … hi − 1 of ``seg``
+    (:func:`_segments`), both ends included: x, y and the radius, each interpolated."""
+    x0, y0, r0, x1, y1, r1 = (v[lo:hi] for v in seg)
+    n = _counts(x0, y0, x1, y1)
+    i = np.repeat(np.arange(n.size), n)
+    f = (np.arange(i.size) - np.repeat(np.cumsum(n) - n, n)) / (n[i] - 1)
+    return x0[i] + f * (x1 - x0)[i], y0[i] + f * (y1 - y0)[i], r0[i] + f * (r1 - r0)[i]
 
 
 def slack() -> float:
@@ -103,21 +120,26 @@ def strand_footprints(cam, strands, tile, origins, margin) -> np.ndarray:
         raise errors.ValidationError("margin", np.asarray(margin).tolist(), "pixels ≥ 0, one number or one per cluster")
     keep = np.zeros((len(origins), th, tw), bool)
     for c, s in enumerate(strands):
-        if s.n_strands == 0:
+        seg = _segments(cam, s)
+        if not seg[0].size:
             continue
-        x, y, rpx = _centre_lines(cam, s)
-        reach = rpx + margins[c]
-        pad = int(math.ceil(min(float(reach.max(initial=0.0)), th + tw) + 1))
-        ix = np.floor(x).astype(np.int64) - origins[c, 0] + pad
-        iy = np.floor(y).astype(np.int64) - origins[c, 1] + pad
+        reach_max = float(np.nanmax(np.maximum(seg[2], seg[5]))) + margins[c]
+        pad = int(math.ceil(min(reach_max, th + tw) + 1))  # a sample further out reaches no pixel of the tile
         h, w = th + 2 * pad, tw + 2 * pad
-        ok = np.isfinite(x) & np.isfinite(y) & (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
-        if not ok.any():
-            continue
-        flat = iy[ok] * w + ix[ok]
-        most = np.full(h * w, -1.0)
-        np.maximum.at(most, flat, reach[ok])
+        most = np.full(h * w, -1.0)  # the largest reach of a sample in each pixel; −1: none
+        ends = np.cumsum(_counts(seg[0], seg[1], seg[3], seg[4]))
+        lo = 0
+        while lo < len(ends):  # segments in chunks of about CHUNK samples
+            hi = max(int(np.searchsorted(ends, (ends[lo - 1] if lo else 0) + CHUNK, side="right")), lo + 1)
+            x, y, rpx = _samples(seg, lo, hi)
+            ix = np.floor(np.clip(x, -1e9, 1e9)).astype(np.int64) - origins[c, 0] + pad
+            iy = np.floor(np.clip(y, -1e9, 1e9)).astype(np.int64) - origins[c, 1] + pad
+            ok = np.isfinite(x) & np.isfinite(y) & (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
+            np.maximum.at(most, iy[ok] * w + ix[ok], rpx[ok] + margins[c])
+            lo = hi
         marked = (most >= 0).reshape(h, w)
+        if not marked.any():
+            continue
         dist, (ny, nx) = distance_transform_edt(~marked, return_indices=True)
         inside = dist <= most.reshape(h, w)[ny, nx] + slack()
         keep[c] = inside[pad : pad + th, pad : pad + tw]
