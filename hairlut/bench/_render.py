@@ -3,7 +3,8 @@ convergence level, against the finest level (:func:`render_study`: FLIP mean err
 
 Per scene: the reference at each level (``hairlut.render.render_strands(levels=[ℓ])``: 2^ℓ × 2^ℓ samples per
 pixel, 2^(ℓ+1) steps per crossing); the finest is the truth every other row is compared with
-(``hairlut.render.compare``: FLIP mean, mean-α bias, RGB RMSE, RGB RMSE after 8 × 8 block averaging).  Then the
+(``hairlut.render.compare``: FLIP mean, mean-α bias, α outside the truth's silhouette, RGB RMSE, RGB RMSE after
+8 × 8 block averaging).  Then the
 layered model (``render_layered``) for each ``[render] method`` that can run here: ``direct`` always; ``satf``
 when the scene's hrir_db is in the table cache; ``scene`` when its scene_maps table is.  ``frame_ms``: the
 layered rasteriser's warm time (maps excluded; ``maps_ms`` beside it) or the reference level's wall time.  Two
@@ -80,6 +81,7 @@ def _row(scene, method, frame_ms, cpu_ms, figs, **extra):
         "flip_mean": figs.get("flip_mean"),
         "alpha_bias": figs.get("alpha_bias"),
         "alpha_bias_relative": figs.get("alpha_bias_relative"),
+        "alpha_outside": figs.get("alpha_outside"),
         "rgb_rmse": figs.get("rgb_rmse"),
         "rgb_rmse_8x8": figs.get("rgb_rmse_8x8"),
         **extra,
@@ -89,7 +91,7 @@ def _row(scene, method, frame_ms, cpu_ms, figs, **extra):
 def render_study(path, levels=(0, 1, 2), resolution: int | None = None, progress=None) -> list[dict]:
     """The rows of the module docstring for the scene file ``path`` at ``resolution``² (the scene's camera when
     None), ``levels`` of the reference (the last is the truth).  Each row: ``scene``, ``method``, ``frame_ms``,
-    ``cpu_ms``, ``flip_mean``, ``alpha_bias``, ``alpha_bias_relative``, ``rgb_rmse``, ``rgb_rmse_8x8``,
+    ``cpu_ms``, ``flip_mean``, ``alpha_bias``, ``alpha_bias_relative``, ``alpha_outside``, ``rgb_rmse``, ``rgb_rmse_8x8``,
     ``resolution`` and what the method adds (``spp``, ``steps``, ``maps_ms``, ``triangles``, …)."""
     from hairlut.render import compare, inside_clusters, render_layered, render_strands
     from hairlut.scene import load_scene, scene_clusters
@@ -113,7 +115,14 @@ def render_study(path, levels=(0, 1, 2), resolution: int | None = None, progress
         figs = (
             compare(f, truth)[0]
             if lv != max(levels)
-            else {"flip_mean": 0.0, "alpha_bias": 0.0, "rgb_rmse": 0.0, "rgb_rmse_8x8": 0.0, "alpha_bias_relative": 0.0}
+            else {
+                "flip_mean": 0.0,
+                "alpha_bias": 0.0,
+                "rgb_rmse": 0.0,
+                "rgb_rmse_8x8": 0.0,
+                "alpha_bias_relative": 0.0,
+                "alpha_outside": 0.0,
+            }
         )
         last = f.info["levels"][-1]
         rows.append(
@@ -191,7 +200,10 @@ def _figures(rows: list[dict], levels: tuple[int, ...]) -> list[Figure]:
                 {k: r[k] for k in ("spp", "steps", "triangles", "resolution") if r.get(k) is not None},
                 baseline=method == coarse,
                 paper=method == "layered satf",
-                extra={k: r.get(k) for k in ("rgb_rmse", "rgb_rmse_8x8", "alpha_bias", "maps_ms", "frame_ms", "cpu_ms")},
+                extra={
+                    k: r.get(k)
+                    for k in ("rgb_rmse", "rgb_rmse_8x8", "alpha_bias", "alpha_outside", "maps_ms", "frame_ms", "cpu_ms")
+                },
             )
         )
     return figs

@@ -2,7 +2,8 @@
 compared.
 
 ``render_layered(scene)``: the layered cluster model, its layer meshes textured with the online module's
-maps and rasterised in JAX (``_layered``, ``_fragments``, ``_raster``).  ``render_strands(scene)``, the strand render:
+maps and rasterised in JAX (``_layered``, ``_fragments``, ``_raster``), each cluster kept on its own strands'
+footprint (``_trim``: the layers stay on the hair).  ``render_strands(scene)``, the strand render:
 the strands as the Gaussian tubes of the sector densities, ray-marched through the camera and refined until
 converged (``_strand_march``, ``_strands``).  ``compare(a, b)``: RMSE, α bias, 8 × 8-block figures and FLIP
 (``_compare``); ``layered_vs_strands(scene, out_dir)`` renders both and writes them side by side.
@@ -63,6 +64,9 @@ _LAZY = {
     "cached_frame": "_frame_cache",
     "strands_frame": "_frame_cache",
     "compare": "_compare",
+    "alpha_outside": "_compare",
+    "strand_footprints": "_trim",
+    "texel_margins": "_trim",
     "block_average": "_compare",
     "side_by_side": "_compare",
 }

@@ -5,6 +5,9 @@
 - ``rgb_rmse``: RMSE of the premultiplied linear RGB; ``alpha_rmse``: RMSE of α;
 - ``alpha_bias``: mean α of a minus mean α of b, and ``alpha_bias_relative`` (over b's mean α; None, with the
   reason in ``alpha_bias_relative_undefined``, when b's α is zero everywhere: there is no coverage to be relative to);
+- ``alpha_outside``: the fraction of a's α (summed over the frame) that lies outside b's silhouette, the pixels
+  where b's α exceeds :data:`SILHOUETTE_ALPHA`, dilated by a disc of :data:`OUTSIDE_PIXELS` pixels (issue 26's
+  "α outside the strands"; None, with the reason in ``alpha_outside_undefined``, when a's α is zero everywhere);
 - the same RMSEs after 8 × 8 block averaging (``rgb_rmse_8x8``, ``alpha_rmse_8x8``): coverage and tone,
   apart from where single strands fall;
 - ``flip_mean`` and the FLIP heat map (LDR-FLIP of NVIDIA's ``flip-evaluator`` package, on the frames
@@ -18,6 +21,10 @@ import numpy as np
 from .. import errors
 
 BLOCK = 8
+#: b's silhouette for ``alpha_outside``: the pixels where its α exceeds this ...
+SILHOUETTE_ALPHA = 0.01
+#: ... dilated by a disc of this radius, pixels.
+OUTSIDE_PIXELS = 3
 
 
 def block_average(x: np.ndarray, block: int = BLOCK) -> np.ndarray:
@@ -27,6 +34,22 @@ def block_average(x: np.ndarray, block: int = BLOCK) -> np.ndarray:
         raise errors.ValidationError("frame", list(x.shape[:2]), f"smaller than one {block} × {block} block")
     y = x[:h, :w]
     return y.reshape(h // block, block, w // block, block, *x.shape[2:]).mean(axis=(1, 3))
+
+
+def alpha_outside(a, b, *, pixels: int = OUTSIDE_PIXELS, threshold: float = SILHOUETTE_ALPHA) -> float | None:
+    """The fraction of ``a``'s α (frame sum) outside ``b``'s silhouette (α > ``threshold``) dilated by a disc of
+    ``pixels``; (h, w, 4) frames or (h, w) α.  None when ``a``'s α is zero everywhere."""
+    from scipy.ndimage import binary_dilation
+
+    aa, bb = (np.asarray(getattr(x, "rgba", x), np.float64) for x in (a, b))
+    aa, bb = (x[..., 3] if x.ndim == 3 else x for x in (aa, bb))
+    r = int(pixels)
+    yy, xx = np.mgrid[-r : r + 1, -r : r + 1]
+    sil = bb > threshold
+    if r > 0:
+        sil = binary_dilation(sil, structure=xx * xx + yy * yy <= r * r)
+    total = float(aa.sum())
+    return float(aa[~sil].sum()) / total if total > 0 else None
 
 
 def _srgb(rgb: np.ndarray) -> np.ndarray:
@@ -59,11 +82,14 @@ def compare(a, b, *, flip: bool = True) -> tuple[dict, np.ndarray | None]:
         "alpha_mean_b": mb,
         "alpha_bias": ma - mb,
         "alpha_bias_relative": (ma - mb) / mb if mb > 0 else None,
+        "alpha_outside": alpha_outside(ra, rb),
         "rgb_rmse_8x8": _rmse(ba[..., :3], bb[..., :3]),
         "alpha_rmse_8x8": _rmse(ba[..., 3], bb[..., 3]),
     }
     if mb <= 0:
         out["alpha_bias_relative_undefined"] = "b's alpha is zero everywhere"
+    if out["alpha_outside"] is None:
+        out["alpha_outside_undefined"] = "a's alpha is zero everywhere"
     heat = None
     if flip:
         import flip_evaluator

@@ -138,10 +138,13 @@ def order_fragments(z, tuv, origins, size, n_t: int, n_u: int):
     return cell, weight, source, slabs, depth.reshape(H, W)
 
 
-def plan_fragments(cam, vertices, triangles, uv, texture_shape, *, tile, origins, limit: int | None = None) -> FragmentPlan:
+def plan_fragments(
+    cam, vertices, triangles, uv, texture_shape, *, tile, origins, keep=None, limit: int | None = None
+) -> FragmentPlan:
     """The :class:`FragmentPlan` of (C, K, V, 3) ``vertices`` (triangles (T, 3), uv (V, 2) shared) through ``cam``,
     for textures of shape (C, K, n_t, n_u) (module docstring, step 1); ``tile``/``origins`` as ``_layered.layout``
-    gives them.  Refuses (``BudgetError``) when the camera pass would not fit the memory budget (``limit``: bytes,
+    gives them.  ``keep``: (C, th, tw) bool on the same tiles, the pixels where each cluster may draw (the trim,
+    ``_trim.strand_footprints``); a cluster's fragments elsewhere are dropped (None: all kept).  Refuses (``BudgetError``) when the camera pass would not fit the memory budget (``limit``: bytes,
     default ``hairlut.budget.memory_limit()``)."""
     from ._tiles import _bucket, candidates, pairs_of
 
@@ -177,10 +180,19 @@ def plan_fragments(cam, vertices, triangles, uv, texture_shape, *, tile, origins
         cap = _bucket(int(need))
         z, tuv, need = surface_kernel(*args, **kw, cap=cap)
     z, tuv = np.asarray(z), np.asarray(tuv)
+    trimmed = 0
+    if keep is not None:
+        keep = np.asarray(keep, bool)
+        if keep.shape != (C, th, tw):
+            raise errors.ValidationError("keep", list(keep.shape), f"need (C, th, tw) = {[C, th, tw]}")
+        drop = np.isfinite(z) & ~keep[:, None]
+        trimmed = int(drop.sum())
+        z = np.where(drop, np.inf, z)
     t1 = time.perf_counter()
     cell, weight, source, slabs, depth = order_fragments(z, tuv, origins, size, n_t, n_u)
     info = {
         "fragments": int(len(cell)),
+        "trimmed": trimmed,
         "pixels": int(slabs[0]) if slabs else 0,
         "slabs": len(slabs),
         "candidates_per_cluster": cap,
@@ -241,15 +253,15 @@ def draw_plan(plan: FragmentPlan, textures) -> tuple[np.ndarray, float]:
     return out.reshape(H, W, 4), time.perf_counter() - t0
 
 
-def draw_layers(cam, vertices, triangles, uv, textures, *, tile, origins, repeat: int = 0, plan=None):
+def draw_layers(cam, vertices, triangles, uv, textures, *, tile, origins, repeat: int = 0, plan=None, keep=None):
     """The two-pass frame of (C, K, V, 3) ``vertices`` and (C, K, n_t, n_u, 4) premultiplied ``textures``, as
     ``_layered.rasterise`` draws it in one pass: (rgba, depth, seconds, plan).  ``plan``: a :class:`FragmentPlan`
-    of the same camera and geometry to reuse.  ``seconds``: ``plan`` (the camera pass, 0 when reused),
+    of the same camera and geometry to reuse; ``keep``: :func:`plan_fragments`'s trim.  ``seconds``: ``plan`` (the camera pass, 0 when reused),
     ``raster_first`` (the first frame, compile included) and, with ``repeat`` more frames, ``raster`` (the best:
     the frame time once the camera pass is done, maps excluded)."""
     t0 = time.perf_counter()
     if plan is None:
-        plan = plan_fragments(cam, vertices, triangles, uv, np.shape(textures)[:4], tile=tile, origins=origins)
+        plan = plan_fragments(cam, vertices, triangles, uv, np.shape(textures)[:4], tile=tile, origins=origins, keep=keep)
     sec = {"plan": time.perf_counter() - t0}
     rgba, sec["raster_first"] = draw_plan(plan, textures)
     times = [draw_plan(plan, textures)[1] for _ in range(max(int(repeat), 0))]

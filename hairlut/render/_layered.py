@@ -222,6 +222,7 @@ def render_layered(
     repeat: int = 1,
     edge_pixels: float = EDGE_PIXELS,
     oblique: bool | str | None = None,
+    trim: bool = True,
 ) -> Frame:
     """The layered model of ``scene`` through its camera (module docstring).  ``db``/``sh``/``maps``: the
     assets ``hairlut.synth.prepare`` reads (the scene's map method decides which); ``prepared``: a
@@ -233,7 +234,10 @@ def render_layered(
     ``"rays"`` (the default, True or None, with the direct map method) in the maps themselves, every traced ray's optical
     depth times each sector's 1 / sin ψ (and each light's ray in the sector's self-shadow times 1 / sin ψ_l) before the
     rays are averaged (:func:`sector_paths`); ``"strands"`` (the default with the other map methods) each texel by
-    :func:`strand_path`'s exponent, ``"volume"`` by 1 / sin ψ, ``"off"`` (False) not at all (the in-plane α)."""
+    :func:`strand_path`'s exponent, ``"volume"`` by 1 / sin ψ, ``"off"`` (False) not at all (the in-plane α).
+    ``trim`` (default): each cluster draws only within its own strands' footprint through the camera, widened by
+    one texel (``_trim``: the layers stay on the hair); ``info["trim"]`` gives the margins and the fragments
+    dropped, ``info["seconds"]["trim"]`` the footprints' time (part of the camera pass)."""
     from ..geometry import ClusterGeometry
     from ..scene import as_scene
     from ..synth import prepare, render_view
@@ -261,9 +265,23 @@ def render_layered(
         path = oblique_path(cam, np.stack([pc.tangent for pc in prep.clusters]), np.stack([pc.position for pc in prep.clusters]))
         tex = lengthen(tex, strand_path(path, extinction(sc)) if law == "strands" else path)
     t2 = time.perf_counter()
+    keep, trim_info = None, None
+    if trim:
+        from ..scene import scene_clusters
+        from ._trim import strand_footprints, texel_margins
+
+        margins = texel_margins(cam, np.stack([pc.position for pc in prep.clusters]))
+        keep = strand_footprints(cam, [s for _, s in scene_clusters(sc)], tile, origins, margins)
+        trim_info = {"margin_px": [round(float(m), 3) for m in margins]}
+    t3 = time.perf_counter()
     rgba, depth, sec, plan = draw_layers(
-        cam, meshes.vertices, meshes.triangles, meshes.uv, tex, tile=tile, origins=origins, repeat=repeat
+        cam, meshes.vertices, meshes.triangles, meshes.uv, tex, tile=tile, origins=origins, repeat=repeat, keep=keep
     )
+    if trim_info is not None:
+        kept = plan.info["fragments"]
+        trim_info.update(
+            trimmed=plan.info["trimmed"], trimmed_fraction=plan.info["trimmed"] / max(kept + plan.info["trimmed"], 1)
+        )
     cap = plan.info["candidates_per_cluster"]
     st = result.stats["seconds"]
     info = {
@@ -279,7 +297,15 @@ def render_layered(
         "fragments": plan.info["fragments"],
         "tile": list(tile),
         "oblique": law,
+        "trim": trim_info,
         "environment": "included" if prep.environment is not None else "none in scene",
-        "seconds": {"prepare": t1 - t0, "maps": st.get("maps", 0.0), "shade": st.get("shade", 0.0), "setup": t2 - t1, **sec},
+        "seconds": {
+            "prepare": t1 - t0,
+            "maps": st.get("maps", 0.0),
+            "shade": st.get("shade", 0.0),
+            "setup": t2 - t1,
+            "trim": t3 - t2,
+            **sec,
+        },
     }
     return Frame(rgba, depth, cam, info)
