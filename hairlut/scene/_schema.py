@@ -67,6 +67,10 @@ RENAMED = {"render.reference_bound": "render.strands_bound"}
 
 #: ``[shadows] method``: where each light's transmittance at a texel comes from (eq 13 with one τ per light).
 SHADOW_METHODS = ("smap", "light_oriented", "opacity_maps", "none")
+#: ``[material] reflectance``: what eq 13 multiplies the lighting by (``hairlut.synth.shade_kernel``): ``unit``, each
+#: layer reflects the lighting per unit of its opacity α, as the strand render shades each strand (the default);
+#: ``hrir``, the paper's eq 13 as written, × the HRIR's accumulated Phong reflectance re.
+REFLECTANCES = ("unit", "hrir")
 #: The ``[shadows]`` keys each method reads (``smap`` reads material.k_shadow and material.shadow_form).
 SHADOW_KEYS = {
     "smap": (),
@@ -157,6 +161,12 @@ SCHEMA = {
         # float32 in the kernel: exp(−k Σα) and max(0, 1 − k Σα) saturate for any finite k; an infinite one is inf · 0 = NaN
         "k_shadow": Field(0.5, _F, float32(_nonneg), "eq 12 self-shadow intensity"),
         "shadow_form": Field("exp", _S, one_of("exp", "linear"), "eq 12"),
+        "reflectance": Field(
+            "unit",
+            _S,
+            one_of(*REFLECTANCES),
+            "eq 13's reflectance: unit (the lighting per unit of α, as the strands are shaded) or hrir (× the HRIR's re)",
+        ),
         "k_threshold": Field(1.0, _F, lambda x: None if x >= 0 else "must be ≥ 0 (inf: always uniform)", "eq 6"),
     },
     "effects": {name: Field(True, _B, None, "") for name in ("diffuse", "primary", "secondary", "shadow")}

@@ -16,7 +16,10 @@ viewer, l toward the light; sin(X, Y) = √(1 − (X·Y)²) for unit vectors.
   indices grow outward); the linear form max(0, 1 − k_shadow Σ α_m) as an option.
 - Shading (eq 13): Ψ_k = τ_k Σ_lights Ψ^lighting_k,j · re_k,j; with a light-space shadow
   method (the light-oriented map, opacity maps: ``hairlut.shadows.light_transmittance``)
-  each light has its own transmittance, Ψ_k = Σ_lights T_k,j Ψ^lighting_k,j · re_k,j.
+  each light has its own transmittance, Ψ_k = Σ_lights T_k,j Ψ^lighting_k,j · re_k,j.  By default
+  the online module passes α_k as re_k,j (``[material] reflectance = "unit"``: the lighting per unit of
+  opacity, a departure from the paper measured in ``hairlut.synth.shade_kernel``'s docstring); the
+  HRIR's re with ``"hrir"``.
 - Blending (eq 14): Ψ^final = Ψ^bk Π_k (1 − α_k) + Σ_k Ψ_k α_k Π_{j>k} (1 − α_j), over the
   background; the composite's alpha is 1 − Π_k (1 − α_k).
 

@@ -234,7 +234,7 @@ def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
     )
 
 
-@partial(jax.jit, static_argnames=("effects", "linear"))
+@partial(jax.jit, static_argnames=("effects", "linear", "reflectance"))
 def shade_kernel(
     re,
     alpha,
@@ -253,13 +253,31 @@ def shade_kernel(
     *,
     effects,
     linear,
+    reflectance="unit",
 ):
     """Eqs 8–11 (lighting) and 12–14 (shadows, shading, blend) of every cluster, one kernel: τ, lighting
     summed over the lights, shaded RGBA per layer (plus ``extra``, the environment term) and the composite RGBA.
     τ is eq 12's s-map when ``effects[-1]`` (the s-map switch) is on, 1 when off, or, when ``transmittance``
-    (C, K, n_t, n_u, L) is given, one τ per light (eq 13 per light)."""
+    (C, K, n_t, n_u, L) is given, one τ per light (eq 13 per light).
+
+    ``reflectance`` (``[material] reflectance``) is what eq 13 multiplies the lighting by, per light:
+
+    * ``"unit"`` (the default): the layer's α, so the shaded colour is α · τ · Ψ^lighting, premultiplied: the
+      lighting per unit of opacity, as the strand render shades each strand (Kajiya–Kay, eqs 8–11, times its
+      transmittance).  A departure from eq 13 as written, which multiplies by the HRIR's re, the accumulated Phong
+      reflectance k_a + T_l (k_d n·l + k_s (r·d)^p) of the trace, n the density gradient (satf §5.1, eq 5).  Per
+      unit α, re is not a factor the lighting should carry: for a flat slab of parallel strands, pure diffuse
+      Phong (k_a = k_s = 0, k_d = 1) and no shadow, re/α measured 0.33–0.70 per layer (the cosine of the strands'
+      lumpy density gradients, which Kajiya–Kay's strand lighting already replaces), so the layered colour per unit
+      α was 0.16–0.40 of the strand render's, which is Kajiya–Kay's closed form (tests/test_energy.py; 0.40 with a
+      frontal light, 0.16 with a back light, where n·l < 0 leaves re only k_a α).  What re holds
+      beside that cosine, the in-sector self-shadow T_l (15–20 % on that slab), cannot be separated from it; the
+      shadow method (τ) is the layered model's shadowing.
+    * ``"hrir"``: eq 13 as the paper writes it, τ · Ψ^lighting · re."""
     fx = dict(zip(("use_diffuse", "primary", "secondary", "noise"), effects))
     light = lighting_kernel(tangent, normal, view, lights, light_rgb, noise, mat, colours, **fx)
+    if reflectance == "unit":
+        re = jnp.broadcast_to(alpha[:, :, None], re.shape)
     tau, rgb, final, a = compose_clusters_kernel(
         light, re, alpha, k_shadow, background, extra, transmittance, shadow=effects[-1], linear=linear
     )
@@ -308,6 +326,7 @@ def render_clusters(
         transmittance,
         effects=(*(fx[k] for k in ("diffuse", "primary", "secondary", "noise")), method == "smap"),
         linear=scene.material["shadow_form"] == "linear",
+        reflectance=scene.material["reflectance"],
     )
     re, alpha, tau, light, rgba, final = (np.asarray(x) for x in jax.block_until_ready((re, alpha, *out)))
     t2 = time.perf_counter()
