@@ -64,6 +64,7 @@ def pytest_unconfigure(config):
 #: validate, view_grid, xarray files: a file listed here or not still runs, only perhaps later than it should.
 COSTLIEST_FIRST = (
     "test_packaging.py",  # its slow test builds a wheel and runs `hairlut bench --quick` from it
+    "test_grooms.py",  # its slow tests plan, bake, render and compare three generated grooms (~140 s)
     "test_synth_track_reads.py",
     "test_hostile_bitflips.py",
     "test_hostile_limits.py",
