@@ -66,12 +66,10 @@ def test_scene_selects_each_method(views, method):
     assert ("shadows" in prep.seconds) is (method in LIGHT_METHODS)
 
 
-def test_light_oriented_is_the_default_and_renders_exactly_as_when_named(views, db):
-    """The default since eq 13 shades per unit α (DESIGN.md, "Shadow methods"): a scene that names no method renders
-    exactly as one that names light_oriented."""
-    assert resolve_scene(scene()).config["shadows"]["method"] == "light_oriented"
+def test_smap_is_the_default_and_renders_exactly_as_before(views, db):
+    assert resolve_scene(scene()).config["shadows"]["method"] == "smap"
     unmarked = render_view(prepare(scene(), db))
-    _, explicit = views["light_oriented"]
+    _, explicit = views["smap"]
     for a, b in zip(unmarked.clusters, explicit.clusters):
         for name in ("re", "alpha", "shadow", "lighting", "rgba", "final"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
@@ -106,8 +104,8 @@ def test_switches_turn_the_shadow_off():
     off["effects"]["shadow"] = False
     off["shadows"] = {"method": "opacity_maps"}
     assert resolve_scene(off).shadow_method == "none"
-    assert resolve_scene(dict(scene(k_shadow=0.0), shadows={"method": "smap"})).shadow_method == "none"
-    assert resolve_scene(scene(k_shadow=0.0)).shadow_method == "light_oriented"  # the default does not read k_shadow
+    assert resolve_scene(scene(k_shadow=0.0)).shadow_method == "none"
+    assert resolve_scene(dict(scene(k_shadow=0.0), shadows={"method": "light_oriented"})).shadow_method == "light_oriented"
 
 
 # ----------------------------------------------------------------------------- T = 1 in front, darker behind
@@ -180,9 +178,7 @@ def test_plan_explains_the_shadow_method(tmp_path):
         s["tables"] = {"hrir": TINY_HRIR}
         return {st.name: st for st in plan(s, tmp_path).steps}
 
-    st = steps()  # the default: the light-oriented map
-    assert st["s_map"].action == "skip" and st["shadow_maps"].action == "run"
-    st = steps(method="smap")
+    st = steps()
     assert st["s_map"].action == "run" and st["shadow_maps"].action == "skip"
     st = steps(method="none")
     assert st["s_map"].action == "skip" and st["shadow_maps"].action == "skip" and "'none'" in st["s_map"].reason

@@ -200,12 +200,10 @@ SCHEMA = {
     },
     "shadows": {
         "method": Field(
-            "light_oriented",
+            "smap",
             _S,
             one_of(*SHADOW_METHODS),
-            "light_oriented (bertails; the default: with eq 13 per unit α its colour is 1.22× the strand render's on "
-            "Sintel, eq 12's s-map 1.71×, at the same frame time), smap (eq 12 from the α-maps), opacity_maps (kim ch. 6) "
-            "or none",
+            "smap (eq 12 from the α-maps), light_oriented (bertails), opacity_maps (kim ch. 6) or none",
         ),
         "resolution": Field(
             32, _I, in_range(2, 512), "cells (light_oriented) or texels (opacity_maps) along the hair's longest extent"
