@@ -14,7 +14,7 @@ from click.testing import CliRunner
 from hairlut import errors
 from hairlut.geometry import Strands, read_strands, write_strands
 
-from . import _grooms as g
+from hairlut.bench import _grooms as g
 
 KINDS = tuple(g.KINDS)
 
