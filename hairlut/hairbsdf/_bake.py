@@ -1,0 +1,193 @@
+"""Baking the ``hair_bsdf`` tables: recipe → converged values with per-entry errors → HDF5 (and the EXR atlas).
+
+The numbers come from :mod:`hairlut.hairbsdf._integrals` (deterministic quadrature of Chiang et al. 2016's
+fibre in θ and φ, with an error estimate per entry), entry by entry, so a sin θ row's numbers do not depend on
+which rows a part or a process bakes with it.  This module is the kind's side of the bake: the units of the
+one shard path (:mod:`hairlut.bake.sharding`: parts of sin θ rows, ``--shard``, ``--distributed``, virtual or
+copied assets), the whole bake of a coverage-only recipe, and the report.
+"""
+
+from __future__ import annotations
+
+import functools
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import errors
+from ..assets import canonical_json, open_table, recipe_hash
+from ._io import _largest, read_part, whole_tables, write_assembled, write_asset, write_joined, write_part
+from ._kind import KIND
+from ._recipe import grid_axes, grid_tables, resolve_recipe
+
+
+def _physics():
+    """The quadrature module (imported on first use: it loads JAX)."""
+    from . import _integrals
+
+    return _integrals
+
+
+def grid_rows(recipe: dict, start: int, stop: int) -> tuple[dict, dict]:
+    """({quantity: values}, {quantity: error estimates}) of sin θ rows [start, stop) of the recipe's grid tables,
+    float64 arrays of shape (stop − start, n_roughness, n_absorption)."""
+    ax = grid_axes(recipe)
+    axes = {"sin_theta": ax["sin_theta"], "roughness": ax["roughness"], "sigma_a": ax["sigma_a"]}
+    n_r, n_a = len(ax["roughness"]), len(ax["sigma_a"])
+    values, errs = {}, {}
+    for table in grid_tables(recipe):
+        got = _physics().tables(
+            axes,
+            table,
+            (start * n_r * n_a, stop * n_r * n_a),
+            bsdf=recipe["bsdf"],
+            quadrature=recipe["quadrature"],
+        )
+        for name, (v, e) in got.items():
+            values[name] = np.asarray(v, np.float64).reshape(stop - start, n_r, n_a)
+            errs[name] = np.asarray(e, np.float64).reshape(stop - start, n_r, n_a)
+    return values, errs
+
+
+def coverage_table(recipe: dict) -> tuple[np.ndarray, np.ndarray] | None:
+    """(values, error estimates) of the coverage table over (strands, radius), float64; None when not baked."""
+    if not recipe["coverage"]["bake"]:
+        return None
+    return _coverage(canonical_json(recipe))
+
+
+@functools.lru_cache(maxsize=4)
+def _coverage(text: str):
+    import json
+
+    recipe = json.loads(text)
+    ax = grid_axes(recipe)
+    n = (len(ax["strands"]), len(ax["radius"]))
+    got = _physics().tables(
+        {"strands": ax["strands"], "radius": ax["radius"]},
+        "coverage",
+        (0, n[0] * n[1]),
+        bsdf=recipe["bsdf"],
+        quadrature=recipe["quadrature"],
+    )
+    v, e = got["coverage"]
+    return np.asarray(v, np.float64).reshape(n), np.asarray(e, np.float64).reshape(n)
+
+
+# ----------------------------------------------------------------------------- the shard path's pieces
+
+
+def bake_part(recipe: dict, start: int, stop: int, total: int, path, **_) -> Path:
+    """Bake sin θ rows [start, stop) into the ``hair_bsdf_shard`` part ``path``."""
+    if total != recipe["grid"]["resolution"][0]:
+        raise errors.ValidationError("sin_theta", total, f"the recipe's grid has {recipe['grid']['resolution'][0]} sin θ rows")
+    values, errs = grid_rows(recipe, start, stop)
+    return write_part(path, recipe, values, errs, start, total)
+
+
+def join_parts(recipe: dict, parts, out) -> Path:
+    """Consecutive parts as one ``hair_bsdf_shard`` file (``--shard K/N``)."""
+    return write_joined(out, recipe, [read_part(p, recipe) for p in parts])
+
+
+def assemble_parts(recipe: dict, parts, out, **_) -> Path:
+    """Parts covering every sin θ row as one self-contained ``hair_bsdf`` asset (the coverage table computed here)."""
+    return write_assembled(out, recipe, [read_part(p, recipe) for p in parts], coverage_table(recipe))
+
+
+def part_index(recipe: dict, path, **_) -> dict[str, np.ndarray]:
+    """What :func:`whole_parts` reads from one part: its largest error bound."""
+    with open_table(path, f"{KIND}_shard") as f:
+        return {"max_error": np.array([float(f.attrs["max_error"])])}
+
+
+def whole_parts(recipe: dict, parts, index=None, **_):
+    """What a virtual ``hair_bsdf`` stores itself: the axes, σ_a, the coverage table and the largest error."""
+    small = list(index) if index is not None else [part_index(recipe, p) for p in parts]
+    axes, variables, _ = whole_tables(recipe, coverage_table(recipe), None)
+    top = max([float(d["max_error"][0]) for d in small] + [_largest(variables)])
+    return axes, variables, {"max_error": top}
+
+
+def check_part(recipe: dict, path) -> None:
+    """Refuse a part that lacks what ``join``/``assemble``/``whole`` read."""
+    read_part(path, resolve_recipe(recipe, budget=False))
+
+
+def start(recipe: dict, shard=None, atlas=None, **_) -> None:
+    """Refuse a split bake's inputs before any work: an atlas of a shard (a slice of the tables)."""
+    if atlas and shard is not None:
+        raise errors.ValidationError("atlas", str(atlas), "a --shard file holds a slice: write the atlas from the merged asset")
+
+
+def report(recipe: dict, rep: dict, atlas=None, **_) -> dict:
+    """A split bake's own facts: the recipe, the largest error bound, and the atlas process 0 writes."""
+    out = {"recipe": recipe, "atlas": None, "max_error": None}
+    with open_table(rep["out"]) as f:
+        if "max_error" in f.attrs:
+            out["max_error"] = float(f.attrs["max_error"])
+    if atlas and rep["process"] == 0 and rep["kind"] == KIND:
+        out["atlas"] = str(_write_atlas(rep["out"], atlas))
+    return out
+
+
+def _write_atlas(path, atlas) -> Path:
+    from ._atlas import write_atlas
+    from ._lookup import load
+
+    return write_atlas(atlas, load(path))
+
+
+def bake_whole(r: dict, out, *, progress=None, atlas=None, **_) -> dict:
+    """The bake of a recipe without grid tables (the coverage table alone: no split)."""
+    t0 = time.perf_counter()
+    if progress:
+        progress(0, 1)
+    path = write_asset(out, r, None, coverage_table(r))
+    if progress:
+        progress(1, 1)
+    rep = {
+        "out": str(path),
+        "kind": KIND,
+        "recipe": r,
+        "recipe_hash": recipe_hash(r),
+        "bytes": Path(path).stat().st_size,
+        "process": 0,
+    }
+    rep.update(report(r, rep, atlas=atlas))
+    rep["seconds"] = time.perf_counter() - t0
+    return rep
+
+
+def bake(
+    recipe: dict | None,
+    out,
+    *,
+    progress=None,
+    shard=None,
+    atlas=None,
+    block: int | None = None,
+    keep_parts: bool = False,
+    distributed=False,
+    merge: str | None = None,
+) -> dict:
+    """Bake a recipe into the ``hair_bsdf`` asset ``out`` (written atomically): ``hairlut.bake.registry.bake`` of
+    this kind.
+
+    The grid tables bake through :mod:`hairlut.bake.sharding` over their sin θ rows (``block`` rows per
+    resumable part in ``<out>.parts/``, ``shard`` 'K/N', ``distributed``, ``merge`` 'virtual' or 'copy');
+    ``progress(done, total)`` counts rows.  ``atlas``: also write the EXR atlas (:func:`write_atlas`).  Returns the
+    report (``out``, ``seconds``, ``bytes``, ``max_error``, ...)."""
+    from ..bake import registry
+
+    return registry.bake(
+        KIND,
+        recipe,
+        out,
+        progress=progress,
+        shard=shard,
+        distributed=distributed,
+        merge=merge,
+        options={"block": block, "keep_parts": keep_parts, "atlas": atlas},
+    )
