@@ -319,3 +319,35 @@ def test_the_command_teaches():
 def test_an_atlas_of_a_shard_is_refused(physics, tmp_path):
     res = run("bake", "hair_bsdf", "--out", tmp_path / "s.h5", "--shard", "0/2", "--atlas", tmp_path / "a.exr", *_sets(SMALL))
     assert res.exit_code == 2 and "atlas" in res.output and not (tmp_path / "a.exr").exists()
+
+
+# ----------------------------------------------------------------------------- the planner
+
+
+def _scene(tables=None):
+    from tests._synth_fixtures import scene as base_scene
+
+    s = base_scene()
+    s["render"] = {**s.get("render", {}), "method": "direct"}  # no per-scene table to plan
+    s["tables"] = dict(tables or {})
+    return s
+
+
+def test_the_planner_bakes_hair_bsdf_when_the_scene_asks_and_skips_it_otherwise(physics, tmp_path):
+    from hairlut.planner import Plan, bake, find_assets, plan
+
+    skipped = plan(_scene(), tmp_path).step("hair_bsdf")
+    assert skipped.action == "skip" and "nothing reads it" in skipped.reason and "hair_bsdf = true" in skipped.reason
+    p = plan(_scene({"hair_bsdf": {"grid": {"resolution": [6, 5, 4]}, "coverage": {"resolution": [4, 3]}}}), tmp_path)
+    step = p.step("hair_bsdf")
+    assert step.action == "bake" and step.kind == "hair_bsdf" and step.bytes > 0 and step.seconds > 0
+    assert step.recipe == resolve_recipe(SMALL) and "[tables] hair_bsdf" in step.reason
+    done = bake(Plan(p.scene, (step,), p.cache_dir))
+    assert done["hair_bsdf"]["status"] == "baked"
+    again = plan(_scene({"hair_bsdf": SMALL}), tmp_path).step("hair_bsdf")
+    assert again.action == "reuse" and again.path == done["hair_bsdf"]["path"]
+    assert "hair_bsdf" not in find_assets(_scene({"hair_bsdf": SMALL}), tmp_path)  # the online module does not read it
+    assert plan(_scene({"hair_bsdf": True}), tmp_path).step("hair_bsdf").recipe == resolve_recipe({})
+    with pytest.raises(errors.ValidationError) as exc:
+        plan(_scene({"hair_bsdf": {"grid": {"roughness": [0.0, 2.0]}}}), tmp_path)
+    assert exc.value.field == "tables.hair_bsdf.grid.roughness"
