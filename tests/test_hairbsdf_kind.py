@@ -49,7 +49,14 @@ def _stand_in_tables(axes, table, entries, *, bsdf, quadrature):
     return {k: (np.asarray(v, np.float64), np.full(len(v), 1e-8)) for k, v in out.items()}
 
 
-STAND_IN = types.SimpleNamespace(tables=_stand_in_tables)
+def _stand_in_montecarlo(axes, table, entries, *, bsdf, scale, seed):
+    """The stand-in's Unreal-style estimate: its exact values plus noise that falls as 1/√(samples)."""
+    exact = _stand_in_tables(axes, table, entries, bsdf=bsdf, quadrature={"refine": 1})
+    rng = np.random.default_rng([seed, entries[0]])
+    return {k: v + rng.normal(0, 0.01 / np.sqrt(scale), v.shape) for k, (v, _) in exact.items()}
+
+
+STAND_IN = types.SimpleNamespace(tables=_stand_in_tables, montecarlo_unreal=_stand_in_montecarlo)
 
 
 @pytest.fixture
@@ -319,6 +326,26 @@ def test_the_command_teaches():
 def test_an_atlas_of_a_shard_is_refused(physics, tmp_path):
     res = run("bake", "hair_bsdf", "--out", tmp_path / "s.h5", "--shard", "0/2", "--atlas", tmp_path / "a.exr", *_sets(SMALL))
     assert res.exit_code == 2 and "atlas" in res.output and not (tmp_path / "a.exr").exists()
+
+
+# ----------------------------------------------------------------------------- the bench part
+
+
+def test_the_bench_part_compares_with_monte_carlo_and_draws_where_it_errs(physics, tmp_path):
+    from hairlut.bench import PARTS, run_bench
+
+    res = run_bench(tmp_path, registry=PARTS, only="hair_bsdf", quick=True)
+    info = res["parts"]["hair_bsdf"]
+    assert info["status"] == "ok", info
+    labels = [f["label"] for f in res["figures"]]
+    for k in (1, 4, 16):
+        assert f"Unreal-style Monte Carlo, {k}× Unreal's counts" in labels
+    assert "hairlut quadrature (converged)" in labels
+    assert "hair_bsdf/dual_scattering: where the Monte Carlo table errs most" in res["plots"]
+    md = (tmp_path / "report.md").read_text()
+    assert "### dual_scattering: where the Monte Carlo table errs most" in md
+    assert (tmp_path / res["plots"]["hair_bsdf/dual_scattering: where the Monte Carlo table errs most"]).is_file()
+    assert any("the whole bake" in n for n in info["notes"])
 
 
 # ----------------------------------------------------------------------------- the planner

@@ -20,6 +20,7 @@ from ._recipe import SCHEMA, resolve_recipe
 _LAZY = {
     "bake": "_bake",
     "grid_rows": "_bake",
+    "montecarlo_rows": "_bake",
     "coverage_table": "_bake",
     "HairBSDFTables": "_lookup",
     "load": "_lookup",

@@ -29,9 +29,10 @@ def _physics():
     return _integrals
 
 
-def grid_rows(recipe: dict, start: int, stop: int) -> tuple[dict, dict]:
+def grid_rows(recipe: dict, start: int, stop: int, *, refine: int = 1) -> tuple[dict, dict]:
     """({quantity: values}, {quantity: error estimates}) of sin θ rows [start, stop) of the recipe's grid tables,
-    float64 arrays of shape (stop − start, n_roughness, n_absorption)."""
+    float64 arrays of shape (stop − start, n_roughness, n_absorption); ``refine``: that many times the quadrature's
+    nodes in every integration axis (a reference)."""
     ax = grid_axes(recipe)
     axes = {"sin_theta": ax["sin_theta"], "roughness": ax["roughness"], "sigma_a": ax["sigma_a"]}
     n_r, n_a = len(ax["roughness"]), len(ax["sigma_a"])
@@ -42,12 +43,28 @@ def grid_rows(recipe: dict, start: int, stop: int) -> tuple[dict, dict]:
             table,
             (start * n_r * n_a, stop * n_r * n_a),
             bsdf=recipe["bsdf"],
-            quadrature=recipe["quadrature"],
+            quadrature={**recipe["quadrature"], "refine": refine},
         )
         for name, (v, e) in got.items():
             values[name] = np.asarray(v, np.float64).reshape(stop - start, n_r, n_a)
             errs[name] = np.asarray(e, np.float64).reshape(stop - start, n_r, n_a)
     return values, errs
+
+
+def montecarlo_rows(recipe: dict, start: int, stop: int, *, scale: int = 1, seed: int = 0) -> dict:
+    """{quantity: values} of sin θ rows [start, stop) of the recipe's grid tables by an Unreal-style uniform Monte
+    Carlo estimator at ``scale`` times Unreal's sample counts (the benchmark's baseline), float64 arrays of shape
+    (stop − start, n_roughness, n_absorption)."""
+    ax = grid_axes(recipe)
+    axes = {"sin_theta": ax["sin_theta"], "roughness": ax["roughness"], "sigma_a": ax["sigma_a"]}
+    n_r, n_a = len(ax["roughness"]), len(ax["sigma_a"])
+    out = {}
+    for table in grid_tables(recipe):
+        got = _physics().montecarlo_unreal(
+            axes, table, (start * n_r * n_a, stop * n_r * n_a), bsdf=recipe["bsdf"], scale=scale, seed=seed
+        )
+        out.update({k: np.asarray(v, np.float64).reshape(stop - start, n_r, n_a) for k, v in got.items()})
+    return out
 
 
 def coverage_table(recipe: dict) -> tuple[np.ndarray, np.ndarray] | None:
