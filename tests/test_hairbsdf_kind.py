@@ -24,39 +24,56 @@ from hairlut_cli.main import cli
 SMALL = {"grid": {"resolution": [6, 5, 4]}, "coverage": {"resolution": [4, 3]}}
 
 
-def _stand_in_tables(axes, table, entries, *, bsdf, quadrature):
-    """A smooth stand-in with the quadrature's contract: each entry's (value, error) from its own nodes alone."""
-    lo, hi = entries
-    if table == "coverage":
-        n, r = np.meshgrid(axes["strands"], axes["radius"], indexing="ij")
-        n, r = n.ravel()[lo:hi], r.ravel()[lo:hi]
-        cov = 1 - (1 - np.minimum(1.0, r)) ** n
-        return {"coverage": (cov, np.full_like(cov, 1e-9))}
-    s, b, a = np.meshgrid(axes["sin_theta"], axes["roughness"], axes["sigma_a"], indexing="ij")
-    s, b, a = (x.ravel()[lo:hi] for x in (s, b, a))
-    base = np.exp(-a) * (1 - 0.5 * s * s) * (0.5 + 0.4 * b)
-    if table == "mean_energy":
-        out = {"R": 0.05 + 0.01 * s, "TT": 0.5 * base, "TRT": 0.3 * base * base}
-    else:
-        out = {
-            "A_f": 0.6 * base,
-            "A_b": 0.3 * base + 0.02,
-            "alpha_f": -np.radians(bsdf["alpha"]) * (1 + 0 * s),
-            "beta_f": b * b * (1 + s),
-            "alpha_b": np.radians(bsdf["alpha"]) * (0.5 + 0.5 * s),
-            "beta_b": 2 * b * b,
-        }
-    return {k: (np.asarray(v, np.float64), np.full(len(v), 1e-8)) for k, v in out.items()}
+def _nodes(span, n):
+    lo, hi = span
+    return lo + (np.arange(n) + 0.5) * ((hi - lo) / n)
 
 
-def _stand_in_montecarlo(axes, table, entries, *, bsdf, scale, seed):
+def _stand_in_tables(axes, resolution, *, quadrature, model, which, start=None, stop=None):
+    """A smooth stand-in with the quadrature's contract: each row's (values, errors) from its own nodes alone."""
+    out = {}
+    if "coverage" in which:
+        r = _nodes(axes["radius_px"], resolution["radius_px"])[:, None]
+        n = _nodes(axes["strand_count"], resolution["strand_count"])[None, :]
+        cov = 1 - (1 - np.minimum(1.0, r)) ** np.maximum(n, 0)
+        out["coverage"] = (cov, np.full_like(cov, 1e-9))
+    grid = [w for w in which if w != "coverage"]
+    if grid:
+        s = _nodes(axes["sin_theta_o"], resolution["sin_theta_o"])[start:stop, None, None]
+        b = _nodes(axes["roughness"], resolution["roughness"])[None, :, None]
+        a = _nodes(axes["absorption"], resolution["absorption"])[None, None, :]
+        base = np.exp(-2 * (1 - a)) * (1 - 0.5 * s * s) * (0.5 + 0.4 * b)
+        alpha = np.radians(model["alpha"])
+        fields = {
+            "mean_energy": [0.05 + 0.01 * s + 0 * base, 0.5 * base, 0.3 * base * base, 0.05 * base],
+            "dual_scattering": [0.6 * base, 0.3 * base + 0.02, -alpha + 0 * base, alpha * (0.5 + 0.5 * s) + 0 * base,
+                                b * (1 + s) + 0 * base, 2 * b + 0 * base],
+        }  # fmt: skip
+        for w in grid:
+            v = np.stack(fields[w], axis=-1)
+            out[w] = (v, np.full_like(v, 1e-8 / quadrature["nodes"]))
+    return out
+
+
+def _stand_in_montecarlo(axes, resolution, *, sample_scale, seed, model, which, start=None, stop=None):
     """The stand-in's Unreal-style estimate: its exact values plus noise that falls as 1/√(samples)."""
-    exact = _stand_in_tables(axes, table, entries, bsdf=bsdf, quadrature={"refine": 1})
-    rng = np.random.default_rng([seed, entries[0]])
-    return {k: v + rng.normal(0, 0.01 / np.sqrt(scale), v.shape) for k, (v, _) in exact.items()}
+    exact = _stand_in_tables(axes, resolution, quadrature={"nodes": 8}, model=model, which=which, start=start, stop=stop)
+    rng = np.random.default_rng([seed, start or 0])
+    return {k: v + rng.normal(0, 0.01 / sample_scale, v.shape) for k, (v, _) in exact.items()}
 
 
-STAND_IN = types.SimpleNamespace(tables=_stand_in_tables, montecarlo_unreal=_stand_in_montecarlo)
+def _stand_in_sigma(absorption, roughness, kind):
+    a, r = np.asarray(absorption)[None, :], np.asarray(roughness)[:, None]
+    return np.broadcast_to(a, (r.shape[0], a.shape[1])).copy() if kind == "sigma_a" else (np.log(a * a) / (6 - r)) ** 2
+
+
+STAND_IN = types.SimpleNamespace(
+    tables=_stand_in_tables,
+    montecarlo_unreal=_stand_in_montecarlo,
+    absorption_sigma=_stand_in_sigma,
+    MEAN_ENERGY_FIELDS=("R", "TT", "TRT", "residual"),
+    DUAL_SCATTERING_FIELDS=("A_f", "A_b", "alpha_f", "alpha_b", "beta_f", "beta_b"),
+)
 
 
 @pytest.fixture
@@ -88,7 +105,7 @@ def _sha(path) -> str:
         ({"absorption": {"axis": "sigma_a", "sigma_a": [-0.5, 4.0]}}, "absorption.sigma_a"),
         ({"grid": {"roughness": [0.0, 1.5]}}, "grid.roughness"),
         ({"grid": {"roughness": [-0.1, 1.0]}}, "grid.roughness"),
-        ({"absorption": {"beta_n": 0.0}}, "absorption.beta_n"),
+        ({"quadrature": {"nodes": 7}}, "quadrature.nodes"),
         ({"absorption": {"colour": [float("nan"), 1.0]}}, "absorption.colour"),
         ({"absorption": {"sigma_a": [0.0, 2.0]}}, "absorption.sigma_a"),  # the colour axis does not read it
         ({"grid": {"resolution": [64, 64]}}, "grid.resolution"),
@@ -135,15 +152,15 @@ def test_bake_load_and_lookup_at_the_nodes_returns_the_stored_values(physics, tm
     rep = registry.bake("hair_bsdf", SMALL, tmp_path / "t.h5")
     assert rep["kind"] == "hair_bsdf" and rep["total_units"] == 6 and rep["max_error"] > 0
     t = load(tmp_path / "t.h5")
-    assert set(t.names) == {"A_f", "A_b", "alpha_f", "beta_f", "alpha_b", "beta_b", "R", "TT", "TRT", "coverage"}
+    assert set(t.names) == {"A_f", "A_b", "alpha_f", "alpha_b", "beta_f", "beta_b", "R", "TT", "TRT", "residual", "coverage"}
     s, b, a = (t.axes[d] for d in ("sin_theta", "roughness", "absorption"))
     np.testing.assert_allclose(s, (np.arange(6) + 0.5) / 6)
     for name in ("A_f", "beta_b", "TRT"):
         got = t.sample(name, *np.meshgrid(s, b, a, indexing="ij"))
         np.testing.assert_array_equal(got, t.values[name].astype(np.float64))
-        assert t.errors[name].min() >= 1e-8  # the stand-in's estimate, plus the float32 rounding
-    n, r = np.meshgrid(t.axes["strands"], t.axes["radius"], indexing="ij")
-    np.testing.assert_array_equal(t.sample("coverage", n, r), t.values["coverage"].astype(np.float64))
+        assert t.errors[name].min() >= 1e-8 / 8  # the stand-in's estimate, plus the float32 rounding
+    r, n = np.meshgrid(t.axes["radius"], t.axes["strands"], indexing="ij")
+    np.testing.assert_array_equal(t.sample("coverage", r, n), t.values["coverage"].astype(np.float64))
     # between nodes: the GPU's linear filter (midway: the mean of the two taps), clamp-to-edge beyond the ends
     mid = t.sample("A_f", (s[1] + s[2]) / 2, b[0], a[0])
     assert mid == pytest.approx((float(t.values["A_f"][1, 0, 0]) + float(t.values["A_f"][2, 0, 0])) / 2, abs=1e-15)
@@ -174,29 +191,25 @@ def test_the_lookup_interpolates_like_a_gpu_sampler(physics, tmp_path):
     assert exc.value.field == "sin_theta"
 
 
-def test_a_hair_colour_sigma_a_or_melanin_is_looked_up_per_channel(physics, tmp_path):
+def test_a_hair_colour_is_looked_up_per_channel(physics, tmp_path):
     registry.bake("hair_bsdf", SMALL, tmp_path / "t.h5")
     t = load(tmp_path / "t.h5")
-    brown = np.array([0.35, 0.2, 0.1])
+    brown = np.array([0.35, 0.2, 0.1])  # linear: on Unreal's perceptual axis at √C
+    np.testing.assert_array_equal(t.absorption_of(colour=brown), np.sqrt(brown))
     rgb = t.sample_hair("A_b", 0.3, 0.4, colour=brown)
     assert rgb.shape == (3,) and np.all(np.diff(rgb) < 0)  # darker channels scatter less
-    sigma = t.absorption_of(colour=brown)
-    np.testing.assert_allclose(t.absorption_of(sigma_a=(np.log(brown) / 5.888) ** 2 * 0 + _sigma(brown)), sigma)
-    assert t.sample_hair("A_b", 0.3, 0.4, melanin=[1.3, 0.2]).shape == (3,)
+    np.testing.assert_array_equal(rgb, [t.sample("A_b", 0.3, 0.4, c) for c in np.sqrt(brown)])
+    assert t.sigma_a.shape == (5, 4)
     for kwargs, key in (
         ({"colour": [np.nan, 0.2, 0.1]}, "colour"),
+        ({"colour": [0.0, 0.2, 0.1]}, "colour"),
         ({"sigma_a": [-1.0, 0.2, 0.1]}, "sigma_a"),
         ({"melanin": [-1.0, 0.0]}, "melanin"),
+        ({"sigma_a": [1.0, 0.2, 0.1]}, "roughness"),  # onto the colour axis through β_n: needs the roughness
     ):
         with pytest.raises(errors.ValidationError) as exc:
             t.absorption_of(**kwargs)
         assert exc.value.field == key
-
-
-def _sigma(colour):
-    from hairlut.hairbsdf._recipe import sigma_a_of_colour
-
-    return sigma_a_of_colour(colour, 0.3)
 
 
 def test_the_file_opens_in_xarray(physics, tmp_path):
@@ -204,10 +217,10 @@ def test_the_file_opens_in_xarray(physics, tmp_path):
     pytest.importorskip("h5netcdf")
     registry.bake("hair_bsdf", SMALL, tmp_path / "t.h5")
     with xr.open_dataset(tmp_path / "t.h5", engine="h5netcdf") as ds:
-        assert ds["A_f"].dims == ("sin_theta", "roughness", "absorption") and ds["coverage"].dims == ("strands", "radius")
+        assert ds["A_f"].dims == ("sin_theta", "roughness", "absorption") and ds["coverage"].dims == ("radius", "strands")
         np.testing.assert_array_equal(ds["A_f_error"].values, read_table(tmp_path / "t.h5")["A_f_error"])
         np.testing.assert_allclose(ds["roughness"].values, (np.arange(5) + 0.5) / 5)
-        assert ds["sigma_a"].dims == ("absorption",)
+        assert ds["sigma_a"].dims == ("roughness", "absorption")
 
 
 # ----------------------------------------------------------------------------- the EXR atlas
@@ -298,15 +311,16 @@ def test_coverage_alone_bakes_whole_and_refuses_the_split_options(physics, tmp_p
 
 
 def test_a_table_beyond_its_physical_bound_is_never_written(physics, tmp_path, monkeypatch):
-    def too_bright(axes, table, entries, *, bsdf, quadrature):
-        out = _stand_in_tables(axes, table, entries, bsdf=bsdf, quadrature=quadrature)
-        if "A_f" in out:
-            out["A_f"] = (out["A_f"][0] + 1.0, out["A_f"][1])
+    def too_bright(axes, resolution, **kw):
+        out = _stand_in_tables(axes, resolution, **kw)
+        if "dual_scattering" in out:
+            v, e = out["dual_scattering"]
+            out["dual_scattering"] = (v + np.eye(6)[0], e)  # A_f + 1
         return out
 
     from hairlut.hairbsdf import _bake
 
-    monkeypatch.setattr(_bake, "_physics", lambda: types.SimpleNamespace(tables=too_bright))
+    monkeypatch.setattr(_bake, "_physics", lambda: types.SimpleNamespace(**{**vars(STAND_IN), "tables": too_bright}))
     with pytest.raises(errors.BoundsError, match="A_f.*0 ≤ A_f ≤ 1"):
         registry.bake("hair_bsdf", SMALL, tmp_path / "t.h5")
     assert not (tmp_path / "t.h5").exists()

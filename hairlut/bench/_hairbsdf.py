@@ -100,7 +100,7 @@ def table_figures(ctx: Context, table: str) -> tuple[list[Figure], dict]:
             sec,
             _max_err(values, ref, names),
             "max |error|",
-            {"tolerance": recipe["quadrature"]["tolerance"]},
+            {"nodes": recipe["quadrature"]["nodes"], "levels": recipe["quadrature"]["levels"]},
             extra={
                 "all_quantities_error": err,
                 "largest_estimated_error": max(float(e.max()) for e in errs.values()),

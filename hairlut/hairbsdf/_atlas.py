@@ -5,8 +5,8 @@ One part per table (``dual_scattering``, ``mean_energy``, ``coverage``), one cha
 n_x sin θ × n_y roughness × n_z absorption nodes is stored as its n_z absorption slices, each an n_x × n_y
 tile (x: sin θ, left to right; y: roughness, top to bottom: the first scanline is roughness node 0, where
 Direct3D, Vulkan and Metal put v = 0), tiled row-major: slice k at tile column k mod C and row k div C,
-C = ⌈√n_z⌉ columns; tiles past the last slice are zero.  The 2-D coverage table is one tile (x: strand count,
-y: radius).
+C = ⌈√n_z⌉ columns; tiles past the last slice are zero.  The 2-D coverage table is one tile (x: radius in
+pixels, y: strand count).
 
 A shader samples the atlas trilinearly as two bilinear taps in the neighbouring slices, each with its texture
 coordinate clamped to the tile's texel centres [½, n − ½] (so no tap reads the next tile), blended by the

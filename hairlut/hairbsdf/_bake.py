@@ -19,7 +19,7 @@ from .. import errors
 from ..assets import canonical_json, open_table, recipe_hash
 from ._io import _largest, read_part, whole_tables, write_assembled, write_asset, write_joined, write_part
 from ._kind import KIND
-from ._recipe import grid_axes, grid_tables, resolve_recipe
+from ._recipe import grid_axes, grid_tables, physics_axes, resolve_recipe
 
 
 def _physics():
@@ -29,46 +29,75 @@ def _physics():
     return _integrals
 
 
+def _model(recipe: dict) -> dict:
+    return {"eta": recipe["bsdf"]["eta"], "alpha": recipe["bsdf"]["alpha"]}
+
+
+def _quadrature(recipe: dict, refine: int = 1) -> dict:
+    q = recipe["quadrature"]
+    return {"nodes": refine * q["nodes"], "levels": q["levels"], "coverage_nodes": refine * q["coverage_nodes"]}
+
+
+def _split(table: str, values) -> dict[str, np.ndarray]:
+    """{quantity: (…) float64} of a physics table whose last axis holds its fields."""
+    fields = _physics().DUAL_SCATTERING_FIELDS if table == "dual_scattering" else _physics().MEAN_ENERGY_FIELDS
+    v = np.asarray(values, np.float64)
+    return {name: np.ascontiguousarray(v[..., i]) for i, name in enumerate(fields)}
+
+
 def grid_rows(recipe: dict, start: int, stop: int, *, refine: int = 1) -> tuple[dict, dict]:
     """({quantity: values}, {quantity: error estimates}) of sin θ rows [start, stop) of the recipe's grid tables,
     float64 arrays of shape (stop − start, n_roughness, n_absorption); ``refine``: that many times the quadrature's
-    nodes in every integration axis (a reference)."""
-    ax = grid_axes(recipe)
-    axes = {"sin_theta": ax["sin_theta"], "roughness": ax["roughness"], "sigma_a": ax["sigma_a"]}
-    n_r, n_a = len(ax["roughness"]), len(ax["sigma_a"])
+    Gauss–Legendre nodes per panel in every integration axis (a reference)."""
+    axes, resolution = physics_axes(recipe)
+    got = _physics().tables(
+        axes,
+        resolution,
+        quadrature=_quadrature(recipe, refine),
+        model=_model(recipe),
+        which=grid_tables(recipe),
+        start=start,
+        stop=stop,
+    )
     values, errs = {}, {}
-    for table in grid_tables(recipe):
-        got = _physics().tables(
-            axes,
-            table,
-            (start * n_r * n_a, stop * n_r * n_a),
-            bsdf=recipe["bsdf"],
-            quadrature={**recipe["quadrature"], "refine": refine},
-        )
-        for name, (v, e) in got.items():
-            values[name] = np.asarray(v, np.float64).reshape(stop - start, n_r, n_a)
-            errs[name] = np.asarray(e, np.float64).reshape(stop - start, n_r, n_a)
+    for table, (v, e) in got.items():
+        values.update(_split(table, v))
+        errs.update(_split(table, e))
     return values, errs
 
 
-def montecarlo_rows(recipe: dict, start: int, stop: int, *, scale: int = 1, seed: int = 0) -> dict:
-    """{quantity: values} of sin θ rows [start, stop) of the recipe's grid tables by an Unreal-style uniform Monte
-    Carlo estimator at ``scale`` times Unreal's sample counts (the benchmark's baseline), float64 arrays of shape
-    (stop − start, n_roughness, n_absorption)."""
-    ax = grid_axes(recipe)
-    axes = {"sin_theta": ax["sin_theta"], "roughness": ax["roughness"], "sigma_a": ax["sigma_a"]}
-    n_r, n_a = len(ax["roughness"]), len(ax["sigma_a"])
+def montecarlo_rows(recipe: dict, start: int, stop: int, *, scale: float = 1, seed: int = 0) -> dict:
+    """{quantity: values} of sin θ rows [start, stop) of the recipe's grid tables by Unreal's uniform Monte Carlo
+    estimator (the benchmark's baseline) at ``scale`` times Unreal's sample count (√scale times its strata on each
+    axis), float64 arrays of shape (stop − start, n_roughness, n_absorption)."""
+    axes, resolution = physics_axes(recipe)
+    got = _physics().montecarlo_unreal(
+        axes,
+        resolution,
+        sample_scale=float(np.sqrt(scale)),
+        seed=seed,
+        model=_model(recipe),
+        which=grid_tables(recipe),
+        start=start,
+        stop=stop,
+    )
     out = {}
-    for table in grid_tables(recipe):
-        got = _physics().montecarlo_unreal(
-            axes, table, (start * n_r * n_a, stop * n_r * n_a), bsdf=recipe["bsdf"], scale=scale, seed=seed
-        )
-        out.update({k: np.asarray(v, np.float64).reshape(stop - start, n_r, n_a) for k, v in got.items()})
+    for table, v in got.items():
+        out.update(_split(table, v))
     return out
 
 
+def sigma_a(recipe: dict) -> np.ndarray | None:
+    """σ_a (n_roughness, n_absorption) at the grid's nodes (the colour axis maps through Chiang et al.'s eq. 9
+    at β_n = the roughness); None without grid tables."""
+    if not grid_tables(recipe):
+        return None
+    ax = grid_axes(recipe)
+    return np.asarray(_physics().absorption_sigma(ax["absorption"], ax["roughness"], recipe["absorption"]["axis"]))
+
+
 def coverage_table(recipe: dict) -> tuple[np.ndarray, np.ndarray] | None:
-    """(values, error estimates) of the coverage table over (strands, radius), float64; None when not baked."""
+    """(values, error estimates) of the coverage table over (radius, strands), float64; None when not baked."""
     if not recipe["coverage"]["bake"]:
         return None
     return _coverage(canonical_json(recipe))
@@ -79,17 +108,11 @@ def _coverage(text: str):
     import json
 
     recipe = json.loads(text)
-    ax = grid_axes(recipe)
-    n = (len(ax["strands"]), len(ax["radius"]))
-    got = _physics().tables(
-        {"strands": ax["strands"], "radius": ax["radius"]},
-        "coverage",
-        (0, n[0] * n[1]),
-        bsdf=recipe["bsdf"],
-        quadrature=recipe["quadrature"],
-    )
-    v, e = got["coverage"]
-    return np.asarray(v, np.float64).reshape(n), np.asarray(e, np.float64).reshape(n)
+    axes, resolution = physics_axes(recipe)
+    v, e = _physics().tables(axes, resolution, quadrature=_quadrature(recipe), model=_model(recipe), which=("coverage",))[
+        "coverage"
+    ]
+    return np.asarray(v, np.float64), np.asarray(e, np.float64)
 
 
 # ----------------------------------------------------------------------------- the shard path's pieces
@@ -110,7 +133,7 @@ def join_parts(recipe: dict, parts, out) -> Path:
 
 def assemble_parts(recipe: dict, parts, out, **_) -> Path:
     """Parts covering every sin θ row as one self-contained ``hair_bsdf`` asset (the coverage table computed here)."""
-    return write_assembled(out, recipe, [read_part(p, recipe) for p in parts], coverage_table(recipe))
+    return write_assembled(out, recipe, [read_part(p, recipe) for p in parts], coverage_table(recipe), sigma_a(recipe))
 
 
 def part_index(recipe: dict, path, **_) -> dict[str, np.ndarray]:
@@ -122,7 +145,7 @@ def part_index(recipe: dict, path, **_) -> dict[str, np.ndarray]:
 def whole_parts(recipe: dict, parts, index=None, **_):
     """What a virtual ``hair_bsdf`` stores itself: the axes, σ_a, the coverage table and the largest error."""
     small = list(index) if index is not None else [part_index(recipe, p) for p in parts]
-    axes, variables, _ = whole_tables(recipe, coverage_table(recipe), None)
+    axes, variables, _ = whole_tables(recipe, coverage_table(recipe), None, sigma_a(recipe))
     top = max([float(d["max_error"][0]) for d in small] + [_largest(variables)])
     return axes, variables, {"max_error": top}
 

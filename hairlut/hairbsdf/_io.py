@@ -4,11 +4,11 @@ Layout (schema 2, every table at the root, so ``xarray.open_dataset(path, engine
 whole file as one Dataset with the axes as coordinates)::
 
     /sin_theta, /roughness, /absorption      axes of the grid tables (texel-centre nodes)
-    /strands, /radius                        axes of the coverage table
-    /A_f … /beta_b, /R, /TT, /TRT            (sin_theta, roughness, absorption) values, the storage dtype
+    /radius, /strands                        axes of the coverage table
+    /A_f … /beta_b, /R … /residual           (sin_theta, roughness, absorption) values, the storage dtype
     /<name>_error                            the same dims: a bound of |stored − exact| per entry
-    /sigma_a                                 (absorption,) σ_a at each absorption node
-    /coverage, /coverage_error               (strands, radius)
+    /sigma_a                                 (roughness, absorption) σ_a at each node (float64)
+    /coverage, /coverage_error               (radius, strands)
 
 Each ``<name>_error`` is the quadrature's own estimate of the entry's error plus the rounding of the stored
 value, rounded up to its dtype: the stored value lies within it of the exact integral.
@@ -31,21 +31,22 @@ from ._kind import KIND, SHARD_KIND
 from ._recipe import grid_axes, quantities
 
 GRID_DIMS = ("sin_theta", "roughness", "absorption")
-COVERAGE_DIMS = ("strands", "radius")
+COVERAGE_DIMS = ("radius", "strands")
 
 _LONG = {
-    "A_f": "average forward scattering A_f (Zinke et al. 2008, eq. 6)",
-    "A_b": "average backward scattering A_b (Zinke et al. 2008, eq. 6)",
-    "alpha_f": "average longitudinal shift of forward scattering, radians (Zinke et al. 2008, eq. 13)",
-    "beta_f": "average longitudinal variance of forward scattering, radians squared (Zinke et al. 2008, eq. 14)",
-    "alpha_b": "average longitudinal shift of backward scattering, radians (Zinke et al. 2008, eq. 13)",
-    "beta_b": "average longitudinal variance of backward scattering, radians squared (Zinke et al. 2008, eq. 14)",
-    "R": "mean energy of the R lobe (p = 0) over the sphere of incident directions",
+    "A_f": "average forward attenuation A_f: the energy into the front half of azimuth (Zinke et al. 2008, eq. 12)",
+    "A_b": "average backward attenuation A_b: the energy into the back half of azimuth (Zinke et al. 2008, eq. 12)",
+    "alpha_f": "average longitudinal shift of forward scattering, radians (Zinke et al. 2008, §4)",
+    "alpha_b": "average longitudinal shift of backward scattering, radians (Zinke et al. 2008, §4)",
+    "beta_f": "average longitudinal standard deviation of forward scattering, radians (Zinke et al. 2008, §4)",
+    "beta_b": "average longitudinal standard deviation of backward scattering, radians (Zinke et al. 2008, §4)",
+    "R": "mean energy of the R lobe (p = 0): its directional albedo, averaged over the fibre's width",
     "TT": "mean energy of the TT lobe (p = 1)",
     "TRT": "mean energy of the TRT lobe (p = 2)",
+    "residual": "mean energy of the residual lobe (every p ≥ 3)",
     "coverage": "expected covered share of a pixel by N strands at random positions and orientations",
 }
-_UNITS = {"alpha_f": "rad", "alpha_b": "rad", "beta_f": "rad2", "beta_b": "rad2"}
+_UNITS = {"alpha_f": "rad", "alpha_b": "rad", "beta_f": "rad", "beta_b": "rad"}
 
 
 def stored(values, dtype) -> tuple[np.ndarray, np.ndarray]:
@@ -69,21 +70,21 @@ def _axes(recipe: dict, start: int = 0, stop: int | None = None, *, grid: bool =
     out = []
     if grid:
         out += [
-            Axis("sin_theta", ax["sin_theta"][start:stop], "1", "sin θ_o of the outgoing direction (texel centres)"),
-            Axis("roughness", ax["roughness"], "1", "roughness β = β_m = β_n (texel centres)"),
+            Axis("sin_theta", ax["sin_theta"][start:stop], "1", "sin θ_o of the outgoing direction (cell centres)"),
+            Axis("roughness", ax["roughness"], "1", "roughness β = β_m = β_n (cell centres)"),
             Axis(
                 "absorption",
                 ax["absorption"],
                 "1" if a["axis"] == "colour" else "1/radius",
-                "hair colour channel (σ_a by Chiang et al. 2016, eq. 9)"
+                "perceptual hair colour c (Unreal's): linear colour c², σ_a by Chiang et al. 2016, eq. 9 at β_n = roughness"
                 if a["axis"] == "colour"
                 else "σ_a per unit fibre radius",
             ),
         ]
     if coverage:
         out += [
-            Axis("strands", ax["strands"], "1", "number of strands N crossing the pixel (texel centres)"),
-            Axis("radius", ax["radius"], "px", "strand radius in pixels (texel centres)"),
+            Axis("radius", ax["radius"], "px", "strand radius in pixels (cell centres)"),
+            Axis("strands", ax["strands"], "1", "number of strands N crossing the pixel (cell centres)"),
         ]
     return out
 
@@ -119,15 +120,16 @@ def coverage_variables(recipe: dict, values, errors_) -> list[Variable]:
     ]
 
 
-def whole_tables(recipe: dict, coverage: tuple | None, max_error: float | None):
+def whole_tables(recipe: dict, coverage: tuple | None, max_error: float | None, sigma_a=None):
     """(axes, variables, attrs): everything a ``hair_bsdf`` asset stores besides its grid tables: the axes, σ_a
-    at the absorption nodes, the coverage table (``coverage``: (values, errors) or None) and the largest error."""
+    at the grid's (roughness, absorption) nodes (``sigma_a``, when it has grid tables), the coverage table
+    (``coverage``: (values, errors) or None) and the largest error."""
     grid = bool(quantities(recipe))
     axes = _axes(recipe, grid=grid, coverage=coverage is not None)
     variables = []
     if grid:
         variables.append(
-            Variable("sigma_a", grid_axes(recipe)["sigma_a"], ("absorption",), "1/radius", "σ_a at each absorption node")
+            Variable("sigma_a", np.asarray(sigma_a, np.float64), ("roughness", "absorption"), "1/radius", "σ_a at each node")
         )
     if coverage is not None:
         variables += coverage_variables(recipe, *coverage)
@@ -135,11 +137,11 @@ def whole_tables(recipe: dict, coverage: tuple | None, max_error: float | None):
     return axes, variables, attrs
 
 
-def write_asset(path, recipe: dict, grid: tuple[dict, dict] | None, coverage: tuple | None) -> Path:
+def write_asset(path, recipe: dict, grid: tuple[dict, dict] | None, coverage: tuple | None, sigma_a=None) -> Path:
     """Write the ``hair_bsdf`` asset: ``grid`` = ({name: values}, {name: errors}) of every sin θ row (float64),
-    ``coverage`` = (values, errors) or None."""
+    ``coverage`` = (values, errors) or None, ``sigma_a`` at the grid's nodes."""
     grid_vars = _grid_variables(recipe, *grid) if grid else []
-    axes, variables, _ = whole_tables(recipe, coverage, None)
+    axes, variables, _ = whole_tables(recipe, coverage, None, sigma_a)
     return write_table(path, KIND, recipe, axes, grid_vars + variables, attrs={"max_error": _largest(grid_vars + variables)})
 
 
@@ -218,9 +220,9 @@ def _stored_variables(values: dict, errs: dict) -> list[Variable]:
     return out
 
 
-def write_assembled(path, recipe: dict, read: list, coverage: tuple | None) -> Path:
+def write_assembled(path, recipe: dict, read: list, coverage: tuple | None, sigma_a) -> Path:
     """Parts covering every sin θ row (and the coverage table) as one self-contained ``hair_bsdf`` asset."""
     values, errs = concat(read)
-    axes, variables, _ = whole_tables(recipe, coverage, None)
+    axes, variables, _ = whole_tables(recipe, coverage, None, sigma_a)
     top = max([r[4] for r in read] + [_largest(variables)])
     return write_table(path, KIND, recipe, axes, _stored_variables(values, errs) + variables, attrs={"max_error": top})

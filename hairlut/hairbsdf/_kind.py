@@ -25,7 +25,7 @@ GRID_RATE = 2.0e4
 COVERAGE_RATE = 2.0e5
 
 #: The recipe keys that drive the tables (named when a table is refused).
-KEYS = ("bsdf.eta", "bsdf.alpha", "grid.roughness", "absorption.axis", "quadrature.tolerance")
+KEYS = ("bsdf.eta", "bsdf.alpha", "grid.roughness", "absorption.axis", "quadrature.nodes", "quadrature.levels")
 
 
 def _error(name: str) -> str:
@@ -36,18 +36,20 @@ def _bounds() -> tuple[Bound, ...]:
     """One line per table: the physical reason each value lies where it does."""
     out = []
     for name, why in (
-        ("A_f", "the energy a fibre scatters into the front hemisphere is at most what arrives (a passive fibre)"),
-        ("A_b", "the energy a fibre scatters into the back hemisphere is at most what arrives"),
+        ("A_f", "the energy a fibre scatters into the front half of azimuth is at most what arrives (a passive fibre)"),
+        ("A_b", "the energy a fibre scatters into the back half of azimuth is at most what arrives"),
         ("R", "the R lobe carries the Fresnel-reflected share of the energy, at most all of it"),
         ("TT", "the TT lobe carries at most the energy that enters the fibre"),
         ("TRT", "the TRT lobe carries at most the energy that enters the fibre"),
+        ("residual", "the lobes p ≥ 3 carry at most the energy that enters the fibre"),
         ("coverage", "a covered share of a pixel"),
     ):
-        out.append(Bound(name, 0.0, 1.0, keys=KEYS, text=f"0 ≤ {name} ≤ 1: {why}"))
+        keys = ("coverage.radius", "coverage.strands", "quadrature.coverage_nodes") if name == "coverage" else KEYS
+        out.append(Bound(name, 0.0, 1.0, keys=keys, text=f"0 ≤ {name} ≤ 1: {why}"))
     for name in ("alpha_f", "alpha_b"):
-        out.append(Bound(name, -math.pi / 2, math.pi / 2, keys=KEYS, text=f"|{name}| ≤ π/2: a mean longitudinal shift"))
+        out.append(Bound(name, -math.pi / 2, math.pi / 2, keys=KEYS, text=f"|{name}| ≤ π/2: a mean longitudinal angle"))
     for name in ("beta_f", "beta_b"):
-        out.append(Bound(name, 0.0, None, keys=KEYS, text=f"{name} ≥ 0: a variance"))
+        out.append(Bound(name, 0.0, None, keys=KEYS, text=f"{name} ≥ 0: a standard deviation"))
     for name in (*DUAL, *ENERGY, "coverage"):
         out.append(Bound(_error(name), 0.0, None, keys=KEYS, text=f"{_error(name)} ≥ 0: an error bound"))
     return tuple(out)
@@ -92,7 +94,7 @@ def describe(report: dict) -> list[str]:
             f"{r['absorption']['axis']}), {r['storage']['dtype']}"
         )
     if r["coverage"]["bake"]:
-        lines.append(f"  coverage on {' × '.join(map(str, r['coverage']['resolution']))} (strands × radius in pixels)")
+        lines.append(f"  coverage on {' × '.join(map(str, r['coverage']['resolution']))} (radius in pixels × strand count)")
     if report.get("max_error") is not None:
         lines.append(f"  largest estimated error of an entry: {report['max_error']:.2e}")
     if report.get("atlas"):
@@ -143,9 +145,9 @@ BAKER = Baker(
     scattering), with the estimated error of every entry.
 
     \b
-    dual_scattering  A_f, A_b, alpha_f, beta_f, alpha_b, beta_b over (sin θ, roughness, absorption)
-    mean_energy      R, TT, TRT over the same grid (Unreal: 64 × 64 × 16)
-    coverage         the pixel coverage of N strands of a radius in pixels
+    dual_scattering  A_f, A_b, alpha_f, alpha_b, beta_f, beta_b over (sin θ, roughness, absorption)
+    mean_energy      R, TT, TRT, residual over the same grid (Unreal: 64 × 64 × 16)
+    coverage         the pixel coverage of N strands over (radius in pixels, N)
 
     The values come from deterministic quadrature in θ and φ, not random sampling.  The HDF5 file
     opens in xarray; --atlas also writes the EXR atlas engines sample; `hairlut.hairbsdf.load(FILE)

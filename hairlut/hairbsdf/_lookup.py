@@ -22,10 +22,10 @@ from .. import errors
 from ..assets import read_table, sniff
 from ..assets.virtual_write import check_virtual
 from ._kind import KIND
-from ._recipe import QUANTITIES, colour_of_sigma_a, resolve_recipe, sigma_a_of_colour, sigma_a_of_melanin
+from ._recipe import QUANTITIES, resolve_recipe
 
 GRID = ("sin_theta", "roughness", "absorption")
-COVER = ("strands", "radius")
+COVER = ("radius", "strands")
 #: A texel position this close to an integer (in texels) is that node: the sample returns the stored value.
 SNAP = 1e-9
 
@@ -36,8 +36,8 @@ def _spans(recipe: dict) -> dict[str, tuple[float, float]]:
         "sin_theta": tuple(g["sin_theta"]),
         "roughness": tuple(g["roughness"]),
         "absorption": tuple(a[a["axis"]]),
-        "strands": tuple(c["strands"]),
         "radius": tuple(c["radius"]),
+        "strands": tuple(c["strands"]),
     }
 
 
@@ -46,8 +46,8 @@ def _units(recipe: dict) -> dict[str, str]:
         "sin_theta": "1",
         "roughness": "1",
         "absorption": "1" if recipe["absorption"]["axis"] == "colour" else "1/radius",
-        "strands": "1",
         "radius": "px",
+        "strands": "1",
     }
 
 
@@ -73,7 +73,7 @@ class HairBSDFTables:
     ``values`` and ``errors`` map each quantity (``A_f``, …, ``beta_b``, ``R``, ``TT``, ``TRT``, ``coverage``) to
     its table as stored (``errors`` is None for an EXR atlas, which holds values only); ``dims`` names each
     table's axes, ``axes`` their nodes and ``spans`` the intervals [lo, hi] the nodes are the texel centres of;
-    ``sigma_a`` is σ_a at each absorption node."""
+    ``sigma_a`` is σ_a at each (roughness, absorption) node (None for an atlas)."""
 
     values: dict
     errors: dict | None
@@ -120,10 +120,12 @@ class HairBSDFTables:
             out = out + w * v[tuple(idx)]
         return out
 
-    def absorption_of(self, *, colour=None, sigma_a=None, melanin=None) -> np.ndarray:
-        """The absorption-axis coordinates of a hair, one per channel: given by its ``colour`` (each channel in
-        (0, 1]), ``sigma_a`` (each ≥ 0, per unit fibre radius) or ``melanin`` concentrations (eumelanin,
-        pheomelanin; each ≥ 0; d'Eon et al. 2011's pigments as pbrt-v4 converts them).  Exactly one of the three."""
+    def absorption_of(self, *, colour=None, sigma_a=None, melanin=None, roughness=None) -> np.ndarray:
+        """The absorption-axis coordinates of a hair, one per channel (on a last axis), from its linear ``colour``
+        (each channel in (0, 1]), its ``sigma_a`` (each ≥ 0, per unit fibre radius) or its ``melanin``
+        concentrations (eumelanin, pheomelanin; each ≥ 0; pbrt-v4's absorption per unit concentration): exactly one
+        of the three.  Where the conversion runs through Chiang et al.'s eq. 9 (σ_a or melanin onto a colour axis,
+        a colour onto a σ_a axis) it needs the ``roughness`` β_n."""
         given = [(k, v) for k, v in (("colour", colour), ("sigma_a", sigma_a), ("melanin", melanin)) if v is not None]
         if len(given) != 1:
             raise errors.ValidationError("absorption", [k for k, _ in given], "give exactly one of colour, sigma_a, melanin")
@@ -131,20 +133,36 @@ class HairBSDFTables:
         arr = np.asarray(value, np.float64)
         if not np.isfinite(arr).all():
             raise errors.ValidationError(key, value, "must be finite (NaN or infinity given)")
-        a = self.recipe["absorption"]
-        if key == "colour":
-            if ((arr <= 0) | (arr > 1)).any():
-                raise errors.ValidationError("colour", value, "each channel lies in (0, 1]")
-            return arr if a["axis"] == "colour" else sigma_a_of_colour(arr, a["beta_n"])
-        if (arr < 0).any():
+        if key == "colour" and ((arr <= 0) | (arr > 1)).any():
+            raise errors.ValidationError("colour", value, "each channel lies in (0, 1]")
+        if key != "colour" and (arr < 0).any():
             raise errors.ValidationError(key, value, "must be ≥ 0")
-        sig = arr if key == "sigma_a" else sigma_a_of_melanin(*np.broadcast_arrays(arr[..., 0], arr[..., 1]))
-        return colour_of_sigma_a(sig, a["beta_n"]) if a["axis"] == "colour" else sig
+        if key == "melanin" and arr.shape[-1:] != (2,):
+            raise errors.ValidationError("melanin", value, "give (eumelanin, pheomelanin) concentrations")
+        axis = self.recipe["absorption"]["axis"]
+        if key == "colour" and axis == "colour":
+            return np.sqrt(arr)  # Unreal's perceptual axis: the linear colour is c²
+        if key == "sigma_a" and axis == "sigma_a":
+            return arr
+        needs_beta = axis == "colour" or key == "colour"  # σ_a or melanin onto colour, colour onto σ_a
+        if needs_beta and roughness is None:
+            raise errors.ValidationError("roughness", None, f"a {key} maps onto the {axis} axis through β_n: give the roughness")
+        beta = np.asarray(1.0 if roughness is None else roughness, np.float64)
+        if not (np.isfinite(beta).all() and ((beta > 0) & (beta <= 1)).all()):
+            raise errors.ValidationError("roughness", roughness, "β_n lies in (0, 1]")
+        beta = beta[..., None] if beta.ndim else beta
+        from . import _bsdf  # Chiang et al.'s eq. 9 and pbrt's melanin (loads JAX)
+
+        if key == "colour":
+            return _bsdf.colour_to_sigma_a(arr, beta)
+        sig = arr if key == "sigma_a" else _bsdf.sigma_a_from_concentration(arr[..., 0], arr[..., 1])
+        return np.sqrt(_bsdf.sigma_a_to_colour(sig, beta)) if axis == "colour" else sig
 
     def sample_hair(self, name: str, sin_theta, roughness, *, colour=None, sigma_a=None, melanin=None) -> np.ndarray:
-        """A grid table at (sin θ, roughness) for a hair given by its colour, σ_a or melanin (:meth:`absorption_of`):
-        one value per channel, on a last axis (what a shader gets from one sample per colour channel)."""
-        absorption = self.absorption_of(colour=colour, sigma_a=sigma_a, melanin=melanin)
+        """A grid table at (sin θ, roughness) for a hair given by its linear colour, σ_a or melanin
+        (:meth:`absorption_of`): one value per channel, on a last axis (what a shader gets from one sample per
+        colour channel)."""
+        absorption = self.absorption_of(colour=colour, sigma_a=sigma_a, melanin=melanin, roughness=roughness)
         return self.sample(name, np.asarray(sin_theta)[..., None], np.asarray(roughness)[..., None], absorption)
 
 
@@ -161,13 +179,12 @@ def from_atlas(path) -> HairBSDFTables:
     return _tables(r, values, None, Path(path), None)
 
 
-def _tables(r: dict, values: dict, errs: dict | None, path, attrs) -> HairBSDFTables:
+def _tables(r: dict, values: dict, errs: dict | None, path, attrs, sigma=None) -> HairBSDFTables:
     from ._recipe import grid_axes
 
     ax = grid_axes(r)
     names = [q for qs in QUANTITIES.values() for q in qs if q in values]
     dims = {q: _dims(q) for q in names}
-    sigma = ax["sigma_a"] if any(dims[q] == GRID for q in names) else None
     return HairBSDFTables(
         {q: values[q] for q in names},
         None if errs is None else {q: errs[q] for q in names},
@@ -194,7 +211,8 @@ def load(path) -> HairBSDFTables:
     missing = [n for q in want for n in (q, f"{q}_error") if n not in t.variables]
     if missing:
         raise errors.MissingDatasetError(path, f"the recipe's tables {missing} are missing")
-    out = _tables(r, {q: t[q] for q in want}, {q: t[f"{q}_error"] for q in want}, Path(path), dict(t.attrs))
+    sigma = t["sigma_a"] if "sigma_a" in t.variables else None
+    out = _tables(r, {q: t[q] for q in want}, {q: t[f"{q}_error"] for q in want}, Path(path), dict(t.attrs), sigma)
     for q in want:
         shape = tuple(len(out.axes[d]) for d in out.dims[q])
         if out.values[q].shape != shape or out.errors[q].shape != shape:

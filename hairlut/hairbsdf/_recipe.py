@@ -2,16 +2,18 @@
 
 Light (no JAX): the registry, the planner and the command line resolve recipes without baking.
 
-Two grids.  ``dual_scattering`` (A_f, A_b, ᾱ_f, β̄_f, ᾱ_b, β̄_b; Zinke et al. 2008) and ``mean_energy``
-(R, TT, TRT) share one (sin θ, roughness, absorption) grid, ``[grid]``, at Unreal's 64 × 64 × 16 by default:
-an engine samples both at the same texture coordinates, and the bake splits over its sin θ rows.
-``coverage`` has its own (strand count, radius in pixels) grid, 64 × 64 by default.
+Two grids.  ``dual_scattering`` (A_f, A_b, ᾱ_f, ᾱ_b, β̄_f, β̄_b; Zinke et al. 2008) and ``mean_energy``
+(R, TT, TRT and the residual p ≥ 3) share one (sin θ, roughness, absorption) grid, ``[grid]``, at Unreal's
+64 × 64 × 16 by default: an engine samples both at the same texture coordinates, and the bake splits over its
+sin θ rows.  ``coverage`` has its own (radius in pixels, strand count) grid, Unreal's 64 × 64 by default.
 
-Every axis spans an interval ``[lo, hi]`` whose ``n`` nodes sit at texel centres, lo + (hi − lo)(i + ½)/n, so
+Every axis spans an interval ``[lo, hi]`` whose ``n`` nodes sit at cell centres, lo + (i + ½)(hi − lo)/n, so
 that a GPU's sampler reads node i at the texture coordinate (i + ½)/n of u = (x − lo)/(hi − lo) (Unreal's
-convention).  The absorption axis is a hair colour channel (``absorption.axis = "colour"``, Unreal's
-perceptual axis: σ_a from the colour by Chiang et al. 2016's eq. 9 at azimuthal roughness
-``absorption.beta_n``), or σ_a itself (``"sigma_a"``), per unit fibre radius as pbrt-v4 has it.
+convention).  The absorption axis is Unreal's perceptual hair colour c (``absorption.axis = "colour"``: the
+linear colour is C = c², and σ_a follows from C by Chiang et al. 2016's eq. 9 at β_n = the roughness) or σ_a
+itself (``"sigma_a"``), per unit fibre radius as pbrt-v4 has it.  The numbers are
+:mod:`hairlut.hairbsdf._integrals`' (``tables``), which this recipe drives: ``bsdf`` is its ``model``,
+``quadrature`` its ``quadrature``.
 """
 
 from __future__ import annotations
@@ -27,13 +29,13 @@ from ..validate import one_of
 
 METHOD = "hairbsdf/1"
 #: The per-entry quantities of each table, in the order the EXR atlas stores them.
-DUAL = ("A_f", "A_b", "alpha_f", "beta_f", "alpha_b", "beta_b")
-ENERGY = ("R", "TT", "TRT")
+DUAL = ("A_f", "A_b", "alpha_f", "alpha_b", "beta_f", "beta_b")
+ENERGY = ("R", "TT", "TRT", "residual")
 COVERAGE = ("coverage",)
 QUANTITIES = {"dual_scattering": DUAL, "mean_energy": ENERGY, "coverage": COVERAGE}
-#: The largest node count of one axis (a 3-D texture's side on current GPUs is at most 2048; beyond, refused).
+#: The largest node count of one axis.
 MAX_NODES = 4096
-#: Bytes one entry of a grid table costs a bake at once: its float64 value and error, and the stored copies.
+#: Bytes one entry of a table costs a bake at once: its float64 value and error, and the stored copies.
 ENTRY_BYTES = 8 * 2 * 2
 
 
@@ -67,24 +69,31 @@ def _counts(n: int):
     return check
 
 
-def _real(lo, hi, *, lo_open=False, what=""):
+def _real(lo, hi, *, lo_open=False):
     def check(x):
         x = float(x)
         if not math.isfinite(x):
-            return f"{what}must be finite"
+            return "must be finite"
         if (x <= lo if lo_open else x < lo) or x > hi:
-            return f"{what}must lie in {'(' if lo_open else '['}{lo:g}, {hi:g}]"
+            return f"must lie in {'(' if lo_open else '['}{lo:g}, {hi:g}]"
         return None
 
     return check
 
 
-_F, _L = (float, int), (list,)
+def _even(lo: int, hi: int):
+    def check(x):
+        return None if lo <= x <= hi and x % 2 == 0 else f"an even integer in [{lo}, {hi}] (the error estimate uses half)"
+
+    return check
+
+
+_F, _L, _I = (float, int), (list,), (int,)
 
 SCHEMA = {
     "bsdf": {
         "eta": Field(1.55, _F, _real(1.0, 4.0, lo_open=True), "index of refraction of the fibre (pbrt-v4's 1.55)"),
-        "alpha": Field(2.0, _F, _real(-10.0, 10.0), "cuticle tilt α in degrees (Chiang et al. 2016; pbrt-v4's 2°)"),
+        "alpha": Field(2.0, _F, _real(-22.5, 22.5), "cuticle tilt α in degrees (Chiang et al. 2016; pbrt-v4's 2°)"),
     },
     "grid": {
         "resolution": Field([64, 64, 16], _L, _counts(3), "sin θ × roughness × absorption nodes (Unreal: 64 × 64 × 16)"),
@@ -93,27 +102,28 @@ SCHEMA = {
             [0.0, 1.0],
             _L,
             _span(0.0, 1.0, "roughness β lies in (0, 1]"),
-            "span of the roughness β = β_m = β_n; its texel centres lie in (0, 1]",
+            "span of the roughness β = β_m = β_n; its cell centres lie in (0, 1]",
         ),
     },
     "absorption": {
-        "axis": Field("colour", (str,), one_of("colour", "sigma_a"), "the absorption axis: a hair colour channel, or σ_a"),
-        "colour": Field([0.0, 1.0], _L, _span(0.0, 1.0, "a colour channel lies in [0, 1]"), "span of the colour axis"),
+        "axis": Field("colour", (str,), one_of("colour", "sigma_a"), "the absorption axis: Unreal's perceptual colour, or σ_a"),
+        "colour": Field([0.0, 1.0], _L, _span(0.0, 1.0, "a colour channel lies in [0, 1]"), "span of the colour axis (C = c²)"),
         "sigma_a": Field([0.0, 8.0], _L, _span(0.0, None, "σ_a is ≥ 0"), "span of the σ_a axis (per unit fibre radius)"),
-        "beta_n": Field(
-            0.3, _F, _real(0.0, 1.0, lo_open=True, what="roughness "), "β_n of the colour → σ_a mapping (Unreal: 0.3)"
-        ),
     },
-    "dual_scattering": {"bake": Field(True, (bool,), None, "bake A_f, A_b, ᾱ_f, β̄_f, ᾱ_b, β̄_b (Zinke et al. 2008)")},
-    "mean_energy": {"bake": Field(True, (bool,), None, "bake the mean energy of the R, TT and TRT lobes")},
+    "dual_scattering": {"bake": Field(True, (bool,), None, "bake A_f, A_b, ᾱ_f, ᾱ_b, β̄_f, β̄_b (Zinke et al. 2008)")},
+    "mean_energy": {"bake": Field(True, (bool,), None, "bake the mean energy of the R, TT, TRT and residual lobes")},
     "coverage": {
         "bake": Field(True, (bool,), None, "bake the pixel coverage of N strands"),
-        "resolution": Field([64, 64], _L, _counts(2), "strand count × radius nodes"),
-        "strands": Field([0.0, 64.0], _L, _span(0.0, 1e6, "a strand count is ≥ 0"), "span of the strand count N"),
-        "radius": Field([0.0, 1.0], _L, _span(0.0, 1e3, "a radius is ≥ 0"), "span of the strand radius, in pixels"),
+        "resolution": Field([64, 64], _L, _counts(2), "radius × strand count nodes (Unreal: 64 × 64)"),
+        "radius": Field([0.0, 0.5], _L, _span(0.0, 1e3, "a radius is ≥ 0"), "span of the strand radius in pixels (Unreal's)"),
+        "strands": Field(
+            [-0.5, 63.5], _L, _span(-1.0, 1e6, "a strand count is ≥ 0"), "span of the strand count N (nodes 0, 1, …, 63)"
+        ),
     },
     "quadrature": {
-        "tolerance": Field(1e-6, _F, _real(1e-14, 1e-2, lo_open=True), "target absolute error of each entry"),
+        "nodes": Field(8, _I, _even(2, 64), "Gauss–Legendre nodes per panel of the BSDF integrals"),
+        "levels": Field(4, _I, lambda x: None if 1 <= x <= 8 else "an integer in [1, 8]", "panels graded about each feature"),
+        "coverage_nodes": Field(16, _I, _even(2, 64), "Gauss–Legendre nodes per panel of the coverage integrals"),
     },
     "storage": {"dtype": Field("float32", (str,), one_of("float16", "float32", "float64"), "dtype of the stored values")},
 }
@@ -123,55 +133,45 @@ _OTHER_SPAN = {"colour": "sigma_a", "sigma_a": "colour"}
 
 
 def nodes(span, n: int) -> np.ndarray:
-    """The n texel-centre nodes of ``span`` = [lo, hi]: lo + (hi − lo)(i + ½)/n (float64)."""
+    """The n cell-centre nodes of ``span`` = [lo, hi]: lo + (i + ½)(hi − lo)/n (float64)."""
     lo, hi = (float(v) for v in span)
-    return lo + (hi - lo) * (np.arange(n, dtype=np.float64) + 0.5) / n
-
-
-def colour_divisor(beta_n: float) -> float:
-    """Chiang et al. 2016, eq. 9's divisor: 5.969 − 0.215β_n + 2.532β_n² − 10.73β_n³ + 5.574β_n⁴ + 0.245β_n⁵."""
-    b = float(beta_n)
-    return 5.969 - 0.215 * b + 2.532 * b**2 - 10.73 * b**3 + 5.574 * b**4 + 0.245 * b**5
-
-
-def sigma_a_of_colour(colour, beta_n: float) -> np.ndarray:
-    """σ_a of a hair colour (each channel in (0, 1]) by Chiang et al. 2016, eq. 9: (ln c / divisor(β_n))²."""
-    c = np.asarray(colour, np.float64)
-    return (np.log(c) / colour_divisor(beta_n)) ** 2
-
-
-def colour_of_sigma_a(sigma_a, beta_n: float) -> np.ndarray:
-    """The inverse of :func:`sigma_a_of_colour`: c = exp(−√σ_a · divisor(β_n))."""
-    return np.exp(-np.sqrt(np.asarray(sigma_a, np.float64)) * colour_divisor(beta_n))
-
-
-#: σ_a per unit concentration of eumelanin and pheomelanin, RGB (d'Eon et al. 2011, as pbrt-v4 uses them).
-EUMELANIN = (0.419, 0.697, 1.37)
-PHEOMELANIN = (0.187, 0.4, 1.05)
-
-
-def sigma_a_of_melanin(eumelanin, pheomelanin=0.0) -> np.ndarray:
-    """σ_a (RGB, on a last axis) of melanin concentrations: C_eu σ_eu + C_pheo σ_pheo."""
-    eu = np.asarray(eumelanin, np.float64)[..., None]
-    ph = np.asarray(pheomelanin, np.float64)[..., None]
-    return eu * np.asarray(EUMELANIN) + ph * np.asarray(PHEOMELANIN)
+    return lo + (np.arange(n, dtype=np.float64) + 0.5) * ((hi - lo) / n)
 
 
 def grid_axes(recipe: dict) -> dict[str, np.ndarray]:
     """The nodes of every axis of a resolved recipe: ``sin_theta``, ``roughness``, ``absorption`` (the axis's own
-    coordinate), ``sigma_a`` (σ_a at each absorption node), ``strands`` and ``radius``."""
+    coordinate), ``radius`` and ``strands``."""
     g, a, c = recipe["grid"], recipe["absorption"], recipe["coverage"]
     n_s, n_r, n_a = g["resolution"]
-    absorption = nodes(a[a["axis"]], n_a)
-    sigma = sigma_a_of_colour(absorption, a["beta_n"]) if a["axis"] == "colour" else absorption
     return {
         "sin_theta": nodes(g["sin_theta"], n_s),
         "roughness": nodes(g["roughness"], n_r),
-        "absorption": absorption,
-        "sigma_a": sigma,
-        "strands": nodes(c["strands"], c["resolution"][0]),
-        "radius": nodes(c["radius"], c["resolution"][1]),
+        "absorption": nodes(a[a["axis"]], n_a),
+        "radius": nodes(c["radius"], c["resolution"][0]),
+        "strands": nodes(c["strands"], c["resolution"][1]),
     }
+
+
+def physics_axes(recipe: dict) -> tuple[dict, dict]:
+    """(axes, resolution) of a resolved recipe as :func:`hairlut.hairbsdf._integrals.tables` takes them."""
+    g, a, c = recipe["grid"], recipe["absorption"], recipe["coverage"]
+    axes = {
+        "sin_theta_o": tuple(g["sin_theta"]),
+        "roughness": tuple(g["roughness"]),
+        "absorption": tuple(a[a["axis"]]),
+        "absorption_kind": a["axis"],
+        "radius_px": tuple(c["radius"]),
+        "strand_count": tuple(c["strands"]),
+    }
+    n_s, n_r, n_a = g["resolution"]
+    resolution = {
+        "sin_theta_o": n_s,
+        "roughness": n_r,
+        "absorption": n_a,
+        "radius_px": c["resolution"][0],
+        "strand_count": c["resolution"][1],
+    }
+    return axes, resolution
 
 
 def grid_tables(recipe: dict) -> tuple[str, ...]:
