@@ -223,6 +223,27 @@ def test_the_file_opens_in_xarray(physics, tmp_path):
         assert ds["sigma_a"].dims == ("roughness", "absorption")
 
 
+TINY = {"grid": {"resolution": [3, 3, 2]}, "coverage": {"resolution": [2, 3]}}
+
+
+def test_the_real_quadrature_through_the_kind(tmp_path, monkeypatch):
+    """The kind's plumbing on hairlut.hairbsdf._integrals itself: fields land under their names (A_f + A_b is the
+    sum of the lobes' energies), a split bake is bitwise the one-shot bake, and the lookup returns the nodes."""
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "0")
+    one = registry.bake("hair_bsdf", TINY, tmp_path / "one.h5", options={"block": 3})
+    split = registry.bake("hair_bsdf", TINY, tmp_path / "split.h5", options={"block": 1})
+    assert _sha(one["out"]) == _sha(split["out"])
+    t = load(one["out"])
+    energy = sum(t.values[q].astype(np.float64) for q in ("R", "TT", "TRT", "residual"))
+    both = t.values["A_f"].astype(np.float64) + t.values["A_b"]
+    slack = sum(t.errors[q] for q in ("A_f", "A_b", "R", "TT", "TRT", "residual"))
+    assert np.all(np.abs(both - energy) <= slack)
+    assert np.all((t.values["coverage"] >= 0) & (t.values["coverage"] <= 1)) and t.sigma_a.shape == (3, 2)
+    s, b, a = np.meshgrid(*(t.axes[d] for d in ("sin_theta", "roughness", "absorption")), indexing="ij")
+    np.testing.assert_array_equal(t.sample("TT", s, b, a), t.values["TT"].astype(np.float64))
+    np.testing.assert_allclose(t.absorption_of(sigma_a=t.sigma_a[1, 0], roughness=t.axes["roughness"][1]), a[0, 1, 0])
+
+
 # ----------------------------------------------------------------------------- the EXR atlas
 
 

@@ -17,12 +17,15 @@ KIND = "hair_bsdf"
 SHARD_KIND = "hair_bsdf_shard"
 #: sin θ rows per resumable part (``OUT.parts/``): 8 parts of Unreal's 64 rows.
 BLOCK = 8
-#: Start-up of a bake (imports, jit compilation), seconds.
-BAKE_OVERHEAD = 3.0
-#: Grid entries (all quantities of one (sin θ, roughness, absorption) node) per CPU second, and coverage entries
-#: per CPU second: measured by ``hairlut bench --only hair_bsdf`` on the 2-core development CPU.
-GRID_RATE = 2.0e4
-COVERAGE_RATE = 2.0e5
+#: Start-up of a bake: compiling the quadrature's row kernels (grid and coverage), seconds.
+BAKE_OVERHEAD = 10.0
+#: Grid entries (every quantity of one (sin θ, roughness, absorption) node, both tables) and coverage entries per
+#: second, warm: measured on the 2-core development CPU under load (~5): 64 × 64 × 16 in 3.9 s, 64 × 64 coverage
+#: entries in 3.9 s (``hairlut bench --only hair_bsdf`` reports the bake's time beside its error).
+GRID_RATE = 1.7e4
+COVERAGE_RATE = 1.0e3
+#: The file's own bytes per dataset (HDF5 headers, dimension scales, attributes), measured on small tables.
+DATASET_BYTES = 4096
 
 #: The recipe keys that drive the tables (named when a table is refused).
 KEYS = ("bsdf.eta", "bsdf.alpha", "grid.roughness", "absorption.axis", "quadrature.nodes", "quadrature.levels")
@@ -59,15 +62,16 @@ BOUNDS = _bounds()
 
 
 def estimate(recipe: dict) -> tuple[int, float]:
-    """(bytes, seconds) of a bake: the stored values and errors (uncompressed), and the quadrature at the
-    measured rates (:data:`GRID_RATE`, :data:`COVERAGE_RATE`)."""
+    """(bytes, seconds) of a bake: the stored values and errors (uncompressed) and the file's own bytes per dataset,
+    and the quadrature at the measured rates (:data:`GRID_RATE`, :data:`COVERAGE_RATE`) after its compilation."""
     r = resolve_recipe(recipe)
     item = {"float16": 2, "float32": 4, "float64": 8}[r["storage"]["dtype"]]
     n_s, n_r, n_a = r["grid"]["resolution"]
     grid = n_s * n_r * n_a if grid_tables(r) else 0
     cov = math.prod(r["coverage"]["resolution"]) if r["coverage"]["bake"] else 0
     err = max(item, 4)
-    nbytes = grid * len(quantities(r)) * (item + err) + cov * (item + err) + 8 * (n_s + n_r + 2 * n_a)
+    datasets = 2 * len(quantities(r)) + (1 + 3 if grid else 0) + (2 + 2 if cov else 0)  # tables, errors, σ_a, axes
+    nbytes = grid * len(quantities(r)) * (item + err) + cov * (item + err) + 8 * n_r * n_a + DATASET_BYTES * datasets
     return int(nbytes), BAKE_OVERHEAD + grid / GRID_RATE + cov / COVERAGE_RATE
 
 
