@@ -376,10 +376,10 @@ def test_the_bench_part_compares_with_monte_carlo_and_draws_where_it_errs(physic
     for k in (1, 4, 16):
         assert f"Unreal-style Monte Carlo, {k}× Unreal's counts" in labels
     assert "hairlut quadrature (converged)" in labels
-    assert "hair_bsdf/dual_scattering: where the Monte Carlo table errs most" in res["plots"]
+    assert "hair_bsdf/where the Monte Carlo tables err most" in res["plots"]
     md = (tmp_path / "report.md").read_text()
-    assert "### dual_scattering: where the Monte Carlo table errs most" in md
-    assert (tmp_path / res["plots"]["hair_bsdf/dual_scattering: where the Monte Carlo table errs most"]).is_file()
+    assert "### where the Monte Carlo tables err most" in md
+    assert (tmp_path / res["plots"]["hair_bsdf/where the Monte Carlo tables err most"]).is_file()
     assert any("the whole bake" in n for n in info["notes"])
 
 
