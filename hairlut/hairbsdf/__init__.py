@@ -2,4 +2,4 @@
 
 Minimal placeholder: the table kind's helper owns this package's public list (issue 28)."""
 
-__all__: list[str] = []
+__all__ = []
