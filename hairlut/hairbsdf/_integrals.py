@@ -103,7 +103,7 @@ DEFAULT_AXES = {
 DEFAULT_RESOLUTION = {"sin_theta_o": 64, "roughness": 64, "absorption": 16, "radius_px": 64, "strand_count": 64}
 #: Gauss–Legendre nodes per panel (``nodes``, even: the error estimate uses half of them), the grading levels
 #: about each sharp feature (``levels``) and the nodes per panel of the coverage integrals.
-DEFAULT_QUADRATURE = {"nodes": 8, "levels": 4, "coverage_nodes": 16}
+DEFAULT_QUADRATURE = {"nodes": 12, "levels": 4, "coverage_nodes": 16}
 #: The BSDF's constants (η, the cuticle tilt α in degrees): pbrt-v4's defaults.
 DEFAULT_MODEL = {"eta": B.ETA, "alpha": B.ALPHA}
 #: Unreal's strata per entry: θ from 128 (smooth) to 64 (rough), φ from 128 to 32 (``HairStrandsLUT.usf``).
@@ -175,13 +175,16 @@ def _caustic(p: int, k):
 def _crossings(p: int, k):
     """The γ ∈ [−π/2, π/2] where Φ_p crosses ±π/2 (mod 2π), the edges of the back half of azimuth.
 
-    ψ_p stays within [−π, π] for p ≤ 2, so the crossings are those of ψ_p = ±π/2, found by bisection on each
-    monotone piece of [0, π/2] and mirrored (ψ_p is odd).  Returns (γ (S,), valid (S,)), S = 4 per piece."""
+    ψ_p stays within [−π, π] for p ≤ 2 (|asin(k sin γ)| ≤ |γ|), so the crossings are those of ψ_p = ±π/2, found by
+    bisection on the monotone pieces of [0, π/2] and mirrored (ψ_p is odd).  On [0, π/2], ψ_0 and ψ_1 fall from 0
+    (only −π/2 can be crossed); ψ_2 rises to the caustic γ_c, where it is ≥ 0 (only +π/2), then falls (either).
+    Returns (γ (S,), valid (S,)): S = 2 for p ≤ 1, 6 for p = 2."""
     gc = _caustic(p, k)
-    pieces = [(0.0 * k, gc), (gc, 0.0 * k + _HALF_PI)] if p >= 2 else [(0.0 * k, 0.0 * k + _HALF_PI)]
-    a = jnp.stack([lo for lo, _ in pieces for _ in (0, 1)])
-    b = jnp.stack([hi for _, hi in pieces for _ in (0, 1)])
-    tau = jnp.asarray([_HALF_PI, -_HALF_PI] * len(pieces))
+    zero, top = 0.0 * k, 0.0 * k + _HALF_PI
+    slots = [(zero, top, -_HALF_PI)] if p < 2 else [(zero, gc, _HALF_PI), (gc, top, _HALF_PI), (gc, top, -_HALF_PI)]
+    a = jnp.stack([lo for lo, _, _ in slots])
+    b = jnp.stack([hi for _, hi, _ in slots])
+    tau = jnp.asarray([t for _, _, t in slots])
     fa, fb = _psi(p, k, a) - tau, _psi(p, k, b) - tau
     valid = fa * fb < 0.0
 
@@ -253,23 +256,26 @@ def _bsdf_row(sin_o, rough, sigma, eta, alpha, m: int, levels: int):
     cos_t = B._sqrt1m(sin_o / eta)
     s = B.azimuthal_scale(rough)
     front, back = [], []
-    energy0 = None
+    residual = None
     for p in range(B.P_MAX):
         g, w = _h_nodes(p, k, s, m, levels)  # (R, N)
-        h = jnp.sin(g)
-        f = B.fresnel(cos_o * jnp.cos(g), eta)
-        sin_gt = k * h
-        length = 2.0 * B._sqrt1m(sin_gt) / cos_t
-        c = back_fraction(B.phi_centre(p, g, jnp.arcsin(sin_gt)), s[:, None])
-        t = jnp.exp(-sigma[:, :, None] * length[:, None, :])  # (R, K, N)
-        a = B.attenuation(f[:, None, :], t)  # (R, K, N, 4)
-        wa = w[:, None, :] * a[..., p]
-        back.append(jnp.sum(wa * c[:, None, :], axis=-1))
-        front.append(jnp.sum(wa * (1.0 - c)[:, None, :], axis=-1))
+        sin_gt = k * jnp.sin(g)
+        f = B.fresnel(cos_o * jnp.cos(g), eta)[:, None, :]
+        c = back_fraction(B.phi_centre(p, g, jnp.arcsin(sin_gt)), s[:, None])[:, None, :]
+        if p == 0:
+            wa = w[:, None, :] * f  # A_0 = f, whatever σ_a
+        t = jnp.exp(-sigma[:, :, None] * (2.0 * B._sqrt1m(sin_gt) / cos_t)[:, None, :])  # (R, K, N)
         if p == 0:  # the residual lobe (uniform in azimuth: half in each half) on the same nodes
-            energy0 = jnp.sum(w[:, None, :] * a[..., B.P_MAX], axis=-1)
-    front.append(0.5 * energy0)
-    back.append(0.5 * energy0)
+            residual = jnp.sum(w[:, None, :] * B.attenuation(f, t)[..., B.P_MAX], axis=-1)
+        elif p == 1:
+            wa = w[:, None, :] * (1.0 - f) ** 2 * t
+        else:
+            wa = w[:, None, :] * (1.0 - f) ** 2 * t * t * f
+        wb = jnp.sum(wa * c, axis=-1)
+        back.append(jnp.broadcast_to(wb, sigma.shape))
+        front.append(jnp.broadcast_to(jnp.sum(wa, axis=-1) - wb, sigma.shape))
+    front.append(0.5 * residual)
+    back.append(0.5 * residual)
     fr, bk = jnp.stack(front, axis=-1), jnp.stack(back, axis=-1)  # (R, K, 4)
     mean_a, var_b = _theta_moments(sin_o, cos_o, rough, alpha, m, levels)  # (R, 4)
     a_f, a_b = jnp.sum(fr, axis=-1), jnp.sum(bk, axis=-1)

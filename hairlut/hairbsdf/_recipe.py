@@ -121,7 +121,7 @@ SCHEMA = {
         ),
     },
     "quadrature": {
-        "nodes": Field(8, _I, _even(2, 64), "Gauss–Legendre nodes per panel of the BSDF integrals"),
+        "nodes": Field(12, _I, _even(2, 64), "Gauss–Legendre nodes per panel of the BSDF integrals"),
         "levels": Field(4, _I, lambda x: None if 1 <= x <= 8 else "an integer in [1, 8]", "panels graded about each feature"),
         "coverage_nodes": Field(16, _I, _even(2, 64), "Gauss–Legendre nodes per panel of the coverage integrals"),
     },

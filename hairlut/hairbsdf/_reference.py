@@ -89,8 +89,8 @@ def np_(phi: float, p: int, s: float, gamma_o: float, gamma_t: float) -> float:
     return logistic(dphi, s) / (logistic_cdf(math.pi, s) - logistic_cdf(-math.pi, s))
 
 
-def lobes_one(wo, wi, h, sigma_a, beta_m, beta_n, alpha_deg, eta) -> list[float]:
-    """M_p A_p N_p, p = 0 … 3, for one direction pair, one channel."""
+def lobes_one(wo, wi, h, sigma_a, beta_m, beta_n, alpha_deg, eta, unattenuated=False) -> list[float]:
+    """M_p A_p N_p, p = 0 … 3, for one direction pair, one channel (M_p N_p with ``unattenuated``)."""
     sin_o = max(-1.0, min(1.0, wo[0]))
     cos_o = math.hypot(wo[1], wo[2])
     phi_o = math.atan2(wo[2], wo[1])
@@ -114,12 +114,13 @@ def lobes_one(wo, wi, h, sigma_a, beta_m, beta_n, alpha_deg, eta) -> list[float]
         th = th_o + shift
         m = mp(cos_i, abs(math.cos(th)), sin_i, math.sin(th), v[p])
         n = np_(phi_i - phi_o, p, s, gamma_o, gamma_t) if p < P_MAX else 1.0 / (2.0 * math.pi)
-        out.append(m * a[p] * n)
+        out.append(m * n if unattenuated else m * a[p] * n)
     return out
 
 
-def lobes(wo, wi, h, sigma_a, beta_m, beta_n, alpha=2.0, eta=1.55) -> np.ndarray:
-    """:func:`lobes_one` over broadcast arrays: (..., C, 4) like :func:`hairlut.hairbsdf._bsdf.lobes`."""
+def lobes(wo, wi, h, sigma_a, beta_m, beta_n, alpha=2.0, eta=1.55, unattenuated=False) -> np.ndarray:
+    """:func:`lobes_one` over broadcast arrays: (..., C, 4) like :func:`hairlut.hairbsdf._bsdf.lobes` (M_p N_p
+    alone with ``unattenuated``: the scale against which a rounding of A_p is measured)."""
     wo, wi = np.asarray(wo, float), np.asarray(wi, float)
     wo = wo / np.linalg.norm(wo, axis=-1, keepdims=True)
     wi = wi / np.linalg.norm(wi, axis=-1, keepdims=True)
@@ -133,7 +134,7 @@ def lobes(wo, wi, h, sigma_a, beta_m, beta_n, alpha=2.0, eta=1.55) -> np.ndarray
     for idx in np.ndindex(*shape):
         for c in range(sa.shape[-1]):
             out[idx + (c,)] = lobes_one(
-                wo[idx], wi[idx], float(h[idx]), float(sa[idx + (c,)]), float(bm[idx]), float(bn[idx]), alpha, eta
+                wo[idx], wi[idx], float(h[idx]), float(sa[idx + (c,)]), float(bm[idx]), float(bn[idx]), alpha, eta, unattenuated
             )
     return out
 
