@@ -158,7 +158,7 @@ def test_bake_load_and_lookup_at_the_nodes_returns_the_stored_values(physics, tm
     for name in ("A_f", "beta_b", "TRT"):
         got = t.sample(name, *np.meshgrid(s, b, a, indexing="ij"))
         np.testing.assert_array_equal(got, t.values[name].astype(np.float64))
-        assert t.errors[name].min() >= 1e-8 / 8  # the stand-in's estimate, plus the float32 rounding
+        assert t.errors[name].min() >= 1e-8 / 12  # the stand-in's estimate at 12 nodes, plus the float32 rounding
     r, n = np.meshgrid(t.axes["radius"], t.axes["strands"], indexing="ij")
     np.testing.assert_array_equal(t.sample("coverage", r, n), t.values["coverage"].astype(np.float64))
     # between nodes: the GPU's linear filter (midway: the mean of the two taps), clamp-to-edge beyond the ends
