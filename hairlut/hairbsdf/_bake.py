@@ -2,7 +2,8 @@
 
 The numbers come from :mod:`hairlut.hairbsdf._integrals` (deterministic quadrature of Chiang et al. 2016's
 fibre in θ and φ, with an error estimate per entry), entry by entry, so a sin θ row's numbers do not depend on
-which rows a part or a process bakes with it.  This module is the kind's side of the bake: the units of the
+which rows a part, a device or a process bakes with it (a part's rows are dealt one by one to the local devices,
+:func:`hairlut.bake.devices.map_chunks`).  This module is the kind's side of the bake: the units of the
 one shard path (:mod:`hairlut.bake.sharding`: parts of sin θ rows, ``--shard``, ``--distributed``, virtual or
 copied assets), the whole bake of a coverage-only recipe, and the report.
 """
@@ -17,6 +18,7 @@ import numpy as np
 
 from .. import errors
 from ..assets import canonical_json, open_table, recipe_hash
+from ..bake.devices import map_chunks
 from ._io import _largest, read_part, whole_tables, write_assembled, write_asset, write_joined, write_part
 from ._kind import KIND
 from ._recipe import grid_axes, grid_tables, physics_axes, resolve_recipe
@@ -122,7 +124,9 @@ def bake_part(recipe: dict, start: int, stop: int, total: int, path, **_) -> Pat
     """Bake sin θ rows [start, stop) into the ``hair_bsdf_shard`` part ``path``."""
     if total != recipe["grid"]["resolution"][0]:
         raise errors.ValidationError("sin_theta", total, f"the recipe's grid has {recipe['grid']['resolution'][0]} sin θ rows")
-    values, errs = grid_rows(recipe, start, stop)
+    done = map_chunks(lambda s, e: grid_rows(recipe, start + s, start + e), stop - start, micro=1)  # every local device
+    values = {k: np.concatenate([d[0][k] for d in done]) for k in done[0][0]}
+    errs = {k: np.concatenate([d[1][k] for d in done]) for k in done[0][1]}
     return write_part(path, recipe, values, errs, start, total)
 
 
