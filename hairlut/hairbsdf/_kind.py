@@ -154,8 +154,8 @@ BAKER = Baker(
     coverage         the pixel coverage of N strands over (radius in pixels, N)
 
     The values come from deterministic quadrature in θ and φ, not random sampling.  The HDF5 file
-    opens in xarray; --atlas also writes the EXR atlas engines sample; `hairlut.hairbsdf.load(FILE)
-    .sample(...)` reads a value the way a GPU's bilinear sampler does.""",
+    opens in xarray; --atlas also writes the EXR atlas engines sample; in Python,
+    `hairlut.hairbsdf.load(FILE).sample(...)` reads a value the way a GPU's bilinear sampler does.""",
     examples=(
         "hairlut bake hair_bsdf --out tables/hair_bsdf.h5 --atlas tables/hair_bsdf.exr",
         "hairlut bake hair_bsdf --set grid.resolution=[32,32,8] --set absorption.axis=sigma_a --out small.h5",
