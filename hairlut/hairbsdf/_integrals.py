@@ -596,6 +596,22 @@ def absorption_sigma(absorption, roughness, kind: str) -> np.ndarray:
     return B.colour_to_sigma_a(a * a, r)
 
 
+def peak_bytes(resolution=None, quadrature=None, *, block: int = 4096) -> dict[str, int]:
+    """An upper estimate of the working memory (bytes) of one row kernel, before anything is allocated:
+    ``bsdf_row`` (both BSDF tables), ``coverage_row`` and ``montecarlo_row`` (``block`` samples at a time).
+    Each counts its largest float64 temporaries live at once (a factor 8 over one (R, K, N) array: XLA fuses
+    most of them); the tables themselves (rows × … × 8 bytes, twice with the errors) are the caller's."""
+    res, q = check_resolution(resolution), check_quadrature(quadrature)
+    r, k, m, lv = res["roughness"], res["absorption"], q["nodes"], q["levels"]
+    n_h = (6 * (2 * lv + 1) + 4) * m  # the TRT node set, the largest
+    n_th = 4 * (2 * lv + 2) * m
+    bsdf = 8 * 8 * (r * k * n_h + r * n_th)
+    mc = q["coverage_nodes"]
+    n_x, n_om = (3 * mc) ** 2, 13 * mc
+    cov = 8 * (4 * n_x * n_om * 4 + res["strand_count"] * n_x)
+    return {"bsdf_row": int(bsdf), "coverage_row": int(cov), "montecarlo_row": int(8 * 8 * block * k * 4)}
+
+
 def _rows(start, stop, total: int, field: str) -> tuple[int, int]:
     start = 0 if start is None else start
     stop = total if stop is None else stop
@@ -776,6 +792,9 @@ def montecarlo_unreal(
     if bad:
         raise ValidationError("which", bad[0], f"must be among {', '.join(TABLES)}")
     scale = B.check_values(sample_scale, "sample_scale", 0.0, 16.0, lo_open=True)
+    for name, v in (("coverage_trials", coverage_trials), ("seed", seed), ("block", block)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < (0 if name == "seed" else 1):
+            raise ValidationError(name, v, "must be a non-negative integer" if name == "seed" else "must be a positive integer")
     ax = check_axes(axes)
     nodes = axis_nodes(ax, resolution)
     eta, alpha = check_model_dict(model)
