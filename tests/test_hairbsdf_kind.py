@@ -69,6 +69,7 @@ def _stand_in_sigma(absorption, roughness, kind):
 
 STAND_IN = types.SimpleNamespace(
     tables=_stand_in_tables,
+    peak_bytes=lambda resolution, quadrature: {"bsdf_row": 1 << 20, "coverage_row": 1 << 20, "montecarlo_row": 1 << 20},
     montecarlo_unreal=_stand_in_montecarlo,
     absorption_sigma=_stand_in_sigma,
     MEAN_ENERGY_FIELDS=("R", "TT", "TRT", "residual"),
@@ -134,6 +135,23 @@ def test_a_resolution_beyond_the_memory_budget_is_refused_before_any_allocation(
     assert res.exit_code == 2 and "grid.resolution" in res.output and not (tmp_path / "x.h5").exists()
     with pytest.raises(errors.BudgetError) as exc:
         resolve_recipe({"coverage": {"resolution": [4096, 4096]}})
+    assert exc.value.field == "coverage.resolution"
+
+
+def test_a_quadrature_whose_kernels_exceed_the_budget_is_refused_before_it_runs(tmp_path, monkeypatch):
+    """The recipe's tables fit, the quadrature's row kernel (its own peak_bytes estimate) does not: refused before any
+    part is baked, naming the key that drives it."""
+    monkeypatch.setenv("HAIRLUT_MEMORY_LIMIT", "100M")
+    heavy = {"quadrature": {"nodes": 64, "levels": 8}, "coverage": {"bake": False}}
+    resolve_recipe(heavy)  # the tables themselves fit
+    with pytest.raises(errors.BudgetError) as exc:
+        registry.bake("hair_bsdf", heavy, tmp_path / "x.h5")
+    assert exc.value.field == "quadrature.nodes" and "row kernel" in str(exc.value)
+    assert not (tmp_path / "x.h5").exists() and not list((tmp_path / "x.h5.parts").glob("part-*"))
+    with pytest.raises(errors.BudgetError) as exc:
+        registry.bake(
+            "hair_bsdf", {"quadrature": {"coverage_nodes": 64}, "coverage": {"resolution": [64, 4096]}}, tmp_path / "c.h5"
+        )
     assert exc.value.field == "coverage.resolution"
 
 

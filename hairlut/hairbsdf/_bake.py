@@ -21,7 +21,7 @@ from ..assets import canonical_json, open_table, recipe_hash
 from ..bake.devices import map_chunks
 from ._io import _largest, read_part, whole_tables, write_assembled, write_asset, write_joined, write_part
 from ._kind import KIND
-from ._recipe import grid_axes, grid_tables, physics_axes, resolve_recipe
+from ._recipe import grid_axes, grid_tables, physics_axes, quantities, resolve_recipe
 
 
 def _physics():
@@ -154,6 +154,52 @@ def whole_parts(recipe: dict, parts, index=None, **_):
     return axes, variables, {"max_error": top}
 
 
+def budget(recipe: dict, block: int, held: int, note: str = "") -> None:
+    """Refuse (BudgetError naming the key) a bake whose row kernels and held tables would not fit the memory budget,
+    before anything is allocated: one grid row kernel per local device (:func:`_integrals.peak_bytes`, the
+    quadrature's own estimate) and the tables of ``held`` sin θ rows (float64 values and errors), then the coverage
+    kernel.  ``note`` says why that many rows are held."""
+    from .. import budget as _budget
+    from ..bake.devices import local_devices
+
+    _, resolution = physics_axes(recipe)
+    q = _quadrature(recipe)
+    peak = _physics().peak_bytes(resolution, q)
+    _, n_r, n_a = recipe["grid"]["resolution"]
+    devices = len(local_devices())
+    key, value = _budget.driver(
+        ("grid.resolution", n_r * n_a, 64 * 16), ("quadrature.nodes", q["nodes"], 12), ("quadrature.levels", q["levels"], 4)
+    )
+    tables = _budget.product(held, n_r, n_a, len(quantities(recipe)), 16)
+    _budget.check(
+        key,
+        recipe["grid"]["resolution"] if key == "grid.resolution" else value,
+        devices * peak["bsdf_row"] + tables,
+        f"the quadrature's row kernel on {devices} device{'s' if devices > 1 else ''} ({n_r} × {n_a} entries, "
+        f"{q['nodes']} nodes per panel, {q['levels']} levels) and {held} sin θ rows of tables" + (f"; {note}" if note else ""),
+    )
+    check_coverage_budget(recipe)
+
+
+def check_coverage_budget(recipe: dict) -> None:
+    """Refuse a coverage table whose row kernel would not fit the memory budget (BudgetError naming the key)."""
+    from .. import budget as _budget
+
+    if not recipe["coverage"]["bake"]:
+        return
+    _, resolution = physics_axes(recipe)
+    q = _quadrature(recipe)
+    key, value = _budget.driver(
+        ("coverage.resolution", resolution["strand_count"], 64), ("quadrature.coverage_nodes", q["coverage_nodes"], 16)
+    )
+    _budget.check(
+        key,
+        recipe["coverage"]["resolution"] if key == "coverage.resolution" else value,
+        _physics().peak_bytes(resolution, q)["coverage_row"],
+        f"the coverage row kernel ({resolution['strand_count']} strand counts, {q['coverage_nodes']} nodes per panel)",
+    )
+
+
 def check_part(recipe: dict, path) -> None:
     """Refuse a part that lacks what ``join``/``assemble``/``whole`` read."""
     read_part(path, resolve_recipe(recipe, budget=False))
@@ -186,6 +232,7 @@ def _write_atlas(path, atlas) -> Path:
 def bake_whole(r: dict, out, *, progress=None, atlas=None, **_) -> dict:
     """The bake of a recipe without grid tables (the coverage table alone: no split)."""
     t0 = time.perf_counter()
+    check_coverage_budget(r)
     if progress:
         progress(0, 1)
     path = write_asset(out, r, None, coverage_table(r))

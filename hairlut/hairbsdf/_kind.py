@@ -138,6 +138,7 @@ BAKER = Baker(
         *(_bake(f) for f in ("bake_part", "join_parts", "assemble_parts", "whole_parts")),
         block=BLOCK,
         check=_bake("check_part"),
+        budget=_bake("budget"),
         index=_bake("part_index"),
         splits=lambda recipe: bool(grid_tables(recipe)),
         unsplit="a hair_bsdf recipe splits over the sin θ rows of its grid tables: bake dual_scattering or mean_energy",
