@@ -6,7 +6,7 @@ import json
 
 import click
 
-SYMBOL = {"bake": "bake ", "reuse": "reuse", "skip": "skip ", "run": "run  "}
+SYMBOL = {"bake": "bake ", "reuse": "reuse", "skip": "skip ", "run": "run  ", "choose": "chose", "set": "set  "}
 
 
 def _size(n: int) -> str:
@@ -28,7 +28,8 @@ def echo_plan(p) -> None:
             cost = f" [{_size(s.bytes)}: {s.path}]"
         elif s.action == "run" and s.seconds:
             cost = f" [~{s.seconds:.1f} s]"
-        click.echo(f"  {SYMBOL[s.action]} {s.name:<13} {s.reason}{cost}")
+        name = "" if s.action in ("choose", "set") else f"{s.name:<13} "  # a choice's reason starts with its key
+        click.echo(f"  {SYMBOL[s.action]} {name}{s.reason}{cost}")
     t = p.to_json()["totals"]
     click.echo(f"to bake: ~{_size(t['bake_bytes'])}, ~{t['bake_seconds']:.0f} s; reused: {_size(t['reused_bytes'])}")
 

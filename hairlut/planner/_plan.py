@@ -50,7 +50,7 @@ from pathlib import Path
 from .. import budget, errors
 from ..assets import recipe_hash
 from ..bake import cache, registry
-from ..scene import SceneSectors, as_scene, grid_coverage, restricted_space, scene_sectors
+from ..scene import SceneSectors, as_scene, cluster_choice, grid_coverage, layer_reads, restricted_space, scene_sectors
 from ._lighting import environment_bands, environment_light, sh_recipe
 
 #: Voxel SH transmittance: casts (voxel · direction · step) per second (``hairlut bench --only plan``).
@@ -382,7 +382,7 @@ def _sector_bound(sc) -> int:
     """An upper bound of a scene's sector count from its settings alone (no strands built)."""
     if sc.groom_path is not None:
         g = sc.config["groom"]
-        return g["clusters"] * (g["s_t"] + 1) * len(g["layer_radii"]) * g["s_u"]
+        return cluster_choice(sc).value * (g["s_t"] + 1) * len(g["layer_radii"]) * g["s_u"]
     return sum((s.s_t + 1) * s.n_layers * s.s_u for s in sc.specs)
 
 
@@ -483,19 +483,22 @@ SHADOW_WORDS = {"light_oriented": "light-oriented density map (bertails §2–3)
 
 def _shadow_steps(scene) -> list[Step]:
     """The shadow seam: eq 12's s-map, a light-space map per light, or nothing, and why."""
-    method, given, cfg = scene.shadow_method, scene.config["shadows"]["method"], scene.config["shadows"]
+    method, choice, cfg = scene.shadow_method, scene.shadow_choice, scene.config["shadows"]
     off = (
         "effects.shadow is off"
         if not scene.config["effects"]["shadow"]
         else "material.k_shadow = 0"
-        if given == "smap"
+        if choice.value == "smap"
         else "shadows.method = 'none'"
+        if choice.given
+        else choice.reason
     )
     if method == "smap":
         smap = Step(
             "s_map",
             "run",
-            "eq 12 s-map from the outer layers' α (shadows.method = 'smap'): one τ per texel for every light, no per-view map",
+            f"eq 12 s-map from the outer layers' α (shadows.method = {choice.value!r}): one τ per texel for every light, "
+            "no per-view map",
         )
     elif method == "none":
         smap = Step("s_map", "skip", f"{off}: τ = 1, no shadow work")
@@ -593,8 +596,40 @@ def plan(scene, cache_root=None) -> Plan:
             else Step("uniformity", "skip", f"{method!r} maps: every HSV sweeps its two sectors' own rows (eq 7), no eq 6 test")
             for s in online
         ]
-    steps = [*map_steps, hrir, _sh_step(sc, root), _transmittance_step(sc), _hair_bsdf_step(sc, root), *online]
+    steps = [
+        *_choice_steps(sc, ss),
+        *map_steps,
+        hrir,
+        _sh_step(sc, root),
+        _transmittance_step(sc),
+        _hair_bsdf_step(sc, root),
+        *online,
+    ]
     return Plan(sc, tuple(steps), str(root))
+
+
+def choices(scene, ss: SceneSectors | None = None) -> list:
+    """Every knob the planner chooses for ``scene`` (a :class:`hairlut.scene.Choice` each: as given, or chosen with
+    its reason and the error the picture benchmark measured for it)."""
+    sc = as_scene(scene)
+    ss = scene_sectors(sc) if ss is None else ss
+    return [
+        cluster_choice(sc),
+        layer_reads(sc.config["render"]["layer_reads"], int(len(ss.strands))),
+        sc.shadow_choice,
+    ]
+
+
+def _choice_steps(sc, ss: SceneSectors) -> list[Step]:
+    return [
+        Step(
+            c.key,
+            "set" if c.given else "choose",
+            f"{c.key} = {c.value!r}: {c.reason}" + (f" (measured: {c.predicted})" if c.predicted else ""),
+            details=c.to_json(),
+        )
+        for c in choices(sc, ss)
+    ]
 
 
 # ----------------------------------------------------------------------------- carrying it out

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import errors
+from ._choices import Choice, cluster_count
 from ._schema import Scene
 
 #: The last few scenes' clusters, by :func:`_key`: the planner, the scene-maps bake, the synthesis and the camera
@@ -50,12 +51,24 @@ def _copy(pairs: list) -> list:
 def scene_clusters(scene: Scene) -> list:
     """[(ClusterSpec, Strands)] for each cluster of the scene, in the scene's order (remembered for the last few
     scenes: :data:`_MEMO`)."""
+    return _copy(_memo(scene)[0])
+
+
+def cluster_choice(scene: Scene) -> Choice:
+    """``groom.clusters`` as given or as chosen from the groom (:func:`hairlut.scene.cluster_count`), or the
+    ``[[clusters]]`` the scene lists."""
+    if scene.groom_path is None:
+        return Choice("clusters", len(scene.specs), True, "the scene's own [[clusters]]")
+    return _memo(scene)[1]
+
+
+def _memo(scene: Scene) -> tuple:
     key = _key(scene)
     if key not in _MEMO:
         if len(_MEMO) >= _MEMO_SIZE:
             _MEMO.pop(next(iter(_MEMO)))
         _MEMO[key] = _build(scene)
-    return _copy(_MEMO[key])
+    return _MEMO[key]
 
 
 def _check_groom(strands, path) -> None:
@@ -91,9 +104,10 @@ def _build(scene: Scene) -> list:
         _check_groom(strands, scene.groom_path)
         if strands.thickness is None:
             strands = Strands(strands.points, strands.counts, thickness=np.full(strands.n_points, 2.0 * g["radius"], np.float32))
+        choice = cluster_count(strands, g["clusters"])
         batch, labels = fit_clusters(
             strands,
-            min(g["clusters"], strands.n_strands),
+            choice.value,
             layer_radii=g["layer_radii"],
             core_radius=g["core_radius"],
             s_t=g["s_t"],
@@ -107,7 +121,7 @@ def _build(scene: Scene) -> list:
             pts = np.concatenate([strands.points[off[i] : off[i + 1]] for i in idx])
             thick = np.concatenate([strands.thickness[off[i] : off[i + 1]] for i in idx])
             out.append((spec, Strands(pts, strands.counts[idx], thickness=thick)))
-        return out
+        return out, choice
     s = scene.config["strands"]
     out = []
     for spec, seed in zip(scene.specs, scene.cluster_seeds):
@@ -121,4 +135,4 @@ def _build(scene: Scene) -> list:
             seed=int(seed),
         )
         out.append((spec, strands))
-    return out
+    return out, None
