@@ -46,7 +46,8 @@ def plan_cmd(scene: str, cache_root: str | None, as_json: bool) -> None:
     Rules: no environment light → no SH tables; ks = 0 → no Rs; p_I sets the
     light bands ((√p + 1)²) and the energy left beyond them is reported; the
     HRIR database's sector space is fitted to the scene's sectors; voxel SH
-    transmittance only with an environment light and self_shadow; switched-off
+    transmittance only with an environment light and self_shadow; the hair BSDF
+    tables only with [tables] hair_bsdf = true (nothing in hairlut reads them); switched-off
     or zero-weight shading terms do no work online.  Sizes and times of bakes
     are estimates.
 

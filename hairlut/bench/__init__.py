@@ -40,6 +40,11 @@ PARTS: dict[str, Part] = {
     p.name: p
     for p in (
         Part("sh", "SH convolution tables: bake and per-vertex radiance (xing §4)", _runner("_sh")),
+        Part(
+            "hair_bsdf",
+            "Hair BSDF tables: converged quadrature against Unreal-style Monte Carlo (issue 28)",
+            _runner("_hairbsdf"),
+        ),
         Part("hrir", "HRIR database bake: density grid, march steps, rays per pixel (satf §4–5)", _runner("_hrir")),
         Part("maps", "Online maps: every map method against a converged truth, and the online frame (satf §6)", _runner("_maps")),
         Part("render", "Camera renders: the layered model and the strand render's levels", _runner("_render")),

@@ -224,6 +224,13 @@ SCHEMA = {
     "tables": {
         "hrir": Field({}, (dict,), None, "hrir_db recipe keys over the defaults (as hairlut bake hrir --set)"),
         "restrict": Field(True, _B, None, "restrict the database's sector space to the scene's own sectors"),
+        "hair_bsdf": Field(
+            False,
+            (bool, dict),
+            None,
+            "bake the hair_bsdf tables an engine's hair shading reads: true (the defaults), or a table of hair_bsdf "
+            "recipe keys over them (as hairlut bake hair_bsdf --set)",
+        ),
     },
     "strands": {
         "count": Field(200, _I, _int_at_least(0), "strands per procedural cluster"),
