@@ -171,16 +171,16 @@ def _graded(levels: int, ratio: float) -> np.ndarray:
 # ----------------------------------------------------------------------------- the azimuthal crossings
 
 
-def _psi(p: int, k, g):
+def _psi(p, k, g):
     """ψ_p(γ) = Φ_p − pπ = 2p asin(k sin γ) − 2γ (k = 1/η′); odd in γ."""
     return 2.0 * p * jnp.arcsin(k * jnp.sin(g)) - 2.0 * g
 
 
-def _dpsi(p: int, k, g):
+def _dpsi(p, k, g):
     return 2.0 * p * k * jnp.cos(g) / jnp.sqrt(1.0 - (k * jnp.sin(g)) ** 2) - 2.0
 
 
-def _d2psi(p: int, k, g):
+def _d2psi(p, k, g):
     return 2.0 * p * k * jnp.sin(g) * (k * k - 1.0) / (1.0 - (k * jnp.sin(g)) ** 2) ** 1.5
 
 
@@ -194,18 +194,21 @@ def _caustic(p: int, k):
     return jnp.where(ok, jnp.arcsin(jnp.sqrt(s2)), 0.0)
 
 
-def _crossings(p: int, k):
-    """The γ ∈ [−π/2, π/2] where Φ_p crosses ±π/2 (mod 2π), the edges of the back half of azimuth.
+def _crossings(lobes: tuple[int, ...], k):
+    """The γ ∈ [−π/2, π/2] where Φ_p crosses ±π/2 (mod 2π), the edges of the back half of azimuth, for each lobe p of
+    ``lobes`` (all p ≤ 1, or all p = 2: the lobes of one call share their bisection).
 
     ψ_p stays within [−π, π] for p ≤ 2 (|asin(k sin γ)| ≤ |γ|), so the crossings are those of ψ_p = ±π/2, found by
     bisection on the monotone pieces of [0, π/2] and mirrored (ψ_p is odd).  On [0, π/2], ψ_0 and ψ_1 fall from 0
     (only −π/2 can be crossed); ψ_2 rises to the caustic γ_c, where it is ≥ 0 (only +π/2), then falls (either).
-    Returns (γ (S,), valid (S,)): S = 2 for p ≤ 1, 6 for p = 2."""
-    gc = _caustic(p, k)
+    Returns (γ (L, S), valid (L, S)): S = 2 for p ≤ 1, 6 for p = 2."""
+    p = jnp.asarray(lobes, jnp.float64)[:, None]
+    gc = _caustic(lobes[0], k)
     zero, top = 0.0 * k, 0.0 * k + _HALF_PI
-    slots = [(zero, top, -_HALF_PI)] if p < 2 else [(zero, gc, _HALF_PI), (gc, top, _HALF_PI), (gc, top, -_HALF_PI)]
-    a = jnp.stack([lo for lo, _, _ in slots])
-    b = jnp.stack([hi for _, hi, _ in slots])
+    slots = [(zero, top, -_HALF_PI)] if lobes[0] < 2 else [(zero, gc, _HALF_PI), (gc, top, _HALF_PI), (gc, top, -_HALF_PI)]
+    shape = (len(lobes), len(slots))
+    a = jnp.broadcast_to(jnp.stack([lo for lo, _, _ in slots]), shape)
+    b = jnp.broadcast_to(jnp.stack([hi for _, hi, _ in slots]), shape)
     tau = jnp.asarray([t for _, _, t in slots])
     fa, fb = _psi(p, k, a) - tau, _psi(p, k, b) - tau
     valid = fa * fb < 0.0
@@ -219,7 +222,7 @@ def _crossings(p: int, k):
 
     lo, hi, _ = jax.lax.fori_loop(0, _BISECTION, step, (a, b, fa))
     root = 0.5 * (lo + hi)
-    return jnp.concatenate([root, -root]), jnp.concatenate([valid, valid])
+    return jnp.concatenate([root, -root], axis=-1), jnp.concatenate([valid, valid], axis=-1)
 
 
 def back_fraction(phi, s):
@@ -234,26 +237,37 @@ def back_fraction(phi, s):
 # ----------------------------------------------------------------------------- the BSDF tables, one row
 
 
-def _h_nodes(p: int, k, s, m: int, levels: int):
-    """γ nodes and the h-measure weights ½ cos γ dγ for lobe p (R, N), graded about the crossings."""
-    gam, valid = _crossings(p, k)
-    slope = jnp.abs(_dpsi(p, k, gam))
-    curve = jnp.abs(_d2psi(p, k, gam))
-    s_ = s[:, None]
+def _h_breaks(lobes: tuple[int, ...], k, s, levels: int):
+    """The γ panel breaks (L, R, B) of each lobe of ``lobes`` (as :func:`_crossings`) and roughness (scale s (R,)):
+    graded geometrically about each crossing in units of its width, plus ±π/2, 0 and ±γ_c."""
+    gam, valid = _crossings(lobes, k)  # (L, S)
+    p = jnp.asarray(lobes, jnp.float64)[:, None]
+    slope = jnp.abs(_dpsi(p, k, gam))[:, None, :]
+    curve = jnp.abs(_d2psi(p, k, gam))[:, None, :]
+    s_ = s[None, :, None]
     width = s_ / jnp.maximum(jnp.maximum(slope, jnp.sqrt(0.5 * s_ * curve)), 1e-300)
-    width = jnp.minimum(width, math.pi / 8.0)
+    width = jnp.minimum(width, math.pi / 8.0)  # (L, R, S)
     offsets = jnp.asarray(_graded(levels, 4.0))
-    pts = jnp.where(valid[None, :, None], gam[None, :, None] + width[..., None] * offsets, -_HALF_PI)
-    gc = _caustic(p, k)
-    fixed = jnp.stack([-_HALF_PI + 0.0 * k, 0.0 * k, _HALF_PI + 0.0 * k, gc, -gc])
-    pts = jnp.concatenate([pts.reshape(s.shape[0], -1), jnp.broadcast_to(fixed, (s.shape[0], 5))], axis=1)
-    breaks = jnp.sort(jnp.clip(pts, -_HALF_PI, _HALF_PI), axis=-1)
-    g, w = _panels(breaks, m)
-    return g, 0.5 * w * jnp.cos(g)
+    pts = jnp.where(valid[:, None, :, None], gam[:, None, :, None] + width[..., None] * offsets, -_HALF_PI)
+    gc = _caustic(lobes[0], k)
+    fixed = jnp.broadcast_to(jnp.stack([-_HALF_PI + 0.0 * k, 0.0 * k, _HALF_PI + 0.0 * k, gc, -gc]), (*width.shape[:2], 5))
+    pts = jnp.concatenate([pts.reshape(*width.shape[:2], -1), fixed], axis=-1)
+    return jnp.sort(jnp.clip(pts, -_HALF_PI, _HALF_PI), axis=-1)
 
 
-def _theta_moments(sin_o, cos_o, rough, alpha, m: int, levels: int):
-    """(α_p, β_p²) (R, 4): mean and variance of θ_h = (θ_i + θ_o)/2 under M_p(θ_i) cos θ_i dθ_i."""
+def _segments(parts):
+    """The arrays ``parts`` joined along their last axis, and the (start, stop) of each in the whole."""
+    bounds, at = [], 0
+    for x in parts:
+        bounds.append((at, at + x.shape[-1]))
+        at += x.shape[-1]
+    return jnp.concatenate(parts, axis=-1), bounds
+
+
+def _theta_moments(sin_o, cos_o, rough, alpha, rules: tuple[int, ...], levels: int):
+    """[(α_p, β_p²) (R, 4) for each rule of ``rules`` (nodes per panel)]: the mean and variance of
+    θ_h = (θ_i + θ_o)/2 under M_p(θ_i) cos θ_i dθ_i, every rule on the same panels (graded about each lobe's centre
+    in units of its width √v_p), M_p evaluated once on every rule's nodes."""
     v = B.longitudinal_variance(rough)  # (R, 4)
     sin_p, cos_p = B.tilt(sin_o, cos_o, alpha)  # (4,)
     centre = -jnp.arctan2(sin_p, cos_p)
@@ -261,79 +275,114 @@ def _theta_moments(sin_o, cos_o, rough, alpha, m: int, levels: int):
     pts = centre[None, :, None] + jnp.sqrt(v)[..., None] * offsets
     ends = jnp.broadcast_to(jnp.asarray([-_HALF_PI, _HALF_PI]), (*v.shape, 2))
     breaks = jnp.sort(jnp.clip(jnp.concatenate([pts, ends], axis=-1), -_HALF_PI, _HALF_PI), axis=-1)
-    th, w = _panels(breaks, m)  # (R, 4, N)
+    nodes = [_panels(breaks, m) for m in rules]
+    th, bounds = _segments([x for x, _ in nodes])  # (R, 4, N)
+    w, _ = _segments([x for _, x in nodes])
     mp = B.longitudinal(jnp.sin(th), jnp.cos(th), sin_p[:, None], cos_p[:, None], v[..., None])
     wt = w * mp * jnp.cos(th)
-    z = jnp.sum(wt, axis=-1)
-    mean = jnp.sum(wt * th, axis=-1) / z
-    var = jnp.sum(wt * (th - mean[..., None]) ** 2, axis=-1) / z
     theta_o = jnp.arctan2(sin_o, cos_o)
-    return 0.5 * (mean + theta_o), 0.25 * var
+    out = []
+    for i0, i1 in bounds:
+        wr, tr = wt[..., i0:i1], th[..., i0:i1]
+        z = jnp.sum(wr, axis=-1)
+        mean = jnp.sum(wr * tr, axis=-1) / z
+        var = jnp.sum(wr * (tr - mean[..., None]) ** 2, axis=-1) / z
+        out.append((0.5 * (mean + theta_o), 0.25 * var))
+    return out
 
 
-def _bsdf_row(sin_o, rough, sigma, eta, alpha, m: int, levels: int):
-    """One sin θ_o: mean energy (R, K, 4) and dual scattering (R, K, 6) for roughness (R,) and σ_a (R, K)."""
+def _bsdf_rules(sin_o, rough, sigma, eta, alpha, rules: tuple[int, ...], levels: int):
+    """One sin θ_o, for each rule of ``rules`` (Gauss–Legendre nodes per panel, all on the same panels): [(mean
+    energy (R, K, 4), dual scattering (R, K, 6))] for roughness (R,) and σ_a (R, K).
+
+    The panels (the crossings' bisection and the grading) are built once for every rule, and the per-node
+    geometry that does not depend on σ_a (Fresnel factor, back fraction, path length) is evaluated once on every
+    lobe's and every rule's nodes joined on one axis; the (R, K, N) transmittance and sums run per lobe and rule."""
     cos_o = B._sqrt1m(sin_o)
     k = B.bravais_inverse(sin_o, cos_o, eta)
     cos_t = B._sqrt1m(sin_o / eta)
     s = B.azimuthal_scale(rough)
-    front, back = [], []
-    residual = None
-    for p in range(B.P_MAX):
-        g, w = _h_nodes(p, k, s, m, levels)  # (R, N)
-        sin_gt = k * jnp.sin(g)
-        f = B.fresnel(cos_o * jnp.cos(g), eta)[:, None, :]
-        c = back_fraction(B.phi_centre(p, g, jnp.arcsin(sin_gt)), s[:, None])[:, None, :]
-        if p == 0:
-            wa = w[:, None, :] * f  # A_0 = f, whatever σ_a
-        t = jnp.exp(-sigma[:, :, None] * (2.0 * B._sqrt1m(sin_gt) / cos_t)[:, None, :])  # (R, K, N)
-        if p == 0:  # the residual lobe (uniform in azimuth: half in each half) on the same nodes
-            residual = jnp.sum(w[:, None, :] * B.attenuation(f, t)[..., B.P_MAX], axis=-1)
-        elif p == 1:
-            wa = w[:, None, :] * (1.0 - f) ** 2 * t
-        else:
-            wa = w[:, None, :] * (1.0 - f) ** 2 * t * t * f
-        wb = jnp.sum(wa * c, axis=-1)
-        back.append(jnp.broadcast_to(wb, sigma.shape))
-        front.append(jnp.broadcast_to(jnp.sum(wa, axis=-1) - wb, sigma.shape))
-    front.append(0.5 * residual)
-    back.append(0.5 * residual)
-    fr, bk = jnp.stack(front, axis=-1), jnp.stack(back, axis=-1)  # (R, K, 4)
-    mean_a, var_b = _theta_moments(sin_o, cos_o, rough, alpha, m, levels)  # (R, 4)
-    a_f, a_b = jnp.sum(fr, axis=-1), jnp.sum(bk, axis=-1)
+    br01, br2 = _h_breaks((0, 1), k, s, levels), _h_breaks((2,), k, s, levels)  # (2, R, B), (1, R, B′)
+    breaks = (br01[0], br01[1], br2[0])
+    parts, lobe = [], []
+    for m in rules:
+        for p in range(B.P_MAX):
+            g, w = _panels(breaks[p], m)  # (R, n)
+            parts.append((g, 0.5 * w * jnp.cos(g)))  # the h measure ½ dh = ½ cos γ dγ
+            lobe.append(np.full(g.shape[-1], p, np.float64))
+    g, bounds = _segments([x for x, _ in parts])  # (R, N): lobes 0, 1, 2 of each rule in turn
+    w, _ = _segments([x for _, x in parts])
+    sin_gt = k * jnp.sin(g)
+    f = B.fresnel(cos_o * jnp.cos(g), eta)
+    c = back_fraction(B.phi_centre(np.concatenate(lobe), g, jnp.arcsin(sin_gt)), s[:, None])
+    length = 2.0 * B._sqrt1m(sin_gt) / cos_t
+    # computed once here, not again for each σ_a in the (R, K, n) loops below (which XLA would otherwise fuse them into)
+    f, w, c, length = jax.lax.optimization_barrier((f, w, c, length))
+    moments = _theta_moments(sin_o, cos_o, rough, alpha, rules, levels)
+    out = []
+    for j, (mean_a, var_b) in enumerate(moments):
+        front, back = [], []
+        residual = None
+        for p in range(B.P_MAX):
+            i0, i1 = bounds[B.P_MAX * j + p]
+            fp, wp, cp = f[:, None, i0:i1], w[:, None, i0:i1], c[:, None, i0:i1]
+            t = jnp.exp(-sigma[:, :, None] * length[:, None, i0:i1])  # (R, K, n)
+            if p == 0:
+                wa = wp * fp  # A_0 = f, whatever σ_a
+                # the residual lobe (uniform in azimuth: half in each half) on the same nodes
+                residual = jnp.sum(wp * B.attenuation(fp, t)[..., B.P_MAX], axis=-1)
+            elif p == 1:
+                wa = wp * (1.0 - fp) ** 2 * t
+            else:
+                wa = wp * (1.0 - fp) ** 2 * t * t * fp
+            wb = jnp.sum(wa * cp, axis=-1)
+            back.append(jnp.broadcast_to(wb, sigma.shape))
+            front.append(jnp.broadcast_to(jnp.sum(wa, axis=-1) - wb, sigma.shape))
+        front.append(0.5 * residual)
+        back.append(0.5 * residual)
+        fr, bk = jnp.stack(front, axis=-1), jnp.stack(back, axis=-1)  # (R, K, 4)
+        a_f, a_b = jnp.sum(fr, axis=-1), jnp.sum(bk, axis=-1)
 
-    def weighted(wt, total, x):
-        ok = total > 0.0
-        return jnp.where(ok, jnp.sum(wt * x[:, None, :], axis=-1) / jnp.where(ok, total, 1.0), 0.0)
+        def weighted(wt, total, x):
+            ok = total > 0.0
+            return jnp.where(ok, jnp.sum(wt * x[:, None, :], axis=-1) / jnp.where(ok, total, 1.0), 0.0)
 
-    dual = jnp.stack(
-        [
-            a_f,
-            a_b,
-            weighted(fr, a_f, mean_a),
-            weighted(bk, a_b, mean_a),
-            jnp.sqrt(weighted(fr, a_f, var_b)),
-            jnp.sqrt(weighted(bk, a_b, var_b)),
-        ],
-        axis=-1,
-    )
-    return fr + bk, dual
+        dual = jnp.stack(
+            [
+                a_f,
+                a_b,
+                weighted(fr, a_f, mean_a),
+                weighted(bk, a_b, mean_a),
+                jnp.sqrt(weighted(fr, a_f, var_b)),
+                jnp.sqrt(weighted(bk, a_b, var_b)),
+            ],
+            axis=-1,
+        )
+        out.append((fr + bk, dual))
+    return out
+
+
+def _bsdf_row(sin_o, rough, sigma, eta, alpha, m: int, levels: int):
+    """(mean energy, its error, dual scattering, its error): the m-node rule's values and their distance from the
+    m/2-node rule's."""
+    (e1, d1), (e0, d0) = _bsdf_rules(sin_o, rough, sigma, eta, alpha, (m, m // 2), levels)
+    return e1, jnp.abs(e1 - e0), d1, jnp.abs(d1 - d0)
 
 
 @functools.partial(jax.jit, static_argnames=("m", "levels"))
 def bsdf_row_kernel(sin_o, rough, sigma, eta, alpha, *, m, levels):
     """The BSDF tables' row kernel (float64): sin_o (), rough (R,), sigma (R, K), η, α (radians) →
-    (mean energy (R, K, 4), dual scattering (R, K, 6))."""
+    (mean energy (R, K, 4), its error estimate, dual scattering (R, K, 6), its error estimate), both rules
+    (m and m/2 nodes per panel) in one program."""
     return _bsdf_row(sin_o, rough, sigma, eta, alpha, m, levels)
 
 
 @functools.partial(jax.jit, static_argnames=("m", "levels"))
 def bsdf_point_kernel(sin_o, rough, sigma, eta, alpha, *, m, levels):
-    """The same at P scattered points: sin_o, rough, sigma (P,) → ((P, 4), (P, 6))."""
+    """The same at P scattered points: sin_o, rough, sigma (P,) → ((P, 4), (P, 4), (P, 6), (P, 6))."""
 
     def one(so, r, sg):
-        e, d = _bsdf_row(so, r[None], sg[None, None], eta, alpha, m, levels)
-        return e[0, 0], d[0, 0]
+        return tuple(x[0, 0] for x in _bsdf_row(so, r[None], sg[None, None], eta, alpha, m, levels))
 
     return jax.lax.map(lambda x: one(*x), (sin_o, rough, sigma))
 
@@ -376,33 +425,44 @@ def _edge_term(s, d, r):
 
 
 def _coverage_q(x1, x2, r):
-    """q(x) at points (x1, x2) of the centred pixel [−½, ½]², in closed form: the sum over the four edges of
-    (d/π)(J(t_b) − J(t_a)) (:func:`_edge_term`; J is odd, the edge runs over offsets [t_a, t_b])."""
-    total = 0.0
-    for d, u in ((0.5 - x1, x2), (0.5 - x2, x1), (0.5 + x1, x2), (0.5 + x2, x1)):
-        for t, sign in ((0.5 - u, 1.0), (-0.5 - u, -1.0)):
-            total = total + sign * jnp.sign(t) * _edge_term(jnp.abs(t), d, r)
-    return total / math.pi
+    """q(x) at points (x1, x2) (n,) of the centred pixel [−½, ½]², in closed form: the sum over the four edges of
+    (d/π)(J(t_b) − J(t_a)) (:func:`_edge_term`; J is odd, the edge runs over offsets [t_a, t_b]), the eight ends
+    evaluated as one (8, n) array."""
+    d = jnp.stack([0.5 - x1, 0.5 - x2, 0.5 + x1, 0.5 + x2])  # right, top, left, bottom
+    u = jnp.stack([x2, x1, x2, x1])  # the offset of x's foot point along each edge
+    t = jnp.concatenate([0.5 - u, -0.5 - u])  # (8, n): each edge's two ends
+    sign = jnp.asarray([1.0] * 4 + [-1.0] * 4)[:, None]
+    return jnp.sum(sign * jnp.sign(t) * _edge_term(jnp.abs(t), jnp.concatenate([d, d]), r), axis=0) / math.pi
 
 
-def _coverage_rule(r, counts, m: int):
-    """1 − ∫ (1 − q)^N dx for N = counts (C,) by m-point Gauss–Legendre panels over a quarter of the pixel (the
-    square's symmetry), split where x is r from an edge (where q is not smooth)."""
+def _coverage_rules(r, counts, rules: tuple[int, ...]):
+    """[1 − ∫ (1 − q)^N dx for N = counts (C,), for each rule of ``rules``]: m-point Gauss–Legendre panels over a
+    quarter of the pixel (the square's symmetry), split where x is r from an edge (where q is not smooth); q is
+    evaluated once on every rule's points."""
     edges = jnp.sort(jnp.clip(jnp.stack([0.0 * r, 0.5 - r, r - 0.5, 0.5 + 0.0 * r]), 0.0, 0.5))
-    x, w = _panels(edges, m)
-    x1, x2 = jnp.meshgrid(x, x, indexing="ij")
-    wx = (w[:, None] * w[None, :]).reshape(-1)
-    log_miss = jnp.log1p(-jnp.clip(_coverage_q(x1.reshape(-1), x2.reshape(-1), r), 0.0, 1.0))
-    miss = jnp.where(counts[:, None] > 0.0, jnp.exp(counts[:, None] * log_miss[None, :]), 1.0)
-    return 1.0 - 4.0 * jnp.sum(wx * miss, axis=-1)
+    pts, wts, bounds, at = [], [], [], 0
+    for m in rules:
+        x, w = _panels(edges, m)
+        x1, x2 = jnp.meshgrid(x, x, indexing="ij")
+        pts.append((x1.reshape(-1), x2.reshape(-1)))
+        wts.append((w[:, None] * w[None, :]).reshape(-1))
+        bounds.append((at, at + wts[-1].shape[0]))
+        at += wts[-1].shape[0]
+    q = _coverage_q(jnp.concatenate([a for a, _ in pts]), jnp.concatenate([b for _, b in pts]), r)
+    log_miss = jnp.log1p(-jnp.clip(q, 0.0, 1.0))
+    out = []
+    for wx, (i0, i1) in zip(wts, bounds):
+        miss = jnp.where(counts[:, None] > 0.0, jnp.exp(counts[:, None] * log_miss[None, i0:i1]), 1.0)
+        out.append(1.0 - 4.0 * jnp.sum(wx * miss, axis=-1))
+    return out
 
 
 @functools.partial(jax.jit, static_argnames=("m",))
 def coverage_row_kernel(r, counts, *, m):
     """Coverage (float64) for one radius r () and strand counts (C,) → (values (C,), error estimates (C,)): the
     m-node rule and its distance from the m/2-node rule on the same panels (q itself is exact)."""
-    hi = _coverage_rule(r, counts, m)
-    return hi, jnp.abs(hi - _coverage_rule(r, counts, m // 2))
+    hi, lo = _coverage_rules(r, counts, (m, m // 2))
+    return hi, jnp.abs(hi - lo)
 
 
 # ----------------------------------------------------------------------------- the white furnace
@@ -693,10 +753,9 @@ def _bsdf_points(sin_theta_o, roughness, absorption, absorption_kind, model, qua
     eta, alpha = check_model_dict(model)
     q = check_quadrature(quadrature)
     flat = [np.ascontiguousarray(x.reshape(-1)) for x in (so, r, sigma)]
-    hi = _x64(bsdf_point_kernel, *flat, eta, alpha, m=q["nodes"], levels=q["levels"])
-    lo = _x64(bsdf_point_kernel, *flat, eta, alpha, m=q["nodes"] // 2, levels=q["levels"])
+    e, ee, d, de = _x64(bsdf_point_kernel, *flat, eta, alpha, m=q["nodes"], levels=q["levels"])
     shape = so.shape
-    return [(a.reshape(*shape, -1), np.abs(a - b).reshape(*shape, -1)) for a, b in zip(hi, lo)]
+    return [(a.reshape(*shape, -1), b.reshape(*shape, -1)) for a, b in ((e, ee), (d, de))]
 
 
 def mean_energy(sin_theta_o, roughness, absorption, *, absorption_kind="colour", model=None, quadrature=None):
@@ -770,9 +829,8 @@ def tables(axes=None, resolution=None, *, quadrature=None, model=None, which=TAB
         res = [[], [], [], []]
         for i in range(i0, i1):
             so = np.float64(nodes["sin_theta_o"][i])
-            e1, d1 = _x64(bsdf_row_kernel, so, nodes["roughness"], sigma, eta, alpha, m=q["nodes"], levels=q["levels"])
-            e0, d0 = _x64(bsdf_row_kernel, so, nodes["roughness"], sigma, eta, alpha, m=q["nodes"] // 2, levels=q["levels"])
-            for lst, x in zip(res, (e1, np.abs(e1 - e0), d1, np.abs(d1 - d0))):
+            got = _x64(bsdf_row_kernel, so, nodes["roughness"], sigma, eta, alpha, m=q["nodes"], levels=q["levels"])
+            for lst, x in zip(res, got):
                 lst.append(x)
         shape_e = (0, nodes["roughness"].size, nodes["absorption"].size)
         stacked = [np.stack(x) if x else np.zeros((*shape_e, n)) for x, n in zip(res, (4, 4, 6, 6))]
