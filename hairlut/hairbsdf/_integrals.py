@@ -295,9 +295,12 @@ def _bsdf_rules(sin_o, rough, sigma, eta, alpha, rules: tuple[int, ...], levels:
     """One sin θ_o, for each rule of ``rules`` (Gauss–Legendre nodes per panel, all on the same panels): [(mean
     energy (R, K, 4), dual scattering (R, K, 6))] for roughness (R,) and σ_a (R, K).
 
-    The panels (the crossings' bisection and the grading) are built once for every rule, and the per-node
-    geometry that does not depend on σ_a (Fresnel factor, back fraction, path length) is evaluated once on every
-    lobe's and every rule's nodes joined on one axis; the (R, K, N) transmittance and sums run per lobe and rule."""
+    The panels (the crossings' bisection and the grading) are built once for every rule; every lobe's and every
+    rule's γ nodes are joined on one axis (N), where the geometry that does not depend on σ_a (Fresnel factor,
+    back fraction, path length) is evaluated once; then a loop over the K absorption columns computes the
+    transmittance and the attenuated sums of one column at a time on (R, N), each lobe's and rule's segment summed
+    apart.  One (R, N) column at a time keeps the working memory small (no (R, K, N) array) and the loop body is
+    traced once."""
     cos_o = B._sqrt1m(sin_o)
     k = B.bravais_inverse(sin_o, cos_o, eta)
     cos_t = B._sqrt1m(sin_o / eta)
@@ -312,35 +315,38 @@ def _bsdf_rules(sin_o, rough, sigma, eta, alpha, rules: tuple[int, ...], levels:
             lobe.append(np.full(g.shape[-1], p, np.float64))
     g, bounds = _segments([x for x, _ in parts])  # (R, N): lobes 0, 1, 2 of each rule in turn
     w, _ = _segments([x for _, x in parts])
+    lobe = np.concatenate(lobe)  # (N,), static
     sin_gt = k * jnp.sin(g)
     f = B.fresnel(cos_o * jnp.cos(g), eta)
-    c = back_fraction(B.phi_centre(np.concatenate(lobe), g, jnp.arcsin(sin_gt)), s[:, None])
+    c = back_fraction(B.phi_centre(lobe, g, jnp.arcsin(sin_gt)), s[:, None])
     length = 2.0 * B._sqrt1m(sin_gt) / cos_t
-    # computed once here, not again for each σ_a in the (R, K, n) loops below (which XLA would otherwise fuse them into)
     f, w, c, length = jax.lax.optimization_barrier((f, w, c, length))
+
+    def column(sig):
+        """σ_a (R,) → (R, n_rules, 4 lobes, 2 halves): the back and front halves' energy of every lobe."""
+        t = jnp.exp(-sig[:, None] * length)  # (R, N)
+        a1 = (1.0 - f) ** 2 * t
+        wa = w * jnp.where(lobe == 0, f, jnp.where(lobe == 1, a1, a1 * t * f))  # A_0 = f, A_1, A_2
+        wab = wa * c
+        rows = []
+        for j in range(len(rules)):
+            halves = []
+            for p in range(B.P_MAX):
+                i0, i1 = bounds[B.P_MAX * j + p]
+                wb = jnp.sum(wab[:, i0:i1], axis=-1)
+                halves.append(jnp.stack([wb, jnp.sum(wa[:, i0:i1], axis=-1) - wb], axis=-1))
+            # the residual lobe (uniform in azimuth: half in each half) on lobe 0's nodes
+            i0, i1 = bounds[B.P_MAX * j]
+            a3 = B.attenuation(f[:, i0:i1], t[:, i0:i1])[..., B.P_MAX]
+            halves.append(jnp.broadcast_to(0.5 * jnp.sum(w[:, i0:i1] * a3, axis=-1)[:, None], (sig.shape[0], 2)))
+            rows.append(jnp.stack(halves, axis=1))
+        return jnp.stack(rows, axis=1)
+
+    energy = jnp.moveaxis(jax.lax.map(column, sigma.T), 0, 1)  # (R, K, n_rules, 4, 2)
     moments = _theta_moments(sin_o, cos_o, rough, alpha, rules, levels)
     out = []
     for j, (mean_a, var_b) in enumerate(moments):
-        front, back = [], []
-        residual = None
-        for p in range(B.P_MAX):
-            i0, i1 = bounds[B.P_MAX * j + p]
-            fp, wp, cp = f[:, None, i0:i1], w[:, None, i0:i1], c[:, None, i0:i1]
-            t = jnp.exp(-sigma[:, :, None] * length[:, None, i0:i1])  # (R, K, n)
-            if p == 0:
-                wa = wp * fp  # A_0 = f, whatever σ_a
-                # the residual lobe (uniform in azimuth: half in each half) on the same nodes
-                residual = jnp.sum(wp * B.attenuation(fp, t)[..., B.P_MAX], axis=-1)
-            elif p == 1:
-                wa = wp * (1.0 - fp) ** 2 * t
-            else:
-                wa = wp * (1.0 - fp) ** 2 * t * t * fp
-            wb = jnp.sum(wa * cp, axis=-1)
-            back.append(jnp.broadcast_to(wb, sigma.shape))
-            front.append(jnp.broadcast_to(jnp.sum(wa, axis=-1) - wb, sigma.shape))
-        front.append(0.5 * residual)
-        back.append(0.5 * residual)
-        fr, bk = jnp.stack(front, axis=-1), jnp.stack(back, axis=-1)  # (R, K, 4)
+        bk, fr = energy[:, :, j, :, 0], energy[:, :, j, :, 1]  # (R, K, 4)
         a_f, a_b = jnp.sum(fr, axis=-1), jnp.sum(bk, axis=-1)
 
         def weighted(wt, total, x):
