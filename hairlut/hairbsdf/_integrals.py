@@ -709,13 +709,16 @@ def absorption_sigma(absorption, roughness, kind: str) -> np.ndarray:
 def peak_bytes(resolution=None, quadrature=None, *, block: int = 4096) -> dict[str, int]:
     """An upper estimate of the working memory (bytes) of one row kernel, before anything is allocated:
     ``bsdf_row`` (both BSDF tables), ``coverage_row`` and ``montecarlo_row`` (``block`` samples at a time).
-    Each counts its largest float64 temporaries live at once (a factor 8 over one (R, K, N) array: XLA fuses
-    most of them); the tables themselves (rows × … × 8 bytes, twice with the errors) are the caller's."""
+    Each counts its float64 temporaries live at once: for ``bsdf_row`` 16 arrays over (roughness, every lobe's
+    and both rules' γ nodes) (the per-node geometry and one absorption column's terms; measured 9.0 MB of XLA
+    temporaries at the defaults against this 18.5 MB), 8 over the θ nodes and the (R, K) results; the tables
+    themselves (rows × … × 8 bytes, twice with the errors) are the caller's."""
     res, q = check_resolution(resolution), check_quadrature(quadrature)
     r, k, m, lv = res["roughness"], res["absorption"], q["nodes"], q["levels"]
-    n_h = (6 * (2 * lv + 1) + 4) * m  # the TRT node set, the largest
-    n_th = 4 * (2 * lv + 2) * m
-    bsdf = 8 * 8 * (r * k * n_h + r * n_th)
+    both = m + m // 2  # nodes per panel of the two rules together
+    n_h = both * (2 * (4 * lv + 6) + 12 * lv + 10)  # panels: 4L + 6 for lobes 0 and 1 each, 12L + 10 for TRT
+    n_th = 4 * (2 * lv + 2) * both
+    bsdf = 8 * (16 * r * n_h + 8 * r * n_th + 64 * r * k)
     mc = q["coverage_nodes"]
     n_x = (3 * mc) ** 2 + (3 * mc // 2) ** 2  # both rules' points
     cov = 8 * (4 * 8 * n_x + 3 * res["strand_count"] * n_x)  # per point: its 8 edge ends; per (count, point): 3
