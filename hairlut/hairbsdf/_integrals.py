@@ -68,12 +68,13 @@ real ≥ 0.
   where x is r from an edge; the circles of radius r about the corners are not split (q is twice
   differentiable across them), so that rule converges algebraically, about 40× per doubling of the nodes.
   Its estimate |Q_m − Q_{m/2}| is per entry; where that difference changes sign along N it can fall below the
-  entry's true error (measured: by up to 10×, on entries whose error is ≤ 1e-9, against the table's largest
-  estimate 4.6e-6).
+  entry's true error (measured: by up to 10×, on 6 of 4096 entries, whose error is ≤ 1.0e-9, against the
+  table's largest estimate 4.6e-6).
 
 Reproducibility: each *row* (one sin θ_o for the BSDF tables, one radius for coverage) is computed by one
-jitted kernel of fixed shapes from the row's own inputs, so a row's numbers are the same bits whichever
-rows are computed together (:func:`tables`' ``start``/``stop``).
+jitted kernel of fixed shapes from the row's own inputs, both rules of the error estimate in the same program,
+so a row's numbers are the same bits whichever rows are computed together (:func:`tables`' ``start``/``stop``),
+and each table compiles one kernel, once per process.
 
 :func:`montecarlo_unreal` is the baseline: Unreal's estimator (stratified uniform sampling of the sphere
 with jitter, 128…64 × 128…32 strata per entry falling with roughness, the sums clamped to [0, 1]) for the
@@ -81,12 +82,14 @@ same tables, with a fixed PRNG key.
 
 Measured on the 2-core development machine, shared (load average 5–8), default axes and resolutions:
 
-- mean energy and dual scattering, 64 × 64 × 16, ``nodes`` = 12: 2.9–3.1 s wall (2.2 s CPU) for all 64 rows
-  (12- and 6-node rules); against 24 nodes: mean energy R, TT, TRT ≤ 3.6e-10 (residual 1.0e-7), A_f, A_b
-  ≤ 2.3e-7, ᾱ, β̄ ≤ 4.6e-8; the stored estimates ≤ 5.6e-5.  ``nodes`` = 8: 3 s less a third, error ≤ 4.3e-6.
-- coverage, 64 × 64, ``coverage_nodes`` = 16: ~3 s; against 32 nodes ≤ 6.7e-6 (the corner arcs make its
-  convergence algebraic); the stored estimates ≤ 8.5e-5.  All three tables: 7.3 s wall, 4.6 s CPU; the jit
-  compiles, once per process, another ~8 s wall.
+- mean energy and dual scattering, 64 × 64 × 16, ``nodes`` = 12: 1.5–2.0 s wall (1.5 s CPU) for all 64 rows
+  (12- and 6-node rules, one program per row); against 24 nodes: mean energy R, TT, TRT ≤ 3.6e-10 (residual
+  1.0e-7), A_f, A_b ≤ 2.3e-7, ᾱ, β̄ ≤ 4.6e-8; the stored estimates ≤ 5.6e-5.  ``nodes`` = 8: error ≤ 4.3e-6.
+- coverage, 64 × 64, ``coverage_nodes`` = 16: 0.09–0.13 s wall; against 64 nodes ≤ 1.1e-7 (the corner arcs
+  make its convergence algebraic); the stored estimates ≤ 4.6e-6, below the true error on 6 of the 4096 entries
+  (those ≤ 1.0e-9).  The single-strand coverage (N = 1) is within 8e-9 of its closed form.  All three tables:
+  ~2 s wall, 1.6 s CPU; compiling the two row kernels takes another ~4 s wall once per process (bsdf_row_kernel
+  ~3.5 s, coverage_row_kernel ~0.5 s; ``hairlut`` keeps them in its XLA cache between processes).
 - the white furnace (:func:`furnace`, 16 nodes): max |1 − E| = 9.7e-15 over 21 sin θ_o × 9 h × 6 × 6
   (β_m, β_n) ∈ [0.05, 1]², the rule's estimates ≤ 8.2e-8.
 - the Unreal-style baseline against 24-node quadrature: at Unreal's counts 46.5 s wall (25.7 s CPU), max |error|
