@@ -60,14 +60,21 @@ real ≥ 0.
   crossing at a caustic is resolved).
 - The moments α_p, β_p are θ_i quadratures of M_p cos θ_i on panels graded about each lobe's centre
   (−θ_o shifted by the tilt) in units of its width √v_p.
-- q(x) is an exact radial integral (∫_0^R K(ρ) ρ dρ = R²/2 or (R² asin(r/R) + r √(R² − r²))/π) under a
-  quadrature over the direction ω from x, split at the pixel's corners and where the distance to an edge
-  equals r; the outer integral runs over a quarter of the pixel (the square's symmetry) split where x is r
-  from an edge.
+- q(x) is in closed form (no quadrature): in polar coordinates about x the radial integral is exact
+  (∫_0^R K(ρ) ρ dρ = R²/2 or (R² asin(r/R) + r √(R² − r²))/π), and the angular one, taken edge by edge in the
+  offset t along the edge (dω = d dt/ρ²), has an elementary primitive (:func:`_edge_term`).  So q is exact to
+  rounding, and the only quadrature is the outer one, 1 − ∫ (1 − q)^N dx, whose points (and q there) serve
+  every N of a row at once: Gauss–Legendre panels over a quarter of the pixel (the square's symmetry), split
+  where x is r from an edge; the circles of radius r about the corners are not split (q is twice
+  differentiable across them), so that rule converges algebraically, about 40× per doubling of the nodes.
+  Its estimate |Q_m − Q_{m/2}| is per entry; where that difference changes sign along N it can fall below the
+  entry's true error (measured: by up to 10×, on 6 of 4096 entries, whose error is ≤ 1.0e-9, against the
+  table's largest estimate 4.6e-6).
 
 Reproducibility: each *row* (one sin θ_o for the BSDF tables, one radius for coverage) is computed by one
-jitted kernel of fixed shapes from the row's own inputs, so a row's numbers are the same bits whichever
-rows are computed together (:func:`tables`' ``start``/``stop``).
+jitted kernel of fixed shapes from the row's own inputs, both rules of the error estimate in the same program,
+so a row's numbers are the same bits whichever rows are computed together (:func:`tables`' ``start``/``stop``),
+and each table compiles one kernel, once per process.
 
 :func:`montecarlo_unreal` is the baseline: Unreal's estimator (stratified uniform sampling of the sphere
 with jitter, 128…64 × 128…32 strata per entry falling with roughness, the sums clamped to [0, 1]) for the
@@ -75,12 +82,14 @@ same tables, with a fixed PRNG key.
 
 Measured on the 2-core development machine, shared (load average 5–8), default axes and resolutions:
 
-- mean energy and dual scattering, 64 × 64 × 16, ``nodes`` = 12: 2.9–3.1 s wall (2.2 s CPU) for all 64 rows
-  (12- and 6-node rules); against 24 nodes: mean energy R, TT, TRT ≤ 3.6e-10 (residual 1.0e-7), A_f, A_b
-  ≤ 2.3e-7, ᾱ, β̄ ≤ 4.6e-8; the stored estimates ≤ 5.6e-5.  ``nodes`` = 8: 3 s less a third, error ≤ 4.3e-6.
-- coverage, 64 × 64, ``coverage_nodes`` = 16: ~3 s; against 32 nodes ≤ 6.7e-6 (the corner arcs make its
-  convergence algebraic); the stored estimates ≤ 8.5e-5.  All three tables: 7.3 s wall, 4.6 s CPU; the jit
-  compiles, once per process, another ~8 s wall.
+- mean energy and dual scattering, 64 × 64 × 16, ``nodes`` = 12: 1.5–2.0 s wall (1.5 s CPU) for all 64 rows
+  (12- and 6-node rules, one program per row); against 24 nodes: mean energy R, TT, TRT ≤ 3.6e-10 (residual
+  1.0e-7), A_f, A_b ≤ 2.3e-7, ᾱ, β̄ ≤ 4.6e-8; the stored estimates ≤ 5.6e-5.  ``nodes`` = 8: error ≤ 4.3e-6.
+- coverage, 64 × 64, ``coverage_nodes`` = 16: 0.09–0.13 s wall; against 64 nodes ≤ 1.1e-7 (the corner arcs
+  make its convergence algebraic); the stored estimates ≤ 4.6e-6, below the true error on 6 of the 4096 entries
+  (those ≤ 1.0e-9).  The single-strand coverage (N = 1) is within 8e-9 of its closed form.  All three tables:
+  ~2 s wall, 1.6 s CPU; compiling the two row kernels takes another ~4 s wall once per process (bsdf_row_kernel
+  ~3.5 s, coverage_row_kernel ~0.5 s; ``hairlut`` keeps them in its XLA cache between processes).
 - the white furnace (:func:`furnace`, 16 nodes): max |1 − E| = 9.7e-15 over 21 sin θ_o × 9 h × 6 × 6
   (β_m, β_n) ∈ [0.05, 1]², the rule's estimates ≤ 8.2e-8.
 - the Unreal-style baseline against 24-node quadrature: at Unreal's counts 46.5 s wall (25.7 s CPU), max |error|
@@ -165,16 +174,16 @@ def _graded(levels: int, ratio: float) -> np.ndarray:
 # ----------------------------------------------------------------------------- the azimuthal crossings
 
 
-def _psi(p: int, k, g):
+def _psi(p, k, g):
     """ψ_p(γ) = Φ_p − pπ = 2p asin(k sin γ) − 2γ (k = 1/η′); odd in γ."""
     return 2.0 * p * jnp.arcsin(k * jnp.sin(g)) - 2.0 * g
 
 
-def _dpsi(p: int, k, g):
+def _dpsi(p, k, g):
     return 2.0 * p * k * jnp.cos(g) / jnp.sqrt(1.0 - (k * jnp.sin(g)) ** 2) - 2.0
 
 
-def _d2psi(p: int, k, g):
+def _d2psi(p, k, g):
     return 2.0 * p * k * jnp.sin(g) * (k * k - 1.0) / (1.0 - (k * jnp.sin(g)) ** 2) ** 1.5
 
 
@@ -188,18 +197,21 @@ def _caustic(p: int, k):
     return jnp.where(ok, jnp.arcsin(jnp.sqrt(s2)), 0.0)
 
 
-def _crossings(p: int, k):
-    """The γ ∈ [−π/2, π/2] where Φ_p crosses ±π/2 (mod 2π), the edges of the back half of azimuth.
+def _crossings(lobes: tuple[int, ...], k):
+    """The γ ∈ [−π/2, π/2] where Φ_p crosses ±π/2 (mod 2π), the edges of the back half of azimuth, for each lobe p of
+    ``lobes`` (all p ≤ 1, or all p = 2: the lobes of one call share their bisection).
 
     ψ_p stays within [−π, π] for p ≤ 2 (|asin(k sin γ)| ≤ |γ|), so the crossings are those of ψ_p = ±π/2, found by
     bisection on the monotone pieces of [0, π/2] and mirrored (ψ_p is odd).  On [0, π/2], ψ_0 and ψ_1 fall from 0
     (only −π/2 can be crossed); ψ_2 rises to the caustic γ_c, where it is ≥ 0 (only +π/2), then falls (either).
-    Returns (γ (S,), valid (S,)): S = 2 for p ≤ 1, 6 for p = 2."""
-    gc = _caustic(p, k)
+    Returns (γ (L, S), valid (L, S)): S = 2 for p ≤ 1, 6 for p = 2."""
+    p = jnp.asarray(lobes, jnp.float64)[:, None]
+    gc = _caustic(lobes[0], k)
     zero, top = 0.0 * k, 0.0 * k + _HALF_PI
-    slots = [(zero, top, -_HALF_PI)] if p < 2 else [(zero, gc, _HALF_PI), (gc, top, _HALF_PI), (gc, top, -_HALF_PI)]
-    a = jnp.stack([lo for lo, _, _ in slots])
-    b = jnp.stack([hi for _, hi, _ in slots])
+    slots = [(zero, top, -_HALF_PI)] if lobes[0] < 2 else [(zero, gc, _HALF_PI), (gc, top, _HALF_PI), (gc, top, -_HALF_PI)]
+    shape = (len(lobes), len(slots))
+    a = jnp.broadcast_to(jnp.stack([lo for lo, _, _ in slots]), shape)
+    b = jnp.broadcast_to(jnp.stack([hi for _, hi, _ in slots]), shape)
     tau = jnp.asarray([t for _, _, t in slots])
     fa, fb = _psi(p, k, a) - tau, _psi(p, k, b) - tau
     valid = fa * fb < 0.0
@@ -213,7 +225,7 @@ def _crossings(p: int, k):
 
     lo, hi, _ = jax.lax.fori_loop(0, _BISECTION, step, (a, b, fa))
     root = 0.5 * (lo + hi)
-    return jnp.concatenate([root, -root]), jnp.concatenate([valid, valid])
+    return jnp.concatenate([root, -root], axis=-1), jnp.concatenate([valid, valid], axis=-1)
 
 
 def back_fraction(phi, s):
@@ -228,26 +240,37 @@ def back_fraction(phi, s):
 # ----------------------------------------------------------------------------- the BSDF tables, one row
 
 
-def _h_nodes(p: int, k, s, m: int, levels: int):
-    """γ nodes and the h-measure weights ½ cos γ dγ for lobe p (R, N), graded about the crossings."""
-    gam, valid = _crossings(p, k)
-    slope = jnp.abs(_dpsi(p, k, gam))
-    curve = jnp.abs(_d2psi(p, k, gam))
-    s_ = s[:, None]
+def _h_breaks(lobes: tuple[int, ...], k, s, levels: int):
+    """The γ panel breaks (L, R, B) of each lobe of ``lobes`` (as :func:`_crossings`) and roughness (scale s (R,)):
+    graded geometrically about each crossing in units of its width, plus ±π/2, 0 and ±γ_c."""
+    gam, valid = _crossings(lobes, k)  # (L, S)
+    p = jnp.asarray(lobes, jnp.float64)[:, None]
+    slope = jnp.abs(_dpsi(p, k, gam))[:, None, :]
+    curve = jnp.abs(_d2psi(p, k, gam))[:, None, :]
+    s_ = s[None, :, None]
     width = s_ / jnp.maximum(jnp.maximum(slope, jnp.sqrt(0.5 * s_ * curve)), 1e-300)
-    width = jnp.minimum(width, math.pi / 8.0)
+    width = jnp.minimum(width, math.pi / 8.0)  # (L, R, S)
     offsets = jnp.asarray(_graded(levels, 4.0))
-    pts = jnp.where(valid[None, :, None], gam[None, :, None] + width[..., None] * offsets, -_HALF_PI)
-    gc = _caustic(p, k)
-    fixed = jnp.stack([-_HALF_PI + 0.0 * k, 0.0 * k, _HALF_PI + 0.0 * k, gc, -gc])
-    pts = jnp.concatenate([pts.reshape(s.shape[0], -1), jnp.broadcast_to(fixed, (s.shape[0], 5))], axis=1)
-    breaks = jnp.sort(jnp.clip(pts, -_HALF_PI, _HALF_PI), axis=-1)
-    g, w = _panels(breaks, m)
-    return g, 0.5 * w * jnp.cos(g)
+    pts = jnp.where(valid[:, None, :, None], gam[:, None, :, None] + width[..., None] * offsets, -_HALF_PI)
+    gc = _caustic(lobes[0], k)
+    fixed = jnp.broadcast_to(jnp.stack([-_HALF_PI + 0.0 * k, 0.0 * k, _HALF_PI + 0.0 * k, gc, -gc]), (*width.shape[:2], 5))
+    pts = jnp.concatenate([pts.reshape(*width.shape[:2], -1), fixed], axis=-1)
+    return jnp.sort(jnp.clip(pts, -_HALF_PI, _HALF_PI), axis=-1)
 
 
-def _theta_moments(sin_o, cos_o, rough, alpha, m: int, levels: int):
-    """(α_p, β_p²) (R, 4): mean and variance of θ_h = (θ_i + θ_o)/2 under M_p(θ_i) cos θ_i dθ_i."""
+def _segments(parts):
+    """The arrays ``parts`` joined along their last axis, and the (start, stop) of each in the whole."""
+    bounds, at = [], 0
+    for x in parts:
+        bounds.append((at, at + x.shape[-1]))
+        at += x.shape[-1]
+    return jnp.concatenate(parts, axis=-1), bounds
+
+
+def _theta_moments(sin_o, cos_o, rough, alpha, rules: tuple[int, ...], levels: int):
+    """[(α_p, β_p²) (R, 4) for each rule of ``rules`` (nodes per panel)]: the mean and variance of
+    θ_h = (θ_i + θ_o)/2 under M_p(θ_i) cos θ_i dθ_i, every rule on the same panels (graded about each lobe's centre
+    in units of its width √v_p), M_p evaluated once on every rule's nodes."""
     v = B.longitudinal_variance(rough)  # (R, 4)
     sin_p, cos_p = B.tilt(sin_o, cos_o, alpha)  # (4,)
     centre = -jnp.arctan2(sin_p, cos_p)
@@ -255,79 +278,120 @@ def _theta_moments(sin_o, cos_o, rough, alpha, m: int, levels: int):
     pts = centre[None, :, None] + jnp.sqrt(v)[..., None] * offsets
     ends = jnp.broadcast_to(jnp.asarray([-_HALF_PI, _HALF_PI]), (*v.shape, 2))
     breaks = jnp.sort(jnp.clip(jnp.concatenate([pts, ends], axis=-1), -_HALF_PI, _HALF_PI), axis=-1)
-    th, w = _panels(breaks, m)  # (R, 4, N)
+    nodes = [_panels(breaks, m) for m in rules]
+    th, bounds = _segments([x for x, _ in nodes])  # (R, 4, N)
+    w, _ = _segments([x for _, x in nodes])
     mp = B.longitudinal(jnp.sin(th), jnp.cos(th), sin_p[:, None], cos_p[:, None], v[..., None])
     wt = w * mp * jnp.cos(th)
-    z = jnp.sum(wt, axis=-1)
-    mean = jnp.sum(wt * th, axis=-1) / z
-    var = jnp.sum(wt * (th - mean[..., None]) ** 2, axis=-1) / z
     theta_o = jnp.arctan2(sin_o, cos_o)
-    return 0.5 * (mean + theta_o), 0.25 * var
+    out = []
+    for i0, i1 in bounds:
+        wr, tr = wt[..., i0:i1], th[..., i0:i1]
+        z = jnp.sum(wr, axis=-1)
+        mean = jnp.sum(wr * tr, axis=-1) / z
+        var = jnp.sum(wr * (tr - mean[..., None]) ** 2, axis=-1) / z
+        out.append((0.5 * (mean + theta_o), 0.25 * var))
+    return out
 
 
-def _bsdf_row(sin_o, rough, sigma, eta, alpha, m: int, levels: int):
-    """One sin θ_o: mean energy (R, K, 4) and dual scattering (R, K, 6) for roughness (R,) and σ_a (R, K)."""
+def _bsdf_rules(sin_o, rough, sigma, eta, alpha, rules: tuple[int, ...], levels: int):
+    """One sin θ_o, for each rule of ``rules`` (Gauss–Legendre nodes per panel, all on the same panels): [(mean
+    energy (R, K, 4), dual scattering (R, K, 6))] for roughness (R,) and σ_a (R, K).
+
+    The panels (the crossings' bisection and the grading) are built once for every rule; every lobe's and every
+    rule's γ nodes are joined on one axis (N), where the geometry that does not depend on σ_a (Fresnel factor,
+    back fraction, path length) is evaluated once; then a loop over the K absorption columns computes the
+    transmittance and the attenuated sums of one column at a time on (R, N), each lobe's and rule's segment summed
+    apart.  One (R, N) column at a time keeps the working memory small (no (R, K, N) array) and the loop body is
+    traced once."""
     cos_o = B._sqrt1m(sin_o)
     k = B.bravais_inverse(sin_o, cos_o, eta)
     cos_t = B._sqrt1m(sin_o / eta)
     s = B.azimuthal_scale(rough)
-    front, back = [], []
-    residual = None
-    for p in range(B.P_MAX):
-        g, w = _h_nodes(p, k, s, m, levels)  # (R, N)
-        sin_gt = k * jnp.sin(g)
-        f = B.fresnel(cos_o * jnp.cos(g), eta)[:, None, :]
-        c = back_fraction(B.phi_centre(p, g, jnp.arcsin(sin_gt)), s[:, None])[:, None, :]
-        if p == 0:
-            wa = w[:, None, :] * f  # A_0 = f, whatever σ_a
-        t = jnp.exp(-sigma[:, :, None] * (2.0 * B._sqrt1m(sin_gt) / cos_t)[:, None, :])  # (R, K, N)
-        if p == 0:  # the residual lobe (uniform in azimuth: half in each half) on the same nodes
-            residual = jnp.sum(w[:, None, :] * B.attenuation(f, t)[..., B.P_MAX], axis=-1)
-        elif p == 1:
-            wa = w[:, None, :] * (1.0 - f) ** 2 * t
-        else:
-            wa = w[:, None, :] * (1.0 - f) ** 2 * t * t * f
-        wb = jnp.sum(wa * c, axis=-1)
-        back.append(jnp.broadcast_to(wb, sigma.shape))
-        front.append(jnp.broadcast_to(jnp.sum(wa, axis=-1) - wb, sigma.shape))
-    front.append(0.5 * residual)
-    back.append(0.5 * residual)
-    fr, bk = jnp.stack(front, axis=-1), jnp.stack(back, axis=-1)  # (R, K, 4)
-    mean_a, var_b = _theta_moments(sin_o, cos_o, rough, alpha, m, levels)  # (R, 4)
-    a_f, a_b = jnp.sum(fr, axis=-1), jnp.sum(bk, axis=-1)
+    br01, br2 = _h_breaks((0, 1), k, s, levels), _h_breaks((2,), k, s, levels)  # (2, R, B), (1, R, B′)
+    breaks = (br01[0], br01[1], br2[0])
+    parts, lobe = [], []
+    for m in rules:
+        for p in range(B.P_MAX):
+            g, w = _panels(breaks[p], m)  # (R, n)
+            parts.append((g, 0.5 * w * jnp.cos(g)))  # the h measure ½ dh = ½ cos γ dγ
+            lobe.append(np.full(g.shape[-1], p, np.float64))
+    g, bounds = _segments([x for x, _ in parts])  # (R, N): lobes 0, 1, 2 of each rule in turn
+    w, _ = _segments([x for _, x in parts])
+    lobe = np.concatenate(lobe)  # (N,), static
+    sin_gt = k * jnp.sin(g)
+    f = B.fresnel(cos_o * jnp.cos(g), eta)
+    c = back_fraction(B.phi_centre(lobe, g, jnp.arcsin(sin_gt)), s[:, None])
+    length = 2.0 * B._sqrt1m(sin_gt) / cos_t
+    f, w, c, length = jax.lax.optimization_barrier((f, w, c, length))
 
-    def weighted(wt, total, x):
-        ok = total > 0.0
-        return jnp.where(ok, jnp.sum(wt * x[:, None, :], axis=-1) / jnp.where(ok, total, 1.0), 0.0)
+    def column(sig):
+        """σ_a (R,) → (R, n_rules, 4 lobes, 2 halves): the back and front halves' energy of every lobe."""
+        t = jnp.exp(-sig[:, None] * length)  # (R, N)
+        a1 = (1.0 - f) ** 2 * t
+        wa = w * jnp.where(lobe == 0, f, jnp.where(lobe == 1, a1, a1 * t * f))  # A_0 = f, A_1, A_2
+        wab = wa * c
+        rows = []
+        for j in range(len(rules)):
+            halves = []
+            for p in range(B.P_MAX):
+                i0, i1 = bounds[B.P_MAX * j + p]
+                wb = jnp.sum(wab[:, i0:i1], axis=-1)
+                halves.append(jnp.stack([wb, jnp.sum(wa[:, i0:i1], axis=-1) - wb], axis=-1))
+            # the residual lobe (uniform in azimuth: half in each half) on lobe 0's nodes
+            i0, i1 = bounds[B.P_MAX * j]
+            a3 = B.attenuation(f[:, i0:i1], t[:, i0:i1])[..., B.P_MAX]
+            halves.append(jnp.broadcast_to(0.5 * jnp.sum(w[:, i0:i1] * a3, axis=-1)[:, None], (sig.shape[0], 2)))
+            rows.append(jnp.stack(halves, axis=1))
+        return jnp.stack(rows, axis=1)
 
-    dual = jnp.stack(
-        [
-            a_f,
-            a_b,
-            weighted(fr, a_f, mean_a),
-            weighted(bk, a_b, mean_a),
-            jnp.sqrt(weighted(fr, a_f, var_b)),
-            jnp.sqrt(weighted(bk, a_b, var_b)),
-        ],
-        axis=-1,
-    )
-    return fr + bk, dual
+    energy = jnp.moveaxis(jax.lax.map(column, sigma.T), 0, 1)  # (R, K, n_rules, 4, 2)
+    moments = _theta_moments(sin_o, cos_o, rough, alpha, rules, levels)
+    out = []
+    for j, (mean_a, var_b) in enumerate(moments):
+        bk, fr = energy[:, :, j, :, 0], energy[:, :, j, :, 1]  # (R, K, 4)
+        a_f, a_b = jnp.sum(fr, axis=-1), jnp.sum(bk, axis=-1)
+
+        def weighted(wt, total, x):
+            ok = total > 0.0
+            return jnp.where(ok, jnp.sum(wt * x[:, None, :], axis=-1) / jnp.where(ok, total, 1.0), 0.0)
+
+        dual = jnp.stack(
+            [
+                a_f,
+                a_b,
+                weighted(fr, a_f, mean_a),
+                weighted(bk, a_b, mean_a),
+                jnp.sqrt(weighted(fr, a_f, var_b)),
+                jnp.sqrt(weighted(bk, a_b, var_b)),
+            ],
+            axis=-1,
+        )
+        out.append((fr + bk, dual))
+    return out
+
+
+def _bsdf_row(sin_o, rough, sigma, eta, alpha, m: int, levels: int):
+    """(mean energy, its error, dual scattering, its error): the m-node rule's values and their distance from the
+    m/2-node rule's."""
+    (e1, d1), (e0, d0) = _bsdf_rules(sin_o, rough, sigma, eta, alpha, (m, m // 2), levels)
+    return e1, jnp.abs(e1 - e0), d1, jnp.abs(d1 - d0)
 
 
 @functools.partial(jax.jit, static_argnames=("m", "levels"))
 def bsdf_row_kernel(sin_o, rough, sigma, eta, alpha, *, m, levels):
     """The BSDF tables' row kernel (float64): sin_o (), rough (R,), sigma (R, K), η, α (radians) →
-    (mean energy (R, K, 4), dual scattering (R, K, 6))."""
+    (mean energy (R, K, 4), its error estimate, dual scattering (R, K, 6), its error estimate), both rules
+    (m and m/2 nodes per panel) in one program."""
     return _bsdf_row(sin_o, rough, sigma, eta, alpha, m, levels)
 
 
 @functools.partial(jax.jit, static_argnames=("m", "levels"))
 def bsdf_point_kernel(sin_o, rough, sigma, eta, alpha, *, m, levels):
-    """The same at P scattered points: sin_o, rough, sigma (P,) → ((P, 4), (P, 6))."""
+    """The same at P scattered points: sin_o, rough, sigma (P,) → ((P, 4), (P, 4), (P, 6), (P, 6))."""
 
     def one(so, r, sg):
-        e, d = _bsdf_row(so, r[None], sg[None, None], eta, alpha, m, levels)
-        return e[0, 0], d[0, 0]
+        return tuple(x[0, 0] for x in _bsdf_row(so, r[None], sg[None, None], eta, alpha, m, levels))
 
     return jax.lax.map(lambda x: one(*x), (sin_o, rough, sigma))
 
@@ -335,46 +399,79 @@ def bsdf_point_kernel(sin_o, rough, sigma, eta, alpha, *, m, levels):
 # ----------------------------------------------------------------------------- coverage, one row
 
 
-def _coverage_q(x1, x2, r, m: int):
-    """q(x) (n,) at points (x1, x2) of the centred pixel [−½, ½]²: ∫_0^{2π} H(R(x, ω)) dω."""
-    d = jnp.stack([0.5 - x1, 0.5 - x2, 0.5 + x1, 0.5 + x2], axis=-1)  # distance to the right, top, left, bottom edge
-    side = jnp.asarray([0.0, _HALF_PI, math.pi, 1.5 * math.pi])
-    corners = jnp.stack(
-        [jnp.arctan2(sy - x2, sx - x1) for sx, sy in ((0.5, 0.5), (-0.5, 0.5), (-0.5, -0.5), (0.5, -0.5))], axis=-1
+def _edge_term(s, d, r):
+    """d · J(s) for offsets s ≥ 0 along one pixel edge at distance d > 0 from x: π times that edge piece's share
+    of q(x) (module docstring, *coverage*).
+
+    The rays from x that leave the pixel through an edge at distance d meet it at offset t from the foot of
+    the perpendicular, at distance ρ = √(d² + t²), and dω = d dt / ρ², so their share of q is
+    (d/π) ∫ F(ρ) dt with F = π H(ρ)/ρ² = asin(min(1, r/ρ)) + r √(max(ρ² − r², 0)) / ρ².  F = π/2 while ρ ≤ r;
+    beyond, integrating asin(r/ρ) by parts leaves r(2t² + d² − r²)/(ρ² w), w = √(t² + d² − r²), which is
+    2r/w − r(d² + r²)/(ρ² w), each with an elementary primitive (ln(t + w) and an inverse hyperbolic tangent
+    that, written as a logarithm, is ln((rt + dw)/(cρ)), c = √|d² − r²|).  With the constant chosen so that J
+    is continuous at ρ = r (d < r) and J(0) = 0 (d ≥ r):
+
+        J(s) = (π/2) s                                                         (s² + d² ≤ r²)
+        J(s) = s asin(r/ρ) + 2r ln(s + w) − ((d² + r²)/d) ln((rs + dw)/ρ) + ((d − r)²/d) ln c   (otherwise)
+
+    The ln c terms of the two logarithms are collected into the last one, whose weight (d − r)² vanishes where
+    c does (an edge at distance r), so the form stays accurate there; multiplied through by d it has no
+    division by d either.  F = π/2 − O((ρ − r)^{3/2}) at ρ = r, so q is twice differentiable across the circles
+    of radius r about the corners."""
+    w2 = s * s + d * d - r * r
+    near = w2 <= 0.0
+    w = jnp.sqrt(jnp.where(near, 1.0, w2))
+    ss = jnp.where(near, 1.0, s)
+    rho = jnp.sqrt(ss * ss + d * d)
+    c = jnp.sqrt(jnp.maximum(jnp.abs((d - r) * (d + r)), 1e-300))
+    far = (
+        d * ss * jnp.arcsin(jnp.minimum(r / rho, 1.0))
+        + 2.0 * r * d * jnp.log(ss + w)
+        - (d * d + r * r) * jnp.log((r * ss + d * w) / rho)
+        + (d - r) ** 2 * jnp.log(c)
     )
-    rs = jnp.maximum(r, 1e-300)
-    half_angle = jnp.arccos(jnp.minimum(d / rs, 1.0))
-    kinks = jnp.concatenate([side + half_angle, side - half_angle], axis=-1)
-    kinks = jnp.where(jnp.concatenate([d < r, d < r], axis=-1), kinks, jnp.tile(corners, 2))
-    pts = jnp.mod(jnp.concatenate([corners, kinks], axis=-1), _TWO_PI)
-    n = x1.shape[0]
-    breaks = jnp.sort(jnp.concatenate([jnp.zeros((n, 1)), pts, jnp.full((n, 1), _TWO_PI)], axis=-1), axis=-1)
-    om, w = _panels(breaks, m)  # (n, N)
-    c = jnp.cos(om[..., None] - side)  # (n, N, 4)
-    dist = jnp.where(c > 0.0, d[:, None, :] / jnp.where(c > 0.0, c, 1.0), jnp.inf)
-    big_r = jnp.min(dist, axis=-1)
-    rr = jnp.maximum(big_r, rs)
-    outer = (
-        big_r * big_r * jnp.arcsin(jnp.minimum(r / rr, 1.0)) + r * jnp.sqrt(jnp.maximum(big_r * big_r - r * r, 0.0))
-    ) / math.pi
-    h = jnp.where(big_r <= r, 0.5 * big_r * big_r, outer)
-    return jnp.sum(w * h, axis=-1)
+    return jnp.where(near, _HALF_PI * d * s, far)
 
 
-def _coverage_row(r, counts, m: int):
+def _coverage_q(x1, x2, r):
+    """q(x) at points (x1, x2) (n,) of the centred pixel [−½, ½]², in closed form: the sum over the four edges of
+    (d/π)(J(t_b) − J(t_a)) (:func:`_edge_term`; J is odd, the edge runs over offsets [t_a, t_b]), the eight ends
+    evaluated as one (8, n) array."""
+    d = jnp.stack([0.5 - x1, 0.5 - x2, 0.5 + x1, 0.5 + x2])  # right, top, left, bottom
+    u = jnp.stack([x2, x1, x2, x1])  # the offset of x's foot point along each edge
+    t = jnp.concatenate([0.5 - u, -0.5 - u])  # (8, n): each edge's two ends
+    sign = jnp.asarray([1.0] * 4 + [-1.0] * 4)[:, None]
+    return jnp.sum(sign * jnp.sign(t) * _edge_term(jnp.abs(t), jnp.concatenate([d, d]), r), axis=0) / math.pi
+
+
+def _coverage_rules(r, counts, rules: tuple[int, ...]):
+    """[1 − ∫ (1 − q)^N dx for N = counts (C,), for each rule of ``rules``]: m-point Gauss–Legendre panels over a
+    quarter of the pixel (the square's symmetry), split where x is r from an edge (where q is not smooth); q is
+    evaluated once on every rule's points."""
     edges = jnp.sort(jnp.clip(jnp.stack([0.0 * r, 0.5 - r, r - 0.5, 0.5 + 0.0 * r]), 0.0, 0.5))
-    x, w = _panels(edges, m)
-    x1, x2 = jnp.meshgrid(x, x, indexing="ij")
-    wx = (w[:, None] * w[None, :]).reshape(-1)
-    q = _coverage_q(x1.reshape(-1), x2.reshape(-1), r, m)
-    miss = jnp.power(jnp.clip(1.0 - q, 0.0, 1.0)[None, :], counts[:, None])
-    return 1.0 - 4.0 * jnp.sum(wx * miss, axis=-1)
+    pts, wts, bounds, at = [], [], [], 0
+    for m in rules:
+        x, w = _panels(edges, m)
+        x1, x2 = jnp.meshgrid(x, x, indexing="ij")
+        pts.append((x1.reshape(-1), x2.reshape(-1)))
+        wts.append((w[:, None] * w[None, :]).reshape(-1))
+        bounds.append((at, at + wts[-1].shape[0]))
+        at += wts[-1].shape[0]
+    q = _coverage_q(jnp.concatenate([a for a, _ in pts]), jnp.concatenate([b for _, b in pts]), r)
+    log_miss = jnp.log1p(-jnp.clip(q, 0.0, 1.0))
+    out = []
+    for wx, (i0, i1) in zip(wts, bounds):
+        miss = jnp.where(counts[:, None] > 0.0, jnp.exp(counts[:, None] * log_miss[None, i0:i1]), 1.0)
+        out.append(1.0 - 4.0 * jnp.sum(wx * miss, axis=-1))
+    return out
 
 
 @functools.partial(jax.jit, static_argnames=("m",))
 def coverage_row_kernel(r, counts, *, m):
-    """Coverage (float64) for one radius r () and strand counts (C,) → (C,)."""
-    return _coverage_row(r, counts, m)
+    """Coverage (float64) for one radius r () and strand counts (C,) → (values (C,), error estimates (C,)): the
+    m-node rule and its distance from the m/2-node rule on the same panels (q itself is exact)."""
+    hi, lo = _coverage_rules(r, counts, (m, m // 2))
+    return hi, jnp.abs(hi - lo)
 
 
 # ----------------------------------------------------------------------------- the white furnace
@@ -615,16 +712,19 @@ def absorption_sigma(absorption, roughness, kind: str) -> np.ndarray:
 def peak_bytes(resolution=None, quadrature=None, *, block: int = 4096) -> dict[str, int]:
     """An upper estimate of the working memory (bytes) of one row kernel, before anything is allocated:
     ``bsdf_row`` (both BSDF tables), ``coverage_row`` and ``montecarlo_row`` (``block`` samples at a time).
-    Each counts its largest float64 temporaries live at once (a factor 8 over one (R, K, N) array: XLA fuses
-    most of them); the tables themselves (rows × … × 8 bytes, twice with the errors) are the caller's."""
+    Each counts its float64 temporaries live at once: for ``bsdf_row`` 16 arrays over (roughness, every lobe's
+    and both rules' γ nodes) (the per-node geometry and one absorption column's terms; measured 9.0 MB of XLA
+    temporaries at the defaults against this 18.5 MB), 8 over the θ nodes and the (R, K) results; the tables
+    themselves (rows × … × 8 bytes, twice with the errors) are the caller's."""
     res, q = check_resolution(resolution), check_quadrature(quadrature)
     r, k, m, lv = res["roughness"], res["absorption"], q["nodes"], q["levels"]
-    n_h = (6 * (2 * lv + 1) + 4) * m  # the TRT node set, the largest
-    n_th = 4 * (2 * lv + 2) * m
-    bsdf = 8 * 8 * (r * k * n_h + r * n_th)
+    both = m + m // 2  # nodes per panel of the two rules together
+    n_h = both * (2 * (4 * lv + 6) + 12 * lv + 10)  # panels: 4L + 6 for lobes 0 and 1 each, 12L + 10 for TRT
+    n_th = 4 * (2 * lv + 2) * both
+    bsdf = 8 * (16 * r * n_h + 8 * r * n_th + 64 * r * k)
     mc = q["coverage_nodes"]
-    n_x, n_om = (3 * mc) ** 2, 13 * mc
-    cov = 8 * (4 * n_x * n_om * 4 + res["strand_count"] * n_x)
+    n_x = (3 * mc) ** 2 + (3 * mc // 2) ** 2  # both rules' points
+    cov = 8 * (4 * 8 * n_x + 3 * res["strand_count"] * n_x)  # per point: its 8 edge ends; per (count, point): 3
     return {"bsdf_row": int(bsdf), "coverage_row": int(cov), "montecarlo_row": int(8 * 8 * block * k * 4)}
 
 
@@ -665,10 +765,9 @@ def _bsdf_points(sin_theta_o, roughness, absorption, absorption_kind, model, qua
     eta, alpha = check_model_dict(model)
     q = check_quadrature(quadrature)
     flat = [np.ascontiguousarray(x.reshape(-1)) for x in (so, r, sigma)]
-    hi = _x64(bsdf_point_kernel, *flat, eta, alpha, m=q["nodes"], levels=q["levels"])
-    lo = _x64(bsdf_point_kernel, *flat, eta, alpha, m=q["nodes"] // 2, levels=q["levels"])
+    e, ee, d, de = _x64(bsdf_point_kernel, *flat, eta, alpha, m=q["nodes"], levels=q["levels"])
     shape = so.shape
-    return [(a.reshape(*shape, -1), np.abs(a - b).reshape(*shape, -1)) for a, b in zip(hi, lo)]
+    return [(a.reshape(*shape, -1), b.reshape(*shape, -1)) for a, b in ((e, ee), (d, de))]
 
 
 def mean_energy(sin_theta_o, roughness, absorption, *, absorption_kind="colour", model=None, quadrature=None):
@@ -696,9 +795,7 @@ def coverage(strand_count, radius_px, *, quadrature=None):
     vals, errs = np.zeros(n.shape), np.zeros(n.shape)
     for rv in np.unique(r):
         sel = r == rv
-        hi = _x64(coverage_row_kernel, np.float64(rv), np.ascontiguousarray(n[sel]), m=q["coverage_nodes"])
-        lo = _x64(coverage_row_kernel, np.float64(rv), np.ascontiguousarray(n[sel]), m=q["coverage_nodes"] // 2)
-        vals[sel], errs[sel] = hi, np.abs(hi - lo)
+        vals[sel], errs[sel] = _x64(coverage_row_kernel, np.float64(rv), np.ascontiguousarray(n[sel]), m=q["coverage_nodes"])
     return vals, errs
 
 
@@ -744,9 +841,8 @@ def tables(axes=None, resolution=None, *, quadrature=None, model=None, which=TAB
         res = [[], [], [], []]
         for i in range(i0, i1):
             so = np.float64(nodes["sin_theta_o"][i])
-            e1, d1 = _x64(bsdf_row_kernel, so, nodes["roughness"], sigma, eta, alpha, m=q["nodes"], levels=q["levels"])
-            e0, d0 = _x64(bsdf_row_kernel, so, nodes["roughness"], sigma, eta, alpha, m=q["nodes"] // 2, levels=q["levels"])
-            for lst, x in zip(res, (e1, np.abs(e1 - e0), d1, np.abs(d1 - d0))):
+            got = _x64(bsdf_row_kernel, so, nodes["roughness"], sigma, eta, alpha, m=q["nodes"], levels=q["levels"])
+            for lst, x in zip(res, got):
                 lst.append(x)
         shape_e = (0, nodes["roughness"].size, nodes["absorption"].size)
         stacked = [np.stack(x) if x else np.zeros((*shape_e, n)) for x, n in zip(res, (4, 4, 6, 6))]
@@ -760,10 +856,9 @@ def tables(axes=None, resolution=None, *, quadrature=None, model=None, which=TAB
         vals, errs = [], []
         for i in range(i0, i1):
             r = np.float64(nodes["radius_px"][i])
-            hi = _x64(coverage_row_kernel, r, counts, m=q["coverage_nodes"])
-            lo = _x64(coverage_row_kernel, r, counts, m=q["coverage_nodes"] // 2)
-            vals.append(hi)
-            errs.append(np.abs(hi - lo))
+            v, e = _x64(coverage_row_kernel, r, counts, m=q["coverage_nodes"])
+            vals.append(v)
+            errs.append(e)
         empty = np.zeros((0, counts.size))
         out["coverage"] = (np.stack(vals) if vals else empty, np.stack(errs) if errs else empty)
     return out

@@ -17,13 +17,14 @@ KIND = "hair_bsdf"
 SHARD_KIND = "hair_bsdf_shard"
 #: sin θ rows per resumable part (``OUT.parts/``): 8 parts of Unreal's 64 rows.
 BLOCK = 8
-#: Start-up of a bake: compiling the quadrature's row kernels (grid and coverage), seconds.
-BAKE_OVERHEAD = 10.0
+#: Start-up of a bake: compiling the quadrature's row kernels (grid ~3.5 s, coverage ~0.5 s on the loaded 2-core
+#: development CPU; a process that finds them in the XLA cache of ``hairlut`` only traces them, ~0.5 s), seconds.
+BAKE_OVERHEAD = 4.0
 #: Grid entries (every quantity of one (sin θ, roughness, absorption) node, both tables) and coverage entries per
-#: second, warm: measured on the 2-core development CPU under load (~5): 64 × 64 × 16 in 3.9 s, 64 × 64 coverage
-#: entries in 3.9 s (``hairlut bench --only hair_bsdf`` reports the bake's time beside its error).
-GRID_RATE = 1.7e4
-COVERAGE_RATE = 1.0e3
+#: second, warm: measured on the 2-core development CPU under load (~6): 64 × 64 × 16 in 1.5–2.0 s, 64 × 64 coverage
+#: entries in 0.09–0.13 s (``hairlut bench --only hair_bsdf`` reports the bake's time beside its error).
+GRID_RATE = 3.3e4
+COVERAGE_RATE = 3.0e4
 #: The file's own bytes per dataset (HDF5 headers, dimension scales, attributes), measured on small tables.
 DATASET_BYTES = 4096
 
