@@ -47,14 +47,15 @@ def _copy(pairs: list) -> list:
     ]
 
 
-def scene_clusters(scene: Scene) -> list:
+def scene_clusters(scene: Scene, cache_root=None) -> list:
     """[(ClusterSpec, Strands)] for each cluster of the scene, in the scene's order (remembered for the last few
-    scenes: :data:`_MEMO`)."""
+    scenes: :data:`_MEMO`; a groom's fit is kept on disk in the table cache under ``cache_root``, else
+    ``$HAIRLUT_CACHE``, else ``tables/``, keyed by the strands' content and the fit's arguments: ``_cache``)."""
     key = _key(scene)
     if key not in _MEMO:
         if len(_MEMO) >= _MEMO_SIZE:
             _MEMO.pop(next(iter(_MEMO)))
-        _MEMO[key] = _build(scene)
+        _MEMO[key] = _build(scene, cache_root)
     return _copy(_MEMO[key])
 
 
@@ -82,8 +83,32 @@ def _check_groom(strands, path) -> None:
         )
 
 
-def _build(scene: Scene) -> list:
-    from ..geometry import ClusterGeometry, Strands, fit_clusters, generate_strands, read_strands
+def _split(strands, specs, labels) -> list:
+    """[(spec, Strands)]: each cluster's strands (label c), in the groom's order, with their thickness."""
+    from ..geometry import Strands
+
+    by_point = np.repeat(labels, strands.counts)
+    order = np.argsort(by_point, kind="stable")  # each cluster's points, contiguous, in the groom's order
+    cuts = np.searchsorted(by_point[order], np.arange(len(specs) + 1))
+    strand_cuts = np.searchsorted(np.sort(labels, kind="stable"), np.arange(len(specs) + 1))
+    strand_order = np.argsort(labels, kind="stable")
+    points, thickness = strands.points[order], strands.thickness[order]
+    return [
+        (
+            spec,
+            Strands(
+                points[cuts[c] : cuts[c + 1]],
+                strands.counts[strand_order[strand_cuts[c] : strand_cuts[c + 1]]],
+                thickness=thickness[cuts[c] : cuts[c + 1]],
+            ),
+        )
+        for c, spec in enumerate(specs)
+    ]
+
+
+def _build(scene: Scene, cache_root=None) -> list:
+    from ..geometry import ClusterGeometry, Strands, generate_strands, read_strands
+    from ._cache import cached_fit
 
     if scene.groom_path is not None:
         g = scene.config["groom"]
@@ -91,7 +116,7 @@ def _build(scene: Scene) -> list:
         _check_groom(strands, scene.groom_path)
         if strands.thickness is None:
             strands = Strands(strands.points, strands.counts, thickness=np.full(strands.n_points, 2.0 * g["radius"], np.float32))
-        batch, labels = fit_clusters(
+        batch, labels = cached_fit(
             strands,
             min(g["clusters"], strands.n_strands),
             layer_radii=g["layer_radii"],
@@ -99,15 +124,9 @@ def _build(scene: Scene) -> list:
             s_t=g["s_t"],
             s_u=g["s_u"],
             seed=g["seed"],
+            root=cache_root,
         )
-        off = strands.offsets
-        out = []
-        for c, spec in enumerate(batch.specs):
-            idx = np.flatnonzero(labels == c)
-            pts = np.concatenate([strands.points[off[i] : off[i + 1]] for i in idx])
-            thick = np.concatenate([strands.thickness[off[i] : off[i + 1]] for i in idx])
-            out.append((spec, Strands(pts, strands.counts[idx], thickness=thick)))
-        return out
+        return _split(strands, batch.specs, labels)
     s = scene.config["strands"]
     out = []
     for spec, seed in zip(scene.specs, scene.cluster_seeds):

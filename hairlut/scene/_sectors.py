@@ -34,13 +34,48 @@ class SceneSectors:
     theta_l: np.ndarray
 
 
-def scene_sectors(scene) -> SceneSectors:
-    """Build every cluster's sectors (no features) and measure them (see :class:`SceneSectors`)."""
-    from ..geometry import ClusterGeometry, azimuths, build_sectors, sector_axes
+#: What :func:`scene_sectors` keeps in the groom cache per sector: the measures and the in-plane axes (the view's and
+#: lights' azimuths are computed from the axes on every call).
+_KEPT = ("aspect", "v_range", "strands", "radius_rel", "reference", "binormal", "ex", "ey")
 
-    cols = {k: [] for k in ("aspect", "v_range", "strands", "radius_rel", "theta_v", "theta_l")}
+
+def scene_sectors(scene, cache_root=None) -> SceneSectors:
+    """Build every cluster's sectors (no features) and measure them (see :class:`SceneSectors`).  What does not
+    depend on the view or the lights is kept in the table cache under ``cache_root`` (else ``$HAIRLUT_CACHE``, else
+    ``tables/``), keyed by the clusters' specs and strands (``_cache``)."""
+    from ..geometry import azimuths
+    from ._cache import cached, pairs_key
+
+    pairs = scene_clusters(scene, cache_root)
+    m = cached(
+        "sectors",
+        pairs_key(pairs),
+        lambda: _measure(pairs),
+        lambda m: ({k: m[k] for k in _KEPT}, {"s_u": m["s_u"]}),
+        _measured,
+        cache_root,
+    )
+    tv, tl = azimuths(m["reference"], m["binormal"], m["ex"], m["ey"], scene.view, scene.lights)
+    return SceneSectors(m["s_u"], m["aspect"], m["v_range"], m["strands"], m["radius_rel"], tv, tl)
+
+
+def _measured(arrays: dict, meta: dict) -> dict:
+    """A sectors entry's arrays, checked (one length, their shapes), with ``s_u``."""
+    n = len(arrays["aspect"])
+    shapes = {"v_range": (n, 2), "reference": (n, 3), "binormal": (n, 3), "ex": (n, 2), "ey": (n, 2)}
+    for k in _KEPT:
+        if arrays[k].shape != shapes.get(k, (n,)):
+            raise ValueError(f"{k} has shape {arrays[k].shape}")
+    return {**{k: arrays[k] for k in _KEPT}, "s_u": int(meta["s_u"])}
+
+
+def _measure(pairs) -> dict:
+    """Every cluster's sectors (no features), measured: the arrays of :data:`_KEPT` and ``s_u``."""
+    from ..geometry import ClusterGeometry, build_sectors, sector_axes
+
+    cols = {k: [] for k in _KEPT}
     s_u = None
-    for spec, strands in scene_clusters(scene):
+    for spec, strands in pairs:
         geom = ClusterGeometry(spec)
         table = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))
         s_u = table.shape[3]
@@ -55,10 +90,9 @@ def scene_sectors(scene) -> SceneSectors:
         cols["aspect"].append(np.minimum(A, B) / np.maximum(A, B))
         cols["v_range"].append(table.v_range)
         cols["strands"].append(n)
-        tv, tl = azimuths(*sector_axes(geom, table), scene.view, scene.lights)
-        cols["theta_v"].append(tv)
-        cols["theta_l"].append(tl)
-    return SceneSectors(s_u, *(np.concatenate(cols[k]) for k in cols))
+        for k, axis in zip(("reference", "binormal", "ex", "ey"), sector_axes(geom, table)):
+            cols[k].append(axis)
+    return {**{k: np.concatenate(cols[k]) for k in cols}, "s_u": s_u}
 
 
 def grid_coverage(theta: np.ndarray, n: int) -> float:
