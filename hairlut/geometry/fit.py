@@ -33,7 +33,6 @@ dropped and its strands are labelled −1.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..errors import ValidationError
 from ._bspline import BSpline, fit_bspline
@@ -131,6 +130,8 @@ def _extend(mean: np.ndarray, points: np.ndarray, n_control: int, rounds: int = 
     Each round fits the spline, finds the points whose nearest of 257 trajectory samples (a k-d tree over the
     samples) is an end one and that lie past its plane, and prepends/appends one point at the largest overhang (plus ``margin`` of the length).
     Returns (the spline, the largest distance of a point from its nearest sample)."""
+    from scipy.spatial import cKDTree  # here, not at import: scipy.spatial costs half a second to load
+
     poly = mean
     ts = np.linspace(0.0, 1.0, 257)
     for _ in range(rounds + 1):

@@ -32,6 +32,7 @@ _LAZY = {
     "grid_coverage": "_sectors",
     "restricted_space": "_sectors",
     "scene_sectors": "_sectors",
+    "scene_sector_tables": "_sectors",
 }
 
 __all__ = [

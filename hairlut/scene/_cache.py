@@ -324,3 +324,50 @@ def pairs_key(pairs) -> str:
             "code": code_digest(),
         }
     )
+
+
+# ----------------------------------------------------------------------------- the sector tables
+
+
+def tables_arrays(tables) -> tuple[dict, dict]:
+    """(arrays, meta) of each cluster's :class:`~hairlut.geometry.SectorTable`."""
+    from dataclasses import fields
+
+    arrays, meta = {}, []
+    for c, tb in enumerate(tables):
+        for f in fields(tb):
+            if f.name not in ("shape", "s_v"):
+                arrays[f"{c}.{f.name}"] = getattr(tb, f.name)
+        meta.append({"shape": list(tb.shape), "s_v": int(tb.s_v)})
+    return arrays, {"tables": meta}
+
+
+def tables_from_arrays(arrays: dict, meta: dict) -> list:
+    """The sector tables of an entry, checked enough that nothing reads out of bounds (or it raises)."""
+    from dataclasses import fields
+
+    from ..geometry import SectorTable
+
+    names = [f.name for f in fields(SectorTable) if f.name not in ("shape", "s_v")]
+    out = []
+    for c, m in enumerate(meta["tables"]):
+        a = {k: arrays[f"{c}.{k}"] for k in names}
+        shape = tuple(int(x) for x in m["shape"])
+        n, x, j = int(np.prod(shape)), len(a["crossing_strand"]), len(a["splat_crossing"])
+        per_sector = ("cluster", "t_index", "track", "layer", "u_index", "t", "v_range", "u_range", "half_axes", "twist")
+        if len(shape) != 4 or any(len(a[k]) != n for k in (*per_sector, "corners")) or len(a["splat_offsets"]) != n + 1:
+            raise ValueError(f"sector arrays do not match the shape {shape}")
+        crossing = ("crossing_sector", "crossing_sr", "crossing_xy", "crossing_vu", "crossing_point", "crossing_radius")
+        if any(len(a[k]) != x for k in crossing) or any(len(a[k]) != j for k in ("splat_center", "splat_sigma")):
+            raise ValueError("crossing or splat arrays of different lengths")
+        off = a["splat_offsets"]
+        if off[0] != 0 or off[-1] != j or (np.diff(off) < 0).any():
+            raise ValueError("splat offsets out of order")
+        if x and (a["crossing_sector"].min() < 0 or a["crossing_sector"].max() >= n):
+            raise ValueError("a crossing outside the sectors")
+        if j and (a["splat_crossing"].min() < 0 or a["splat_crossing"].max() >= x):
+            raise ValueError("a splat of no crossing")
+        if a["hsv_sectors"].size and (a["hsv_sectors"].min() < 0 or a["hsv_sectors"].max() >= n):
+            raise ValueError("an HSV outside the sectors")
+        out.append(SectorTable(shape=shape, s_v=int(m["s_v"]), **a))
+    return out

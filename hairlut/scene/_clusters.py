@@ -55,8 +55,27 @@ def scene_clusters(scene: Scene, cache_root=None) -> list:
     if key not in _MEMO:
         if len(_MEMO) >= _MEMO_SIZE:
             _MEMO.pop(next(iter(_MEMO)))
-        _MEMO[key] = _build(scene, cache_root)
+        _MEMO[key] = _build(scene, _root_of(scene, cache_root))
     return _copy(_MEMO[key])
+
+
+#: The table cache folder each of the last few scenes (by :func:`_key`) was last given: the planner passes its
+#: ``--cache`` folder, and what runs after it in the same process (a bake, ``hairlut.synth.prepare``) finds the
+#: groom cache there without being told.
+_ROOTS: dict = {}
+
+
+def _root_of(scene: Scene, cache_root=None):
+    """``cache_root`` when given (remembered for the scene), else the one last given for the scene, else None (the
+    default folder)."""
+    key = _key(scene)
+    if cache_root is None:
+        return _ROOTS.get(key)
+    _ROOTS.pop(key, None)
+    _ROOTS[key] = cache_root
+    while len(_ROOTS) > _MEMO_SIZE:
+        _ROOTS.pop(next(iter(_ROOTS)))
+    return cache_root
 
 
 def _check_groom(strands, path) -> None:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._clusters import scene_clusters
+from ._clusters import _root_of, scene_clusters
 
 MARGIN = 0.1  # relative widening of each measured sector-space range
 
@@ -40,21 +40,26 @@ _KEPT = ("aspect", "v_range", "strands", "radius_rel", "reference", "binormal", 
 
 
 def scene_sectors(scene, cache_root=None) -> SceneSectors:
-    """Build every cluster's sectors (no features) and measure them (see :class:`SceneSectors`).  What does not
-    depend on the view or the lights is kept in the table cache under ``cache_root`` (else ``$HAIRLUT_CACHE``, else
-    ``tables/``), keyed by the clusters' specs and strands (``_cache``)."""
+    """Build every cluster's sectors (no features) and measure them (see :class:`SceneSectors`).  For a ``[groom]``
+    scene, what does not depend on the view or the lights is kept in the table cache under ``cache_root`` (else the
+    one this process last used for the scene, else ``$HAIRLUT_CACHE``, else ``tables/``), keyed by the clusters'
+    specs and strands (``_cache``), with the sector tables themselves (:func:`scene_sector_tables`)."""
     from ..geometry import azimuths
     from ._cache import cached, pairs_key
 
     pairs = scene_clusters(scene, cache_root)
-    m = cached(
-        "sectors",
-        pairs_key(pairs),
-        lambda: _measure(pairs),
-        lambda m: ({k: m[k] for k in _KEPT}, {"s_u": m["s_u"]}),
-        _measured,
-        cache_root,
-    )
+    if scene.groom_path is None:  # generated strands ([[clusters]]): nothing is kept on disk
+        m = _measure(pairs, _build_tables(pairs))
+    else:
+        key, root = pairs_key(pairs), _root_of(scene, cache_root)
+        m = cached(
+            "sectors",
+            key,
+            lambda: _measure(pairs, _tables(pairs, key, root)),
+            lambda m: ({k: m[k] for k in _KEPT}, {"s_u": m["s_u"]}),
+            _measured,
+            root,
+        )
     tv, tl = azimuths(m["reference"], m["binormal"], m["ex"], m["ey"], scene.view, scene.lights)
     return SceneSectors(m["s_u"], m["aspect"], m["v_range"], m["strands"], m["radius_rel"], tv, tl)
 
@@ -69,15 +74,40 @@ def _measured(arrays: dict, meta: dict) -> dict:
     return {**{k: arrays[k] for k in _KEPT}, "s_u": int(meta["s_u"])}
 
 
-def _measure(pairs) -> dict:
+def scene_sector_tables(scene, cache_root=None) -> list:
+    """Each cluster's :class:`~hairlut.geometry.SectorTable` (:func:`~hairlut.geometry.build_sectors` with every
+    strand of the cluster in it, no features), in the scene's order: the sector assignment that the planner, the
+    scene-maps bake and ``hairlut.synth.prepare`` share.  A ``[groom]`` scene's are kept in the table cache under
+    ``cache_root`` (else the one this process last used for the scene, else ``$HAIRLUT_CACHE``, else ``tables/``),
+    keyed by the clusters' specs and strands (``_cache``)."""
+    from ._cache import pairs_key
+
+    pairs = scene_clusters(scene, cache_root)
+    if scene.groom_path is None:  # generated strands: nothing is kept on disk
+        return _build_tables(pairs)
+    return _tables(pairs, pairs_key(pairs), _root_of(scene, cache_root))
+
+
+def _tables(pairs, key: str, root) -> list:
+    from ._cache import cached, tables_arrays, tables_from_arrays
+
+    return cached("tables", key, lambda: _build_tables(pairs), tables_arrays, tables_from_arrays, root)
+
+
+def _build_tables(pairs) -> list:
+    from ..geometry import ClusterGeometry, build_sectors
+
+    return [build_sectors(ClusterGeometry(spec), strands, np.zeros(strands.n_strands, np.int64)) for spec, strands in pairs]
+
+
+def _measure(pairs, tables) -> dict:
     """Every cluster's sectors (no features), measured: the arrays of :data:`_KEPT` and ``s_u``."""
-    from ..geometry import ClusterGeometry, build_sectors, sector_axes
+    from ..geometry import ClusterGeometry, sector_axes
 
     cols = {k: [] for k in _KEPT}
     s_u = None
-    for spec, strands in pairs:
+    for (spec, _), table in zip(pairs, tables):
         geom = ClusterGeometry(spec)
-        table = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))
         s_u = table.shape[3]
         A, B = table.half_axes[:, 0], table.half_axes[:, 1]
         v0, v1 = table.v_range[:, 0], table.v_range[:, 1]

@@ -30,7 +30,7 @@ import numpy as np
 
 from .. import errors
 from ..assets import atomic_write_bytes, encode_png, tonemap, write_exr
-from ..scene import Scene, as_scene, scene_clusters
+from ..scene import Scene, as_scene, scene_clusters, scene_sector_tables
 from ._environment import prepare_environment
 from ._maps import SectorFrames, sector_frames, texel_grid
 from ._methods import prepare_map_source
@@ -151,7 +151,7 @@ def _geometry_db(scene: Scene):
     """What ``sector_frames`` reads of a database, for the map methods that read none (one cheap feature)."""
     from ..planner import direct_recipe
 
-    return SimpleNamespace(stats=SimpleNamespace(names=("rho_st",)), recipe=direct_recipe(scene))
+    return SimpleNamespace(stats=SimpleNamespace(names=("rho_st",)), recipe=direct_recipe(scene), geometry_only=True)
 
 
 def resolve_method(scene: Scene, db=None, maps=None) -> tuple[str, str]:
@@ -165,13 +165,15 @@ def resolve_method(scene: Scene, db=None, maps=None) -> tuple[str, str]:
     return method, why
 
 
-def prepare_cluster(scene: Scene, db, spec, strands) -> PreparedCluster:
-    """Sectors, features and frames (the index of §6.2.1) and the texels' frames on each layer surface."""
+def prepare_cluster(scene: Scene, db, spec, strands, table=None) -> PreparedCluster:
+    """Sectors, features and frames (the index of §6.2.1) and the texels' frames on each layer surface; ``table``:
+    the cluster's sector table when known (``hairlut.scene.scene_sector_tables``), else built here."""
     from ..geometry import ClusterGeometry, build_sectors
 
     n_u, n_t = scene.config["render"]["resolution"]
     geom = ClusterGeometry(spec)
-    table = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))
+    if table is None:
+        table = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))
     frames = sector_frames(geom, table, db)
     u, t = texel_grid((n_u, n_t))
     K = spec.n_layers
@@ -201,8 +203,9 @@ def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
         raise errors.ValidationError("render.neighbours", k, f"the database holds only {len(database.features)} sectors")
     t0 = time.perf_counter()
     pairs = scene_clusters(sc)
+    tables = scene_sector_tables(sc)  # the groom cache's, when the scene's groom was cut before
     t1 = time.perf_counter()
-    clusters = [prepare_cluster(sc, database, spec, strands) for spec, strands in pairs]
+    clusters = [prepare_cluster(sc, database, spec, strands, tb) for (spec, strands), tb in zip(pairs, tables)]
     shapes = {pc.table.shape[1:] for pc in clusters}
     if len(shapes) != 1:
         raise errors.ValidationError("clusters", sorted(shapes), "clusters must share s_t, layer count and s_u")
