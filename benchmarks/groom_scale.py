@@ -18,7 +18,8 @@ empty table cache and an empty JAX compilation cache of its own:
 * ``warm plan``, ``warm render``: both again; ``warm pre-frame`` is the warm render's wall time less its frame
   (``--json``'s ``seconds``: maps, shade, setup, trim, camera pass, first raster), the issue's 5-second target.
 
-Every stage is wall time on a shared machine: compare the trees' figures of one run (the ratio column), not runs.
+Every stage is wall time on a shared machine (the ``cpu`` rows: the process's user + system CPU seconds, less
+sensitive to the other processes' load): compare the trees' figures of one run (the ratio column), not runs.
 ``--profile`` runs the working tree's CLI stages under cProfile (results/groom_scale-SIZE-STAGE.prof) and prints each
 one's heaviest hairlut functions.  Writes benchmarks/results/groom_scale.json.
 
@@ -31,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import shutil
 import subprocess
 import sys
@@ -92,12 +94,20 @@ def _env(tree: Path, work: Path) -> dict:
     return env
 
 
+#: CPU seconds (user + system) of each finished child process, by the command's first words (``_run``).
+CPU: dict = {}
+
+
 def _run(tree: Path, env: dict, args: list[str], profile: Path | None = None) -> tuple[float, str]:
-    """Wall seconds and stdout of ``python [-m cProfile -o PROFILE] ARGS`` in ``tree``; raises on failure."""
+    """Wall seconds and stdout of ``python [-m cProfile -o PROFILE] ARGS`` in ``tree`` (its CPU seconds in
+    ``CPU["last"]``); raises on failure."""
     cmd = [sys.executable] + (["-m", "cProfile", "-o", str(profile)] if profile else []) + args
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t = time.perf_counter()
     r = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    CPU["last"] = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if r.returncode:
         raise RuntimeError(f"{' '.join(args[:4])} failed in {tree}:\n{r.stderr[-3000:]}")
     return wall, r.stdout
@@ -121,15 +131,20 @@ def run_tree(tree: Path, scene: Path, work: Path, profile_to: Path | None = None
     def prof(stage):
         return None if profile_to is None else profile_to.with_name(f"{profile_to.name}-{stage}.prof")
 
-    out["plan"], _ = _run(tree, env, _hairlut("plan", str(scene)), prof("plan"))
-    out["bake"], _ = _run(tree, env, _hairlut("bake", "--scene", str(scene), "--no-progress"), prof("bake"))
     exr = work / "frame.exr"
-    out["render"], _ = _run(tree, env, _hairlut("render", str(scene), "--out", str(exr)), prof("render"))
+    for stage, args in (
+        ("plan", ["plan", str(scene)]),
+        ("bake", ["bake", "--scene", str(scene), "--no-progress"]),
+        ("render", ["render", str(scene), "--out", str(exr)]),
+        ("warm plan", ["plan", str(scene)]),
+    ):
+        out[stage], _ = _run(tree, env, _hairlut(*args), prof(stage.replace(" ", "-")))
+        out[f"{stage} cpu"] = CPU["last"]
     out["cold total"] = out["plan"] + out["bake"] + out["render"]
-    out["warm plan"], _ = _run(tree, env, _hairlut("plan", str(scene)), prof("warm-plan"))
+    out["cold total cpu"] = out["plan cpu"] + out["bake cpu"] + out["render cpu"]
     wall, text = _run(tree, env, _hairlut("render", str(scene), "--out", str(exr), "--json"), prof("warm-render"))
     sec = json.loads(text)["seconds"]
-    out["warm render"] = wall
+    out["warm render"], out["warm render cpu"] = wall, CPU["last"]
     out["warm frame"] = sum(sec.get(k, 0.0) for k in FRAME_PARTS)
     out["warm pre-frame"] = wall - out["warm frame"]
     out["warm prepare"] = sec.get("prepare", float("nan"))
@@ -153,8 +168,11 @@ STAGES = (
     "bake",
     "render",
     "cold total",
+    "cold total cpu",
     "warm plan",
+    "warm plan cpu",
     "warm render",
+    "warm render cpu",
     "warm frame",
     "warm pre-frame",
     "warm prepare",

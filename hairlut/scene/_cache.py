@@ -169,6 +169,16 @@ def decode(data: bytes, entry: str, key: str) -> tuple[dict, dict]:
         raise _Damaged(f"its header does not parse ({exc})") from None
 
 
+def decode_key(data: bytes) -> str | None:
+    """The full key an entry's header names (None when it has none): what ``decode`` compares with the key asked for."""
+    if not data.startswith(MAGIC):
+        return None
+    try:
+        return json.loads(data[len(MAGIC) : data.index(b"\n", len(MAGIC))])["key"]
+    except (ValueError, KeyError, TypeError):
+        return None
+
+
 def _read(path: Path) -> bytes | None:
     """The bytes at ``path``: None when nothing is there; _Foreign for a link, a folder, a FIFO, too large a file."""
     try:
