@@ -165,9 +165,36 @@ def resolve_method(scene: Scene, db=None, maps=None) -> tuple[str, str]:
     return method, why
 
 
-def prepare_cluster(scene: Scene, db, spec, strands, table=None) -> PreparedCluster:
+#: Clusters per sweep of :func:`texel_points`: the block ``ClusterGeometry`` pads a single cluster to, so that each
+#: cluster's texels come out the same bits as swept alone (a block of 16 rounds some differently, ~1e-14).
+TEXEL_GROUP = 4
+
+
+def texel_points(specs, resolution) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """P, ∂P/∂t, ∂P/∂u (1, K, n_t, n_u, 3) at the texels of each cluster's K layer surfaces (``resolution`` =
+    (n_u, n_t)), swept :data:`TEXEL_GROUP` clusters at a time (one cluster at a time, each call filled three padded
+    rows of four: 0.2 s a cluster)."""
+    from ..geometry import ClusterGeometry
+
+    n_u, n_t = resolution
+    u, t = texel_grid((n_u, n_t))
+    out = []
+    for g0 in range(0, len(specs), TEXEL_GROUP):
+        group = specs[g0 : g0 + TEXEL_GROUP]
+        shape = (len(group), group[0].n_layers, n_t, n_u)
+        cl = np.broadcast_to(np.arange(len(group))[:, None, None, None], shape)
+        tt = np.broadcast_to(t[None, None, :, None], shape)
+        uu = np.broadcast_to(u[None, None, None, :], shape)
+        vv = np.broadcast_to(np.stack([s.layer_radii for s in group])[:, :, None, None], shape)
+        p, pt, pu = ClusterGeometry(group).derivatives_of(cl, tt, vv, uu)
+        out += [(p[c : c + 1], pt[c : c + 1], pu[c : c + 1]) for c in range(len(group))]
+    return out
+
+
+def prepare_cluster(scene: Scene, db, spec, strands, table=None, texels=None) -> PreparedCluster:
     """Sectors, features and frames (the index of §6.2.1) and the texels' frames on each layer surface; ``table``:
-    the cluster's sector table when known (``hairlut.scene.scene_sector_tables``), else built here."""
+    the cluster's sector table when known (``hairlut.scene.scene_sector_tables``), else built here; ``texels``: its
+    :func:`texel_points` when swept with other clusters', else swept here."""
     from ..geometry import ClusterGeometry, build_sectors
 
     n_u, n_t = scene.config["render"]["resolution"]
@@ -175,13 +202,8 @@ def prepare_cluster(scene: Scene, db, spec, strands, table=None) -> PreparedClus
     if table is None:
         table = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))
     frames = sector_frames(geom, table, db)
-    u, t = texel_grid((n_u, n_t))
     K = spec.n_layers
-    shape = (1, K, n_t, n_u)
-    tt = np.broadcast_to(t[None, None, :, None], shape)
-    uu = np.broadcast_to(u[None, None, None, :], shape)
-    vv = np.broadcast_to(spec.layer_radii[None, :, None, None], shape)
-    p, pt, pu = geom.derivatives_of(np.zeros(shape, np.int64), tt, vv, uu)
+    p, pt, pu = texel_points([spec], (n_u, n_t))[0] if texels is None else texels
     noise = np.stack([value_noise((n_t, n_u), scene.material["noise_frequency"], 7919 + k) for k in range(K)])
     return PreparedCluster(spec, table, frames, _unit3(pt[0]), _unit3(np.cross(pu[0], pt[0])), p[0], noise)
 
@@ -205,7 +227,10 @@ def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
     pairs = scene_clusters(sc)
     tables = scene_sector_tables(sc)  # the groom cache's, when the scene's groom was cut before
     t1 = time.perf_counter()
-    clusters = [prepare_cluster(sc, database, spec, strands, tb) for (spec, strands), tb in zip(pairs, tables)]
+    specs = [spec for spec, _ in pairs]
+    same = len({spec.structure() for spec in specs}) == 1  # else the check below names the clusters
+    texels = texel_points(specs, sc.config["render"]["resolution"]) if same else [None] * len(specs)
+    clusters = [prepare_cluster(sc, database, spec, strands, tb, tx) for (spec, strands), tb, tx in zip(pairs, tables, texels)]
     shapes = {pc.table.shape[1:] for pc in clusters}
     if len(shapes) != 1:
         raise errors.ValidationError("clusters", sorted(shapes), "clusters must share s_t, layer count and s_u")
