@@ -213,9 +213,13 @@ def sector_mean_density(table, *, density_scale: float = 1.0) -> np.ndarray:
     the map methods that read no database keep as their one feature, at a fraction of the grid's cost."""
     from scipy.special import ndtr
 
-    def inside(c, s):  # Φ(b) − Φ(a) over [0, 1], as differences of tails (so far from the mean keeps precision)
+    def inside(c, s):
+        """Φ((1 − c)/s) − Φ(−c/s), the mass in [0, 1]: symmetric under c → 1 − c, so with c ≤ ½ the upper edge lies
+        above the mean, and the mass is a difference of tails (far from the mean keeps its precision) in two Φ."""
+        c = np.minimum(c, 1.0 - c)
         lo, hi = -c / s, (1.0 - c) / s
-        return np.where(lo >= 0, ndtr(-lo) - ndtr(-hi), np.where(hi <= 0, ndtr(hi) - ndtr(lo), 1.0 - ndtr(lo) - ndtr(-hi)))
+        a, b = ndtr(-np.abs(lo)), ndtr(-hi)
+        return np.where(lo > 0, a - b, 1.0 - a - b)
 
     n = len(table.splat_offsets) - 1
     sector = np.repeat(np.arange(n), np.diff(table.splat_offsets))

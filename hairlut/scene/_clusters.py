@@ -90,7 +90,8 @@ def _check_groom(strands, path) -> None:
             f"the groom holds {n} strand{'' if n == 1 else 's'}; the cluster fit needs at least 2 "
             "(a cluster's cross-section is measured from the spread of its strands)",
         )
-    extent = float(np.linalg.norm(np.ptp(strands.points.astype(np.float64), axis=0)))
+    pts = strands.points  # the extent as np.ptp of the float64 points, without the copy: min and max are exact
+    extent = float(np.linalg.norm(pts.max(axis=0).astype(np.float64) - pts.min(axis=0).astype(np.float64)))
     flat = np.flatnonzero(strands.lengths() <= 1e-6 * extent)
     if flat.size:
         i = int(flat[0])
