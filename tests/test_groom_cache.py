@@ -395,3 +395,19 @@ def test_the_split_keeps_each_clusters_strands_in_order(groom_file):
 
 if os.name != "posix":  # pragma: no cover
     pytest.skip("symlinks and read-only folders", allow_module_level=True)
+
+
+def test_prune_removes_the_groom_entries_and_nothing_foreign(tmp_path, groom_file):
+    from hairlut.bake.cache import prune
+
+    root = tmp_path / "cache"
+    scene_sectors(load_scene(_scene(tmp_path / "a", groom_file)), root)
+    ours = _entries(root, "fit") + _entries(root, "sectors") + _entries(root, "tables")
+    foreign = root / "groom-fit-0123456789abcdef.bin"
+    foreign.write_bytes(b"not hairlut's")
+    assert prune(root) == [] and prune(root, kinds=["sh_tables"]) == []  # neither all, nor by age: kept
+    assert sorted(prune(root, older_than_days=1)) == []
+    assert sorted(prune(root, everything=True, dry_run=True)) == sorted(ours)
+    assert all(p.exists() for p in ours)
+    assert sorted(prune(root, everything=True)) == sorted(ours)
+    assert not any(p.exists() for p in ours) and foreign.read_bytes() == b"not hairlut's"

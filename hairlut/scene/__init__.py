@@ -21,6 +21,7 @@ _LAZY = {
     "resolve_path": "_schema",
     "resolve_scene": "_schema",
     "scene_clusters": "_clusters",
+    "groom_cache_entries": "_cache",
     "CAMERA": "_camera",
     "Camera": "_camera",
     "check_camera": "_camera",

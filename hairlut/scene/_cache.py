@@ -194,6 +194,22 @@ def _read(path: Path) -> bytes | None:
         return f.read()
 
 
+def groom_cache_entries(root=None) -> list[Path]:
+    """The groom cache's entries in the cache folder: regular files named like one that start with :data:`MAGIC`
+    (hairlut's own; anything else under such a name is not), what ``hairlut cache prune`` may remove."""
+    out = []
+    for path in sorted(cache_folder(root).glob(f"{PREFIX}*-*.bin")):
+        try:
+            if not stat.S_ISREG(os.lstat(path).st_mode):
+                continue
+            with open(path, "rb") as f:
+                if f.read(len(MAGIC)) == MAGIC:
+                    out.append(path)
+        except OSError:
+            continue
+    return out
+
+
 def cached(entry: str, key: str, compute, to_arrays, from_arrays, root=None):
     """``from_arrays(arrays, meta)`` of the entry (``entry``, ``key``) under ``root`` when it holds a valid one; else
     ``compute()``, stored as ``to_arrays(result)`` = (arrays, meta) and returned (module docstring).  An entry whose

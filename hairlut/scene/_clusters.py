@@ -49,8 +49,9 @@ def _copy(pairs: list) -> list:
 
 def scene_clusters(scene: Scene, cache_root=None) -> list:
     """[(ClusterSpec, Strands)] for each cluster of the scene, in the scene's order (remembered for the last few
-    scenes: :data:`_MEMO`; a groom's fit is kept on disk in the table cache under ``cache_root``, else
-    ``$HAIRLUT_CACHE``, else ``tables/``, keyed by the strands' content and the fit's arguments: ``_cache``)."""
+    scenes: :data:`_MEMO`; a groom's fit is kept on disk in the table cache under ``cache_root``, else the folder last
+    given for the scene in this process, else ``$HAIRLUT_CACHE``, else ``tables/``, keyed by the strands' content and
+    the fit's arguments: ``_cache``)."""
     key = _key(scene)
     if key not in _MEMO:
         if len(_MEMO) >= _MEMO_SIZE:
