@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import hairlut.geometry as geometry
-from hairlut.scene import _cache, _clusters, load_scene, scene_clusters, scene_sector_tables, scene_sectors
+from hairlut.scene import _cache, _clusters, _sectors, load_scene, scene_clusters, scene_sector_tables, scene_sectors
 
 from ._grooms import curly, write_groom, write_scene
 from ._readonly import read_only_dir  # noqa: F401  (a fixture)
@@ -26,6 +26,7 @@ SS_FIELDS = ("aspect", "v_range", "strands", "radius_rel", "theta_v", "theta_l")
 def _fresh_memo(monkeypatch):
     monkeypatch.setattr(_clusters, "_MEMO", {})
     monkeypatch.setattr(_clusters, "_ROOTS", {})
+    monkeypatch.setattr(_sectors, "_KEYS", {})
 
 
 @pytest.fixture(scope="module")
@@ -54,6 +55,7 @@ def _entries(root: Path, entry: str) -> list[Path]:
 def _forget():
     _clusters._MEMO.clear()
     _clusters._ROOTS.clear()
+    _sectors._KEYS.clear()
 
 
 def _same_pairs(a, b) -> bool:

@@ -91,8 +91,9 @@ def _check_groom(strands, path) -> None:
             f"the groom holds {n} strand{'' if n == 1 else 's'}; the cluster fit needs at least 2 "
             "(a cluster's cross-section is measured from the spread of its strands)",
         )
-    pts = strands.points  # the extent as np.ptp of the float64 points, without the copy: min and max are exact
-    extent = float(np.linalg.norm(pts.max(axis=0).astype(np.float64) - pts.min(axis=0).astype(np.float64)))
+    cols = np.ascontiguousarray(strands.points.T)  # the extent as np.ptp of the float64 points: min and max are exact,
+    lo, hi = cols.min(axis=1).astype(np.float64), cols.max(axis=1).astype(np.float64)  # and by rows 10x faster
+    extent = float(np.linalg.norm(hi - lo))
     flat = np.flatnonzero(strands.lengths() <= 1e-6 * extent)
     if flat.size:
         i = int(flat[0])
@@ -108,18 +109,20 @@ def _split(strands, specs, labels) -> list:
     """[(spec, Strands)]: each cluster's strands (label c), in the groom's order, with their thickness."""
     from ..geometry import Strands
 
-    by_point = np.repeat(labels, strands.counts)
-    order = np.argsort(by_point, kind="stable")  # each cluster's points, contiguous, in the groom's order
-    cuts = np.searchsorted(by_point[order], np.arange(len(specs) + 1))
-    strand_cuts = np.searchsorted(np.sort(labels, kind="stable"), np.arange(len(specs) + 1))
-    strand_order = np.argsort(labels, kind="stable")
+    strand_order = np.argsort(labels, kind="stable")  # each cluster's strands together, in the groom's order
+    counts = strands.counts[strand_order]
+    ends = np.cumsum(counts)
+    # the points of those strands, in that order: each strand's own run of indices, moved to its new place
+    order = np.repeat(strands.offsets[:-1][strand_order] - (ends - counts), counts) + np.arange(int(ends[-1]) if len(ends) else 0)
+    strand_cuts = np.searchsorted(labels[strand_order], np.arange(len(specs) + 1))
+    cuts = np.concatenate([[0], ends])[strand_cuts]
     points, thickness = strands.points[order], strands.thickness[order]
     return [
         (
             spec,
             Strands(
                 points[cuts[c] : cuts[c + 1]],
-                strands.counts[strand_order[strand_cuts[c] : strand_cuts[c + 1]]],
+                counts[strand_cuts[c] : strand_cuts[c + 1]],
                 thickness=thickness[cuts[c] : cuts[c + 1]],
             ),
         )

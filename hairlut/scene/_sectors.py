@@ -45,13 +45,13 @@ def scene_sectors(scene, cache_root=None) -> SceneSectors:
     one this process last used for the scene, else ``$HAIRLUT_CACHE``, else ``tables/``), keyed by the clusters'
     specs and strands (``_cache``), with the sector tables themselves (:func:`scene_sector_tables`)."""
     from ..geometry import azimuths
-    from ._cache import cached, pairs_key
+    from ._cache import cached
 
     pairs = scene_clusters(scene, cache_root)
     if scene.groom_path is None:  # generated strands ([[clusters]]): nothing is kept on disk
         m = _measure(pairs, _build_tables(pairs))
     else:
-        key, root = pairs_key(pairs), _root_of(scene, cache_root)
+        key, root = _pairs_key(scene, pairs), _root_of(scene, cache_root)
         m = cached(
             "sectors",
             key,
@@ -80,12 +80,27 @@ def scene_sector_tables(scene, cache_root=None) -> list:
     scene-maps bake and ``hairlut.synth.prepare`` share.  A ``[groom]`` scene's are kept in the table cache under
     ``cache_root`` (else the one this process last used for the scene, else ``$HAIRLUT_CACHE``, else ``tables/``),
     keyed by the clusters' specs and strands (``_cache``)."""
-    from ._cache import pairs_key
-
     pairs = scene_clusters(scene, cache_root)
     if scene.groom_path is None:  # generated strands: nothing is kept on disk
         return _build_tables(pairs)
-    return _tables(pairs, pairs_key(pairs), _root_of(scene, cache_root))
+    return _tables(pairs, _pairs_key(scene, pairs), _root_of(scene, cache_root))
+
+
+#: The groom cache's key of the last few scenes' clusters, by ``_clusters._key`` (what decides them): the planner
+#: and ``synth.prepare`` in one process ask for the same scene's sectors, and the key hashes every strand.
+_KEYS: dict = {}
+
+
+def _pairs_key(scene, pairs) -> str:
+    from ._cache import pairs_key
+    from ._clusters import _MEMO_SIZE, _key
+
+    memo = _key(scene)
+    if memo not in _KEYS:
+        while len(_KEYS) >= _MEMO_SIZE:
+            _KEYS.pop(next(iter(_KEYS)))
+        _KEYS[memo] = pairs_key(pairs)
+    return _KEYS[memo]
 
 
 def _tables(pairs, key: str, root) -> list:
