@@ -114,7 +114,8 @@ def _run(tree: Path, env: dict, args: list[str], profile: Path | None = None) ->
 
 
 def _hairlut(*args) -> list[str]:
-    return ["-c", "import sys; from cli.main import main; sys.argv[0] = 'hairlut'; main()", *args]
+    """``hairlut ARGS`` of the tree the process runs in (its ``cli`` package; cProfile takes ``-m``, not ``-c``)."""
+    return ["-m", "cli.main", *args]
 
 
 def run_tree(tree: Path, scene: Path, work: Path, profile_to: Path | None = None) -> dict:
