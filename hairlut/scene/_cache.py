@@ -1,18 +1,22 @@
-"""The groom cache: a groom's cluster fit and its sectors' measures, kept on disk beside the tables.
+"""The groom cache: a groom's cluster fit, its sector tables and their measures, kept on disk beside the tables.
 
 Fitting clusters to a groom (:func:`~hairlut.geometry.fit_clusters`) and cutting its strands into sectors
 (:func:`~hairlut.scene.scene_sectors`) cost seconds to minutes on a production groom (100,000 strands), and every
 ``hairlut plan``, ``bake --scene`` and ``render`` of the scene needs them.  Both are pure functions of their inputs,
-so they are kept in the table cache folder (``root``, else ``$HAIRLUT_CACHE``, else ``tables/``: the rule of
-``hairlut.bake.cache.cache_dir``) and keyed by the CONTENT of those inputs, never by a path or a time:
+so a ``[groom]`` scene's are kept in the table cache folder (``root``: the scene functions' ``cache_root``, else the
+folder last given for the scene in the process; else ``$HAIRLUT_CACHE``, else ``tables/``: the rule of
+``hairlut.bake.cache.cache_dir``) and keyed by the CONTENT of those inputs, never by a path or a time (generated
+``[[clusters]]`` strands keep nothing on disk):
 
 * ``groom-fit-<16 hex>.bin``: the fit's cluster specs and label per strand.  Key: the SHA-256 of the strands'
   points and counts (:func:`strands_digest`), every argument given to ``fit_clusters`` (so the entry stays right
   whatever chose them, e.g. the cluster count) and :func:`code_digest`;
+* ``groom-tables-<16 hex>.bin``: each cluster's :class:`~hairlut.geometry.SectorTable` (the sector assignment: the
+  strands' crossings and splats), which the planner, the scene-maps bake and ``hairlut.synth.prepare`` read;
 * ``groom-sectors-<16 hex>.bin``: what :class:`~hairlut.scene.SceneSectors` measures that does not depend on the
   view or the lights (shape, strand counts, relative strand radius; and each sector's in-plane axes, from which the
-  view's and lights' azimuths are computed afresh).  Key: each cluster's spec and strands (points, counts,
-  thickness) and :func:`code_digest`.
+  view's and lights' azimuths are computed afresh), so that a warm plan reads no table.  Key of both: each
+  cluster's spec and strands (points, counts, thickness) and :func:`code_digest`.
 
 The same groom at another path, or copied, hits; a changed byte of its strands, a changed fit argument or a change
 to the code that fits and cuts (any source file of ``hairlut.geometry`` and ``hairlut.scene``, or the NumPy, SciPy
