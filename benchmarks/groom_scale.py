@@ -1,7 +1,7 @@
 """Scale with the groom (issue 26): where the time of a production-size groom goes before its first frame, stage by
 stage, for the working tree and a base revision in the same run.
 
-For each size (default 20,000 and 100,000 strands) a groom is generated (``tests/_grooms.py``: curly by default,
+For each size (default 20,000 and 100,000 strands) a groom is generated (``hairlut.bench._grooms``: curly by default,
 32 points a strand, seeded) and written as ``.hair`` (or ``.tfx``) with a minimal scene TOML: ``[groom] path``,
 ``[camera] view`` and resolution, one light (``[lights] directions``), a hair colour (``[material] hair_color``), every
 other key hairlut's default.  Then, for each tree (the working tree, ``new``; ``--base REV``, a detached git worktree
@@ -65,10 +65,10 @@ print(json.dumps(out))
 
 
 def write_groom(folder: Path, n: int, kind: str, fmt: str, points: int, seed: int, resolution: int) -> Path:
-    """Generate a ``kind`` groom of ``n`` strands (``tests/_grooms.py``), write it as ``fmt`` and a minimal scene beside
+    """Generate a ``kind`` groom of ``n`` strands (``hairlut.bench._grooms``), write it as ``fmt`` and a minimal scene beside
     it; the scene's path."""
-    from tests._grooms import KINDS, VIEWS
-    from tests._grooms import write_groom as write
+    from hairlut.bench._grooms import KINDS, VIEWS
+    from hairlut.bench._grooms import write_groom as write
 
     folder.mkdir(parents=True, exist_ok=True)
     groom = write(folder, f"{kind}{n}", KINDS[kind](n, points, seed=seed), formats=(fmt,))[fmt]

@@ -7,13 +7,14 @@ from pathlib import Path
 
 import click
 
-CHECKOUT = Path(__file__).resolve().parents[1]
 
 
 def default_scenes() -> list[Path]:
-    """The procedural sky scene and the Sintel groom scene (its groom is kept in tables/grooms/)."""
-    scenes = CHECKOUT / "tables" / "scenes"
-    return [scenes / "sky-clusters.toml", scenes / "sintel-groom.toml"]
+    """The procedural sky scene and the Sintel and curly groom scenes (their grooms beside them in grooms/): the
+    installed wheel's copies (``hairlut.examples``), else the clone's ``tables/``."""
+    from hairlut.bench import example
+
+    return [example(f"scenes/{name}.toml") for name in ("sky-clusters", "sintel-groom", "curly-groom")]
 
 
 def _cached(status: str | None) -> str:
@@ -49,8 +50,13 @@ def demo_cmd(out_dir, scenes, cache_root, no_progress, as_json):
     1. tables/scenes/sky-clusters.toml: three procedural clusters under the
        built-in sky (SH tables, voxel SH self-shadowing) and a key light.
     2. tables/scenes/sintel-groom.toml: the strands of the Sintel groom
-       (tables/grooms/sintel_lite.tfx, CC-BY 3.0 Blender Foundation) in
-       six fitted clusters under two directional lights.
+       (tables/grooms/sintel_lite.tfx, CC-BY 3.0 Blender Foundation) under
+       two directional lights.
+    3. tables/scenes/curly-groom.toml: a procedural curly groom
+       (tables/grooms/curly.hair).
+    Both groom scenes give only the groom, the camera, the lights and a hair
+    colour: the planner chooses every other knob (hairlut plan says why), and
+    each is rendered beside its strand render (camera/side_by_side.png).
     The first run bakes each scene's tables into the cache and renders the
     strand-render frames (minutes); later runs reuse both (the camera's
     layered frame and the comparison figures are computed every run).

@@ -26,6 +26,19 @@ def _recipe(lines: list[str], summary: dict) -> None:
     lines.extend("    " + line for line in json.dumps(summary["recipe"], indent=2, sort_keys=True).splitlines())
 
 
+def _attribute(lines: list[str], key: str, value: str) -> None:
+    """A further ``hairlut:<name>`` header attribute: JSON text indented (an atlas layout, a camera), else as is."""
+    try:
+        doc = json.loads(value)
+    except ValueError:
+        doc = None
+    if not isinstance(doc, dict):
+        lines.append(f"  attr      {key} = {value}")
+        return
+    lines.append(f"  attr      {key}")
+    lines.extend("    " + line for line in json.dumps(doc, indent=2, sort_keys=True).splitlines())
+
+
 def render(summary: dict) -> str:
     lines = []
     if summary["format"] == "hdf5":
@@ -58,6 +71,8 @@ def render(summary: dict) -> str:
         lines.append(f"  kind      {summary['kind'] or '-'}")
         lines.append(f"  checksum  {summary['checksum']}")
         _recipe(lines, summary)
+        for key, value in summary.get("attributes", {}).items():
+            _attribute(lines, key, value)
         for part in summary["parts"]:
             h, w = part["shape"]
             comp = str(part["header"].get("compression", "?")).replace("Compression.", "")

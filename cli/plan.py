@@ -6,7 +6,7 @@ import json
 
 import click
 
-SYMBOL = {"bake": "bake ", "reuse": "reuse", "skip": "skip ", "run": "run  "}
+SYMBOL = {"bake": "bake ", "reuse": "reuse", "skip": "skip ", "run": "run  ", "choose": "chose", "set": "set  "}
 
 
 def _size(n: int) -> str:
@@ -28,7 +28,8 @@ def echo_plan(p) -> None:
             cost = f" [{_size(s.bytes)}: {s.path}]"
         elif s.action == "run" and s.seconds:
             cost = f" [~{s.seconds:.1f} s]"
-        click.echo(f"  {SYMBOL[s.action]} {s.name:<13} {s.reason}{cost}")
+        name = "" if s.action in ("choose", "set") else f"{s.name:<13} "  # a choice's reason starts with its key
+        click.echo(f"  {SYMBOL[s.action]} {name}{s.reason}{cost}")
     t = p.to_json()["totals"]
     click.echo(f"to bake: ~{_size(t['bake_bytes'])}, ~{t['bake_seconds']:.0f} s; reused: {_size(t['reused_bytes'])}")
 
@@ -45,7 +46,8 @@ def plan_cmd(scene: str, cache_root: str | None, as_json: bool) -> None:
     Rules: no environment light → no SH tables; ks = 0 → no Rs; p_I sets the
     light bands ((√p + 1)²) and the energy left beyond them is reported; the
     HRIR database's sector space is fitted to the scene's sectors; voxel SH
-    transmittance only with an environment light and self_shadow; switched-off
+    transmittance only with an environment light and self_shadow; the hair BSDF
+    tables only with [tables] hair_bsdf = true (nothing in hairlut reads them); switched-off
     or zero-weight shading terms do no work online.  Sizes and times of bakes
     are estimates.
 

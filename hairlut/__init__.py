@@ -13,6 +13,7 @@ The public API, imported on first use (so ``import hairlut`` stays light), floor
 ``hairlut.hrir``              the ``hrir_db`` kind: the HRIR database by planar ray tracing (satf §4-5)
 ``hairlut.shtables``          the ``sh_tables`` kind: exact SH convolution tables (xing §4)
 ``hairlut.scenemaps``         the ``scene_maps`` kind: a groom's own sector projections
+``hairlut.hairbsdf``          the ``hair_bsdf`` kind: converged hair BSDF tables (Chiang 2016; dual scattering, lobe energy)
 ``hairlut.planner``           the scene planner: what a scene needs, what the cache holds, what it skips
 ``hairlut.shadows``           density volumes and voxel SH transmittance (xing §5), light-space shadow maps
 ``hairlut.synth``             the online module (satf §6): re-, α-, s-maps, shading, blending
@@ -36,6 +37,7 @@ _SUBMODULES = {
     "demo",
     "envlight",
     "geometry",
+    "hairbsdf",
     "hrir",
     "march",
     "planner",

@@ -48,8 +48,11 @@ CLUSTER_B = {
 
 
 def scene(**material):
+    """A small two-cluster scene that checks the paper's equations as written: eq 7's pair reads and eq 12's s-map
+    are set, not left to the planner (which would choose track reads and light-oriented shadows)."""
     return {
-        "render": {"resolution": [16, 8], "preview_size": 32},
+        "render": {"resolution": [16, 8], "preview_size": 32, "layer_reads": "pair"},
+        "shadows": {"method": "smap"},
         "camera": {"view": [0.0, 0.2, 1.0]},
         "lights": {"directions": [[0.5, 0.7, 1.0], [-0.3, 0.1, 0.4]]},
         "material": {"kd": 0.5, "ks_I": 0.3, "ks_II": 0.2, **material},

@@ -109,10 +109,10 @@ def test_a_part_that_declares_no_range_is_refused(virtual_db, tmp_path):
     assert exc.value.path == str(part) and "[5, 10)" in str(exc.value)
 
 
-@pytest.mark.parametrize("kind", ["hrir_db", "scene_maps", "sh_tables"])
+@pytest.mark.parametrize("kind", ["hair_bsdf", "hrir_db", "scene_maps", "sh_tables"])
 def test_every_kind_refuses_its_parts_swapped(kind, tmp_path):
     """Every kind's parts declare their range along the axis the tables split (``<axis>_start``, ``_stop``)."""
-    assert sorted(registry.kinds()) == ["hrir_db", "scene_maps", "sh_tables"]
+    assert sorted(registry.kinds()) == ["hair_bsdf", "hrir_db", "scene_maps", "sh_tables"]
     recipe, options, _ = split_cases()[kind]
     out = tmp_path / "v.h5"
     registry.bake(kind, recipe, out, options=options, merge="virtual")

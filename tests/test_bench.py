@@ -108,7 +108,7 @@ def test_the_report_names_no_local_path(tmp_path, monkeypatch):
 
 def test_every_part_can_run_without_the_repository():
     """Only the scale part may be unavailable (it needs two cores); no part needs the clone's benchmarks/ folder."""
-    assert set(PARTS) == {"sh", "hrir", "maps", "render", "shadows", "plan", "scale"}
+    assert set(PARTS) == {"sh", "hair_bsdf", "hrir", "maps", "render", "picture", "shadows", "plan", "scale"}
     assert all(p.unavailable() is None for n, p in PARTS.items() if n != "scale")
 
 

@@ -161,7 +161,10 @@ def test_json_is_strict_when_the_reference_alpha_is_zero(tmp_path, rng):
     fig = json.loads(r.stdout, parse_constant=refuse)
     assert fig["alpha_bias_relative"] is None and "zero everywhere" in fig["alpha_bias_relative_undefined"]
     assert fig["alpha_mean_b"] == 0.0 and np.isclose(fig["alpha_bias"], a[..., 3].astype(np.float64).mean(), rtol=1e-6)
-    assert all(isinstance(v, (int, float)) for k, v in fig.items() if not k.startswith("alpha_bias_relative"))
+    assert fig["colour_per_alpha"] is None and "no light" in fig["colour_per_alpha_undefined"]
+    assert all(
+        isinstance(v, (int, float)) for k, v in fig.items() if not k.startswith(("alpha_bias_relative", "colour_per_alpha"))
+    )
     text = CliRunner().invoke(cli, ["compare", str(tmp_path / "a.exr"), str(tmp_path / "empty.exr")])
     assert text.exit_code == 0 and "alpha_bias_relative  n/a" in text.stdout
 

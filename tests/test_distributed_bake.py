@@ -261,6 +261,7 @@ def test_concurrent_bakes_of_one_output_wait_and_stray_temporaries_go(tmp_path):
 # ----------------------------------------------------------------------------- every kind on the one shard path
 
 SH = {"kernel": {"p": 16.0}, "dense": {"t_resolution": 4, "theta_v_steps": 5}}  # 96 tangents
+HAIR_BSDF = {"grid": {"resolution": [9, 3, 2]}, "coverage": {"resolution": [2, 3]}}  # 9 sin θ rows
 
 
 def tiny_scene():
@@ -285,6 +286,7 @@ def split_cases() -> dict:
         "hrir_db": (SMALL, {"block": 4}, {"phong": {"shininess": 5.0}}),
         "sh_tables": (SH, {"block": 40, "light": "sky"}, {"kernel": {"p": 17.0}}),
         "scene_maps": (scene_maps_recipe(sc), {"block": 24, "scene": sc}, {"table": {"lights": 17}}),
+        "hair_bsdf": (HAIR_BSDF, {"block": 3}, {"bsdf": {"eta": 1.6}}),
     }
 
 

@@ -14,9 +14,18 @@ import numpy as np
 import pytest
 
 import hairlut.geometry as geometry
-from hairlut.scene import _cache, _clusters, _sectors, load_scene, scene_clusters, scene_sector_tables, scene_sectors
+from hairlut.bench._grooms import curly, write_groom, write_scene
+from hairlut.scene import (
+    _cache,
+    _clusters,
+    _sectors,
+    cluster_count,
+    load_scene,
+    scene_clusters,
+    scene_sector_tables,
+    scene_sectors,
+)
 
-from ._grooms import curly, write_groom, write_scene
 from ._readonly import read_only_dir  # noqa: F401  (a fixture)
 
 SS_FIELDS = ("aspect", "v_range", "strands", "radius_rel", "theta_v", "theta_l")
@@ -98,9 +107,13 @@ def _uncached(scene):
 
     g = scene.config["groom"]
     strands = read_strands(scene.groom_path)
+    if strands.thickness is None:
+        strands = geometry.Strands(
+            strands.points, strands.counts, thickness=np.full(strands.n_points, 2 * g["radius"], np.float32)
+        )
     batch, labels = fit_clusters(
         strands,
-        min(g["clusters"], strands.n_strands),
+        cluster_count(strands, g["clusters"]).value,
         layer_radii=g["layer_radii"],
         core_radius=g["core_radius"],
         s_t=g["s_t"],

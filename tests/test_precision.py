@@ -184,6 +184,20 @@ def _compose_clusters_args(transmittance):
     return args, dict(shadow=True, linear=False)
 
 
+def _hair_args(wi: bool):
+    """Hair BSDF kernels: wo, wi or u, h, sigma_a (channels last), beta_m, beta_n, alpha, eta."""
+    return (
+        A(5, 3, dtype=f64),
+        A(5, 3 if wi else 4, dtype=f64),
+        A(5, dtype=f64),
+        A(5, 3, dtype=f64),
+        A(5, dtype=f64),
+        A(5, dtype=f64),
+        A(dtype=f64),
+        A(dtype=f64),
+    ), {}
+
+
 KERNELS = {
     # bench
     "hairlut.bench._sh:dense_radiance": [
@@ -202,6 +216,42 @@ KERNELS = {
                 dict(n=2),
             ),
         )
+    ],
+    # hair BSDF (issue 28)
+    "hairlut.hairbsdf._bsdf:lobes_kernel": [(True, lambda: _hair_args(wi=True))],
+    "hairlut.hairbsdf._bsdf:pdf_kernel": [(True, lambda: _hair_args(wi=True))],
+    "hairlut.hairbsdf._bsdf:sample_kernel": [(True, lambda: _hair_args(wi=False))],
+    "hairlut.hairbsdf._integrals:bsdf_row_kernel": [
+        (True, lambda: ((A(dtype=f64), A(4, dtype=f64), A(4, 3, dtype=f64), A(dtype=f64), A(dtype=f64)), dict(m=4, levels=2)))
+    ],
+    "hairlut.hairbsdf._integrals:bsdf_point_kernel": [
+        (True, lambda: ((A(3, dtype=f64), A(3, dtype=f64), A(3, dtype=f64), A(dtype=f64), A(dtype=f64)), dict(m=4, levels=2)))
+    ],
+    "hairlut.hairbsdf._integrals:coverage_row_kernel": [(True, lambda: ((A(dtype=f64), A(5, dtype=f64)), dict(m=4)))],
+    "hairlut.hairbsdf._integrals:furnace_kernel": [
+        (True, lambda: (tuple(A(3, dtype=f64) for _ in range(5)) + (A(dtype=f64), A(dtype=f64)), dict(m=4)))
+    ],
+    "hairlut.hairbsdf._integrals:montecarlo_row_kernel": [
+        (
+            True,
+            lambda: (
+                (
+                    A(dtype=f64),
+                    A(4, dtype=f64),
+                    A(4, 3, dtype=f64),
+                    A(4, dtype=jnp.int64),
+                    A(4, dtype=jnp.int64),
+                    A(1024, 2, dtype=f64),
+                    A(1024, dtype=f64),
+                    A(dtype=f64),
+                    A(dtype=f64),
+                ),
+                dict(block=64),
+            ),
+        )
+    ],
+    "hairlut.hairbsdf._integrals:montecarlo_coverage_kernel": [
+        (True, lambda: ((A(2, dtype=jnp.uint32), A(dtype=f64), A(5, dtype=f64)), dict(trials=8, strands=4)))
     ],
     # geometry
     "hairlut.geometry.density:density_kernel": [

@@ -168,6 +168,7 @@ def test_every_registered_kind_declares_the_protocol():
 
 SMALL = {
     "sh_tables": {"kernel": {"p": 16.0}},
+    "hair_bsdf": {"grid": {"resolution": [3, 3, 2]}, "coverage": {"resolution": [2, 3]}},
     "hrir_db": {
         "sectors": {"count": 16, "grid": [8, 8]},
         "angles": {"views": 16, "lights": 16},

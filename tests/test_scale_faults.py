@@ -17,7 +17,7 @@ from hairlut_cli.main import cli
 
 from .test_distributed_bake import _assert_same_data, split_cases
 
-KINDS = ["hrir_db", "scene_maps", "sh_tables"]
+KINDS = ["hair_bsdf", "hrir_db", "scene_maps", "sh_tables"]
 
 
 @pytest.fixture(scope="module")

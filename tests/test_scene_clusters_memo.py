@@ -21,10 +21,10 @@ def test_remembered_clusters_are_the_built_ones_and_independent(monkeypatch):
     monkeypatch.setattr(_clusters, "_MEMO", {})
     scene = load_scene(ROOT / "tables/scenes/sky-clusters.toml")
     first = scene_clusters(scene)
-    assert _same(first, _clusters._build(scene))
+    assert _same(first, _clusters._build(scene)[0])
     first[0][1].points[:] = 7.0  # a caller that writes into its arrays changes nobody else's
     again = scene_clusters(scene)
-    assert _same(again, _clusters._build(scene)) and not np.array_equal(again[0][1].points, first[0][1].points)
+    assert _same(again, _clusters._build(scene)[0]) and not np.array_equal(again[0][1].points, first[0][1].points)
 
 
 def test_what_decides_the_clusters_is_in_the_key(monkeypatch, tmp_path):
@@ -32,7 +32,7 @@ def test_what_decides_the_clusters_is_in_the_key(monkeypatch, tmp_path):
     scene = load_scene(ROOT / "tables/scenes/sky-clusters.toml")
     other = dataclasses.replace(scene, cluster_seeds=tuple(int(s) + 1 for s in scene.cluster_seeds))
     a, b = scene_clusters(scene), scene_clusters(other)
-    assert not _same(a, b) and _same(b, _clusters._build(other))
+    assert not _same(a, b) and _same(b, _clusters._build(other)[0])
     for i in range(2 * _clusters._MEMO_SIZE):  # bounded
         scene_clusters(dataclasses.replace(scene, cluster_seeds=tuple(int(s) + 10 + i for s in scene.cluster_seeds)))
     assert len(_clusters._MEMO) <= _clusters._MEMO_SIZE

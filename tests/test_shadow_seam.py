@@ -17,6 +17,8 @@ from hairlut.synth import prepare, render_view, shade_lights
 from ._synth_fixtures import scene, synthetic_db
 
 LIGHT = np.array([0.0, 0.0, 1.0])
+#: The methods a scene can run (``auto`` chooses one of them: test_auto_chooses_…).
+METHODS = [m for m in SHADOW_METHODS if m != "auto"]
 
 
 def with_shadows(**shadows):
@@ -34,7 +36,7 @@ def db():
 def views(db):
     """One prepared scene and its view (render_view) per shadow method."""
     out = {}
-    for method in SHADOW_METHODS:
+    for method in METHODS:
         prep = prepare(with_shadows(method=method), db)
         out[method] = (prep, render_view(prep))
     return out
@@ -54,7 +56,7 @@ def slab(n=400, seed=0):
 # ----------------------------------------------------------------------------- selection and validation
 
 
-@pytest.mark.parametrize("method", SHADOW_METHODS)
+@pytest.mark.parametrize("method", METHODS)
 def test_scene_selects_each_method(views, method):
     prep, res = views[method]
     assert prep.scene.shadow_method == method and prep.scene.effects["shadow"] is (method != "none")
@@ -66,9 +68,19 @@ def test_scene_selects_each_method(views, method):
     assert ("shadows" in prep.seconds) is (method in LIGHT_METHODS)
 
 
-def test_smap_is_the_default_and_renders_exactly_as_before(views, db):
-    assert resolve_scene(scene()).config["shadows"]["method"] == "smap"
-    unmarked = render_view(prepare(scene(), db))
+def test_auto_chooses_light_oriented_smap_for_its_knobs_and_none_without_strands(views, db):
+    """shadows.method = auto (the default): the light-oriented map for strands that shade each other, eq 12's s-map
+    when the scene sets its knobs, none when no strand casts a shadow; an explicit method always wins."""
+    plain = scene()
+    del plain["shadows"]
+    sc = resolve_scene(plain)
+    assert sc.config["shadows"]["method"] == "auto" and sc.shadow_method == "light_oriented"
+    assert not sc.shadow_choice.given and "bertails" in sc.shadow_choice.reason
+    assert resolve_scene({**plain, "material": {**plain["material"], "k_shadow": 0.7}}).shadow_method == "smap"
+    empty = dict(plain, strands={**plain["strands"], "count": 0})
+    assert resolve_scene(empty).shadow_method == "none"
+    assert resolve_scene(dict(plain, shadows={"method": "opacity_maps"})).shadow_choice.given
+    unmarked = render_view(prepare(dict(plain, material={**plain["material"], "k_shadow": 0.5}), db))
     _, explicit = views["smap"]
     for a, b in zip(unmarked.clusters, explicit.clusters):
         for name in ("re", "alpha", "shadow", "lighting", "rgba", "final"):
@@ -179,7 +191,11 @@ def test_plan_explains_the_shadow_method(tmp_path):
         return {st.name: st for st in plan(s, tmp_path).steps}
 
     st = steps()
+    assert st["s_map"].action == "skip" and st["shadow_maps"].action == "run"  # auto: light-oriented
+    assert st["shadows.method"].action == "choose" and "light_oriented" in st["shadows.method"].reason
+    st = steps(method="smap")
     assert st["s_map"].action == "run" and st["shadow_maps"].action == "skip"
+    assert st["shadows.method"].action == "set"
     st = steps(method="none")
     assert st["s_map"].action == "skip" and st["shadow_maps"].action == "skip" and "'none'" in st["s_map"].reason
     st = steps(method="light_oriented", resolution=20)

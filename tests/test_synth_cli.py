@@ -20,6 +20,8 @@ view = [0.0, 0.0, 1.0]
 directions = [[0.3, 0.6, 1.0]]
 [material]
 k_threshold = inf
+[shadows]
+method = "smap"
 [strands]
 count = 40
 radius = 0.006

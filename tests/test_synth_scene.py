@@ -66,6 +66,6 @@ def test_example_scenes_parse():
     sc = load_scene(ROOT / "tables/scenes/two-clusters.toml")
     assert len(sc.specs) == 2
     sg = load_scene(ROOT / "tables/scenes/sintel-groom.toml")  # the groom is in the repository: no skip
-    assert sg.groom_path.resolve() == ROOT / "tables/grooms/sintel_lite.tfx" and sg.config["groom"]["clusters"] == 6
+    assert sg.groom_path.resolve() == ROOT / "tables/grooms/sintel_lite.tfx" and sg.config["groom"]["clusters"] == "auto"
     rb = load_scene(ROOT / "tables/scenes/ratboy-groom.toml")
     assert rb.groom_path.resolve() == ROOT / "tables/grooms/ratboy_mohawk.tfx"

@@ -67,6 +67,9 @@ def assets(tmp_path_factory):
     sc = resolve_scene(_tiny_scene())
     registry.bake("scene_maps", scene_maps_recipe(sc), d / "maps.h5", scene=sc)
     registry.bake("scene_maps", scene_maps_recipe(sc), d / "mapsp.h5", scene=sc, shard="1/2", options={"block": 16})
+    bsdf = {"grid": {"resolution": [3, 3, 2]}, "coverage": {"resolution": [2, 3]}}
+    registry.bake("hair_bsdf", bsdf, d / "bsdf.h5")
+    registry.bake("hair_bsdf", bsdf, d / "bsdfp.h5", shard="1/2", options={"block": 1})
     return {
         "hrir_db": d / "db.h5",
         "hrir_db_float16": d / "db16.h5",
@@ -76,6 +79,8 @@ def assets(tmp_path_factory):
         "sh_shard": d / "shp.h5",
         "scene_maps": d / "maps.h5",
         "scene_shard": d / "mapsp.h5",
+        "hair_bsdf": d / "bsdf.h5",
+        "hair_bsdf_shard": d / "bsdfp.h5",
     }
 
 
@@ -87,7 +92,18 @@ def _tiny_scene() -> dict:
     return s
 
 
-KINDS = ["hrir_db", "hrir_db_float16", "hrir_shard", "sh_light", "sh_tables", "sh_shard", "scene_maps", "scene_shard"]
+KINDS = [
+    "hrir_db",
+    "hrir_db_float16",
+    "hrir_shard",
+    "sh_light",
+    "sh_tables",
+    "sh_shard",
+    "scene_maps",
+    "scene_shard",
+    "hair_bsdf",
+    "hair_bsdf_shard",
+]
 
 
 def test_every_kind_hairlut_bakes_is_covered():

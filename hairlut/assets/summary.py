@@ -168,6 +168,7 @@ def _summarize_exr(path: Path) -> dict:
         "recipe_hash": image.recipe_hash,
         "recipe": image.recipe,
         "checksum": image.checksum,
+        "attributes": dict(image.attributes),
         "parts": parts,
     }
 

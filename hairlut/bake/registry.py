@@ -25,6 +25,7 @@ BAKERS: dict[str, str] = {
     "hrir_db": "hairlut.hrir",
     "sh_tables": "hairlut.shtables",
     "scene_maps": "hairlut.scenemaps",
+    "hair_bsdf": "hairlut.hairbsdf",
 }
 
 

@@ -40,9 +40,15 @@ PARTS: dict[str, Part] = {
     p.name: p
     for p in (
         Part("sh", "SH convolution tables: bake and per-vertex radiance (xing §4)", _runner("_sh")),
+        Part(
+            "hair_bsdf",
+            "Hair BSDF tables: converged quadrature against Unreal-style Monte Carlo (issue 28)",
+            _runner("_hairbsdf"),
+        ),
         Part("hrir", "HRIR database bake: density grid, march steps, rays per pixel (satf §4–5)", _runner("_hrir")),
         Part("maps", "Online maps: every map method against a converged truth, and the online frame (satf §6)", _runner("_maps")),
         Part("render", "Camera renders: the layered model and the strand render's levels", _runner("_render")),
+        Part("picture", "The picture with the defaults: layered against the converged strand render on untuned grooms", _runner("_picture")),
         Part("shadows", "Shadow methods against an exact strand-level transmittance", _runner("_shadows")),
         Part("plan", "The planner: needed-only bakes against a full bake", _runner("_plan")),
         Part(
@@ -65,6 +71,7 @@ _LAZY = {
     "online_frame_study": "_online_frame",
     "ring_model": "_online_frame",
     "render_study": "_render",
+    "picture_study": "_picture",
     "with_config": "_render",
     "scaling_study": "_scale",
     "strand_transmittance": "_shadows",

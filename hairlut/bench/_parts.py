@@ -34,10 +34,17 @@ class Context:
     workdir: Path
     progress: Callable[[str], None] = lambda message: None
     notes: dict[str, list[str]] = field(default_factory=dict)
+    images: dict[str, list[tuple[str, Callable[[Path], Path]]]] = field(default_factory=dict)
 
     def note(self, part: str, text: str) -> None:
         """A sentence for the part's section of the report (what the reference is, what was skipped)."""
         self.notes.setdefault(part, []).append(text)
+
+    def image(self, part: str, title: str, draw: Callable[[Path], Path]) -> None:
+        """A figure of the part's own beside its time-against-error plots (a heat map, say): ``draw(path)`` writes
+        the PNG at ``path`` (``plots/<part>-<title>.png`` of the run's folder) and returns it; the report shows it
+        under ``title`` at the end of the part's section."""
+        self.images.setdefault(part, []).append((title, draw))
 
 
 @dataclass(frozen=True)

@@ -106,7 +106,9 @@ def headline_md(figures: list[Figure]) -> str:
     return "\n".join(rows)
 
 
-def report_md(results: dict, figures: list[Figure], plots: dict[tuple[str, str], str]) -> str:
+def report_md(
+    results: dict, figures: list[Figure], plots: dict[tuple[str, str], str], images: dict[tuple[str, str], str] | None = None
+) -> str:
     """The whole report.md text: plots referenced relative to it, no local path (:func:`portable`), so that it
     can be a page of the documentation as it is (``hairlut bench --out docs/bench``)."""
     m = results["machine"]
@@ -147,4 +149,7 @@ def report_md(results: dict, figures: list[Figure], plots: dict[tuple[str, str],
             lines += [f"### {tname}", "", table_md(rows), ""]
             if (part, tname) in plots:
                 lines += [f"![{part}: {tname}]({plots[(part, tname)]})", ""]
+        for (part, title), path in (images or {}).items():
+            if part == name:
+                lines += [f"### {title}", "", f"![{part}: {title}]({path})", ""]
     return portable("\n".join(lines))

@@ -57,6 +57,7 @@ def _run_part(part: Part, ctx: Context, say) -> tuple[dict, list[Figure]]:
         info["seconds"] = time.perf_counter() - t0
         say(f"{part.name}: {info['status']} in {info['seconds']:.1f} s")
     info["notes"] = ctx.notes.get(part.name, [])
+    info["images"] = [title for title, _ in ctx.images.get(part.name, [])]
     return info, got
 
 
@@ -96,21 +97,39 @@ def run_bench(out, *, registry: dict[str, Part], only: str | list[str] | None = 
                 say(f"{part.name}: interrupted; not run: {', '.join(rest) or 'none'}")
                 break
             figures += got
+        images = _draw_images(out, ctx, results)
     results["seconds"] = time.perf_counter() - start
-    _write(out, results, figures)
+    _write(out, results, figures, images)
     if results["partial"]:
         raise BenchInterrupted(results)
     return results
 
 
-def _write(out: Path, results: dict, figures: list[Figure]) -> None:
-    """results.json, report.md and the plots of ``figures``."""
+def _draw_images(out: Path, ctx: Context, results: dict) -> dict[tuple[str, str], str]:
+    """The parts' own figures (:meth:`Context.image`) of the parts that finished, drawn into ``out``/plots:
+    {(part, title): path relative to ``out``}.  A figure that fails to draw is noted in its part, not raised."""
+    drawn = {}
+    for part, images in ctx.images.items():
+        if results["parts"].get(part, {}).get("status") != "ok":
+            continue
+        for title, draw in images:
+            try:
+                path = draw(out / "plots" / f"{slug(part, title)}.png")
+            except Exception as exc:
+                results["parts"][part]["notes"].append(f"figure {title!r} not drawn ({type(exc).__name__}: {exc})")
+                continue
+            drawn[(part, title)] = Path(path).relative_to(out).as_posix()
+    return drawn
+
+
+def _write(out: Path, results: dict, figures: list[Figure], images: dict | None = None) -> None:
+    """results.json, report.md, the plots of ``figures`` and the parts' own ``images`` (already drawn)."""
     plots = {}
     for (part, name), rows in tables(figures).items():
         path = plot_table(rows, out / "plots" / f"{slug(part, name)}.png", f"{part}: {name}")
         if path is not None:
             plots[(part, name)] = path.relative_to(out).as_posix()
     results["figures"] = [f.to_json() for f in figures]
-    results["plots"] = {f"{p}/{n}": v for (p, n), v in plots.items()}
+    results["plots"] = {f"{p}/{n}": v for (p, n), v in {**plots, **(images or {})}.items()}
     atomic_write_bytes(out / "results.json", portable(json.dumps(_json_safe(results), indent=2)).encode())
-    atomic_write_bytes(out / "report.md", report_md(results, figures, plots).encode())
+    atomic_write_bytes(out / "report.md", report_md(results, figures, plots, images).encode())

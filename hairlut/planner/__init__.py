@@ -17,6 +17,7 @@ _LAZY = {
     "find_assets": "_plan",
     "scene_assets": "_plan",
     "plan": "_plan",
+    "choices": "_plan",
     "direct_recipe": "_plan",
     "map_method": "_plan",
     "scene_maps_recipe": "_plan",
@@ -30,7 +31,7 @@ _LAZY = {
     "window_coeffs": "_envbands",
 }
 
-__all__ = ["Plan", "Step", "bake", "environment_bands", "find_assets", "plan", "scene_assets"]
+__all__ = ["Plan", "Step", "bake", "choices", "environment_bands", "find_assets", "plan", "scene_assets"]
 
 
 __getattr__, __dir__ = lazy_exports(__name__, globals(), _LAZY)

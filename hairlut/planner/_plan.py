@@ -25,6 +25,9 @@
 * **Online work**: each shading term whose switch is off or whose coefficient is zero
   is skipped (no secondary highlight → none of its lighting or noise), and the uniformity
   test's fetch count follows k_threshold.
+* **Hair BSDF tables** (``hair_bsdf``) only when the scene asks for them (``[tables] hair_bsdf = true``, or a
+  table of recipe keys): an engine's Marschner-family hair shading reads them, hairlut's own online
+  module (Kajiya–Kay) does not, so otherwise nothing reads them and the step is skipped, saying so.
 * **Shadows** (``[shadows] method``): eq 12's s-map (``s_map``; off with k_shadow = 0 or
   ``effects.shadow`` off), or a light-oriented density map / opacity shadow maps per light
   (``shadow_maps``; built per scene in ``prepare``, rebuilt when the lights change), or none.
@@ -47,7 +50,7 @@ from pathlib import Path
 from .. import budget, errors
 from ..assets import recipe_hash
 from ..bake import cache, registry
-from ..scene import SceneSectors, as_scene, grid_coverage, restricted_space, scene_sectors
+from ..scene import SceneSectors, as_scene, cluster_choice, grid_coverage, layer_reads, restricted_space, scene_sectors
 from ._lighting import environment_bands, environment_light, sh_recipe
 
 #: Voxel SH transmittance: casts (voxel · direction · step) per second (``hairlut bench --only plan``).
@@ -71,6 +74,8 @@ class Step:
     details: dict = field(default_factory=dict)
     #: the kind's keyed bake inputs (e.g. the SH tables' ``light``): passed to the baker, not serialised
     inputs: dict = field(default_factory=dict, repr=False, compare=False)
+    #: whether the online module reads the asset (``find_assets`` looks for those only)
+    online: bool = True
 
 
 @dataclass(frozen=True)
@@ -264,6 +269,39 @@ def _sh_step(scene, root) -> Step:
     return Step("sh_tables", "bake", "; ".join(words), "sh_tables", recipe, str(path), nbytes, seconds, details, {"light": light})
 
 
+def _hair_bsdf_step(scene, root) -> Step:
+    """The hair BSDF tables: baked (or reused) when the scene asks for them, else skipped: nothing reads them."""
+    from ..hairbsdf import resolve_recipe
+
+    asked = scene.config["tables"]["hair_bsdf"]
+    if asked is False:
+        return Step(
+            "hair_bsdf",
+            "skip",
+            "nothing reads it: hairlut's online module shades Kajiya–Kay (satf eqs 9–11); [tables] hair_bsdf = true "
+            "bakes the hair BSDF tables an engine's Marschner-family shading reads",
+            online=False,
+        )
+    try:
+        recipe = resolve_recipe({} if asked is True else dict(asked))
+    except errors.ValidationError as exc:
+        raise errors.ValidationError(f"tables.hair_bsdf.{exc.field}", exc.value, exc.reason) from None
+    g = recipe["grid"]
+    words = (
+        f"[tables] hair_bsdf asks for them (an engine's hair shading reads them, hairlut's does not): "
+        f"{', '.join(t for t in ('dual_scattering', 'mean_energy', 'coverage') if recipe[t]['bake'])} on "
+        f"{' × '.join(map(str, g['resolution']))} (sin θ × roughness × {recipe['absorption']['axis']})"
+    )
+    path, hit = _cached("hair_bsdf", recipe, root)
+    if hit:
+        return Step(
+            "hair_bsdf", "reuse", "recipe hash matches the cache; " + words, "hair_bsdf", recipe, str(path),
+            path.stat().st_size, online=False,
+        )  # fmt: skip
+    nbytes, seconds = registry.get("hair_bsdf").estimate(recipe)
+    return Step("hair_bsdf", "bake", words, "hair_bsdf", recipe, str(path), nbytes, seconds, online=False)
+
+
 def _transmittance_step(scene) -> Step:
     env = scene.environment
     if env is None:
@@ -344,7 +382,7 @@ def _sector_bound(sc) -> int:
     """An upper bound of a scene's sector count from its settings alone (no strands built)."""
     if sc.groom_path is not None:
         g = sc.config["groom"]
-        return g["clusters"] * (g["s_t"] + 1) * len(g["layer_radii"]) * g["s_u"]
+        return cluster_choice(sc).value * (g["s_t"] + 1) * len(g["layer_radii"]) * g["s_u"]
     return sum((s.s_t + 1) * s.n_layers * s.s_u for s in sc.specs)
 
 
@@ -445,19 +483,22 @@ SHADOW_WORDS = {"light_oriented": "light-oriented density map (bertails §2–3)
 
 def _shadow_steps(scene) -> list[Step]:
     """The shadow seam: eq 12's s-map, a light-space map per light, or nothing, and why."""
-    method, given, cfg = scene.shadow_method, scene.config["shadows"]["method"], scene.config["shadows"]
+    method, choice, cfg = scene.shadow_method, scene.shadow_choice, scene.config["shadows"]
     off = (
         "effects.shadow is off"
         if not scene.config["effects"]["shadow"]
         else "material.k_shadow = 0"
-        if given == "smap"
+        if choice.value == "smap"
         else "shadows.method = 'none'"
+        if choice.given
+        else choice.reason
     )
     if method == "smap":
         smap = Step(
             "s_map",
             "run",
-            "eq 12 s-map from the outer layers' α (shadows.method = 'smap'): one τ per texel for every light, no per-view map",
+            f"eq 12 s-map from the outer layers' α (shadows.method = {choice.value!r}): one τ per texel for every light, "
+            "no per-view map",
         )
     elif method == "none":
         smap = Step("s_map", "skip", f"{off}: τ = 1, no shadow work")
@@ -555,8 +596,40 @@ def plan(scene, cache_root=None) -> Plan:
             else Step("uniformity", "skip", f"{method!r} maps: every HSV sweeps its two sectors' own rows (eq 7), no eq 6 test")
             for s in online
         ]
-    steps = [*map_steps, hrir, _sh_step(sc, root), _transmittance_step(sc), *online]
+    steps = [
+        *_choice_steps(sc, ss),
+        *map_steps,
+        hrir,
+        _sh_step(sc, root),
+        _transmittance_step(sc),
+        _hair_bsdf_step(sc, root),
+        *online,
+    ]
     return Plan(sc, tuple(steps), str(root))
+
+
+def choices(scene, ss: SceneSectors | None = None) -> list:
+    """Every knob the planner chooses for ``scene`` (a :class:`hairlut.scene.Choice` each: as given, or chosen with
+    its reason and the error the picture benchmark measured for it)."""
+    sc = as_scene(scene)
+    ss = scene_sectors(sc) if ss is None else ss
+    return [
+        cluster_choice(sc),
+        layer_reads(sc.config["render"]["layer_reads"], int(len(ss.strands))),
+        sc.shadow_choice,
+    ]
+
+
+def _choice_steps(sc, ss: SceneSectors) -> list[Step]:
+    return [
+        Step(
+            c.key,
+            "set" if c.given else "choose",
+            f"{c.key} = {c.value!r}: {c.reason}" + (f" (measured: {c.predicted})" if c.predicted else ""),
+            details=c.to_json(),
+        )
+        for c in choices(sc, ss)
+    ]
 
 
 # ----------------------------------------------------------------------------- carrying it out
@@ -590,7 +663,7 @@ def find_assets(scene, cache_root=None) -> dict[str, Path]:
     p = plan(scene, cache_root)
     out = {}
     for s in p.steps:
-        if s.kind is None or s.action == "skip":
+        if s.kind is None or s.action == "skip" or not s.online:
             continue
         if s.action != "reuse":
             bake_it = f"run `hairlut bake --scene {p.scene.source}` (or give its path)"

@@ -8,6 +8,9 @@
 - ``alpha_outside``: the fraction of a's α (summed over the frame) that lies outside b's silhouette, the pixels
   where b's α exceeds :data:`SILHOUETTE_ALPHA`, dilated by a disc of :data:`OUTSIDE_PIXELS` pixels (issue 26's
   "α outside the strands"; None, with the reason in ``alpha_outside_undefined``, when a's α is zero everywhere);
+- ``colour_per_alpha``: a's colour per unit α over b's, each the mean luminance (Rec. 709) of its premultiplied RGB
+  over its mean α (issue 26: how bright the hair is where it covers, apart from how much it covers; None, with
+  the reason in ``colour_per_alpha_undefined``, when either frame has no α or b no light);
 - the same RMSEs after 8 × 8 block averaging (``rgb_rmse_8x8``, ``alpha_rmse_8x8``): coverage and tone,
   apart from where single strands fall;
 - ``flip_mean`` and the FLIP heat map (LDR-FLIP of NVIDIA's ``flip-evaluator`` package, on the frames
@@ -57,6 +60,19 @@ def _srgb(rgb: np.ndarray) -> np.ndarray:
     return np.where(v <= 0.0031308, 12.92 * v, 1.055 * np.power(v, 1 / 2.4) - 0.055).astype(np.float32)
 
 
+def _luminance(rgba: np.ndarray) -> float:
+    return float((0.2126 * rgba[..., 0] + 0.7152 * rgba[..., 1] + 0.0722 * rgba[..., 2]).mean())
+
+
+def colour_per_alpha(a, b) -> float | None:
+    """a's mean luminance per unit of mean α over b's (module docstring); None when undefined."""
+    ra, rb = (np.asarray(getattr(x, "rgba", x), np.float64) for x in (a, b))
+    ma, mb, lb = ra[..., 3].mean(), rb[..., 3].mean(), _luminance(rb)
+    if ma <= 0 or mb <= 0 or lb <= 0:
+        return None
+    return float((_luminance(ra) / ma) / (lb / mb))
+
+
 def _rmse(a, b) -> float:
     return float(np.sqrt(np.mean((np.asarray(a, np.float64) - np.asarray(b, np.float64)) ** 2)))
 
@@ -83,11 +99,14 @@ def compare(a, b, *, flip: bool = True) -> tuple[dict, np.ndarray | None]:
         "alpha_bias": ma - mb,
         "alpha_bias_relative": (ma - mb) / mb if mb > 0 else None,
         "alpha_outside": alpha_outside(ra, rb),
+        "colour_per_alpha": colour_per_alpha(ra, rb),
         "rgb_rmse_8x8": _rmse(ba[..., :3], bb[..., :3]),
         "alpha_rmse_8x8": _rmse(ba[..., 3], bb[..., 3]),
     }
     if mb <= 0:
         out["alpha_bias_relative_undefined"] = "b's alpha is zero everywhere"
+    if out["colour_per_alpha"] is None:
+        out["colour_per_alpha_undefined"] = "a frame has no alpha, or b no light"
     if out["alpha_outside"] is None:
         out["alpha_outside_undefined"] = "a's alpha is zero everywhere"
     heat = None

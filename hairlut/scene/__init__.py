@@ -3,7 +3,8 @@
 ``load_scene`` / ``resolve_scene`` validate a scene file or mapping (:data:`SCHEMA`) into a :class:`Scene`
 (clusters or a groom, camera, lights, material, effects, environment light, shadows,
 tables); ``scene_clusters`` builds its clusters and strands (satf §3), and
-``scene_sectors`` measures their sectors (a :class:`SceneSectors`).  The camera is ``Camera`` / ``make_camera``.
+``scene_sectors`` measures their sectors (a :class:`SceneSectors`).  What a scene leaves out is chosen here
+(``_choices``: the cluster count, the shadow method, the layer reads), each a :class:`Choice` with its reason.  The camera is ``Camera`` / ``make_camera``.
 This package reads ``hairlut.geometry`` only; the planner (``hairlut.planner``) and
 everything else build on it.  NumPy and JAX load on first use of a name."""
 
@@ -22,6 +23,11 @@ _LAZY = {
     "resolve_scene": "_schema",
     "scene_clusters": "_clusters",
     "groom_cache_entries": "_cache",
+    "cluster_choice": "_clusters",
+    "Choice": "_choices",
+    "cluster_count": "_choices",
+    "layer_reads": "_choices",
+    "shadow_method": "_choices",
     "CAMERA": "_camera",
     "Camera": "_camera",
     "check_camera": "_camera",
@@ -38,6 +44,7 @@ _LAZY = {
 
 __all__ = [
     "Camera",
+    "Choice",
     "SCHEMA",
     "Scene",
     "SceneSectors",

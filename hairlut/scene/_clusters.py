@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import errors
+from ._choices import Choice, cluster_count
 from ._schema import Scene
 
 #: The last few scenes' clusters, by :func:`_key`: the planner, the scene-maps bake, the synthesis and the camera
@@ -52,12 +53,24 @@ def scene_clusters(scene: Scene, cache_root=None) -> list:
     scenes: :data:`_MEMO`; a groom's fit is kept on disk in the table cache under ``cache_root``, else the folder last
     given for the scene in this process, else ``$HAIRLUT_CACHE``, else ``tables/``, keyed by the strands' content and
     the fit's arguments: ``_cache``)."""
+    return _copy(_memo(scene, cache_root)[0])
+
+
+def cluster_choice(scene: Scene) -> Choice:
+    """``groom.clusters`` as given or as chosen from the groom (:func:`hairlut.scene.cluster_count`), or the
+    ``[[clusters]]`` the scene lists."""
+    if scene.groom_path is None:
+        return Choice("clusters", len(scene.specs), True, "the scene's own [[clusters]]")
+    return _memo(scene)[1]
+
+
+def _memo(scene: Scene, cache_root=None) -> tuple:
     key = _key(scene)
     if key not in _MEMO:
         if len(_MEMO) >= _MEMO_SIZE:
             _MEMO.pop(next(iter(_MEMO)))
         _MEMO[key] = _build(scene, _root_of(scene, cache_root))
-    return _copy(_MEMO[key])
+    return _MEMO[key]
 
 
 #: The table cache folder each of the last few scenes (by :func:`_key`) was last given: the planner passes its
@@ -140,9 +153,10 @@ def _build(scene: Scene, cache_root=None) -> list:
         _check_groom(strands, scene.groom_path)
         if strands.thickness is None:
             strands = Strands(strands.points, strands.counts, thickness=np.full(strands.n_points, 2.0 * g["radius"], np.float32))
+        choice = cluster_count(strands, g["clusters"])
         batch, labels = cached_fit(
             strands,
-            min(g["clusters"], strands.n_strands),
+            choice.value,
             layer_radii=g["layer_radii"],
             core_radius=g["core_radius"],
             s_t=g["s_t"],
@@ -150,7 +164,7 @@ def _build(scene: Scene, cache_root=None) -> list:
             seed=g["seed"],
             root=cache_root,
         )
-        return _split(strands, batch.specs, labels)
+        return _split(strands, batch.specs, labels), choice
     s = scene.config["strands"]
     out = []
     for spec, seed in zip(scene.specs, scene.cluster_seeds):
@@ -164,4 +178,4 @@ def _build(scene: Scene, cache_root=None) -> list:
             seed=int(seed),
         )
         out.append((spec, strands))
-    return out
+    return out, None

@@ -40,6 +40,7 @@ from ..validate import nonneg as _nonneg
 from ..validate import positive as _pos
 from ..validate import unit_interval as _unit_interval
 from ._camera import CAMERA, check_camera, derive_view
+from ._choices import CLUSTERS_MAX, Choice, shadow_method
 
 
 def _colour(x):
@@ -66,13 +67,14 @@ REQUIRED = {
 RENAMED = {"render.reference_bound": "render.strands_bound"}
 
 #: ``[shadows] method``: where each light's transmittance at a texel comes from (eq 13 with one τ per light).
-SHADOW_METHODS = ("smap", "light_oriented", "opacity_maps", "none")
+SHADOW_METHODS = ("auto", "smap", "light_oriented", "opacity_maps", "none")
 #: ``[material] reflectance``: what eq 13 multiplies the lighting by (``hairlut.synth.shade_kernel``): ``unit``, each
 #: layer reflects the lighting per unit of its opacity α, as the strand render shades each strand (the default);
 #: ``hrir``, the paper's eq 13 as written, × the HRIR's accumulated Phong reflectance re.
 REFLECTANCES = ("unit", "hrir")
 #: The ``[shadows]`` keys each method reads (``smap`` reads material.k_shadow and material.shadow_form).
 SHADOW_KEYS = {
+    "auto": ("resolution", "slices", "kappa", "padding"),
     "smap": (),
     "none": (),
     "light_oriented": ("resolution", "kappa", "padding"),
@@ -130,10 +132,10 @@ SCHEMA = {
             "the RGB and α RMSE by less than this; the bound is stored in the frame",
         ),
         "layer_reads": Field(
-            "pair",
+            "auto",
             _S,
-            one_of("pair", "track"),
-            "what a layer texel reads: pair (eq 7: its HSV's two sectors) or track (every sector "
+            one_of("auto", "pair", "track"),
+            "what a layer texel reads: auto (the planner chooses: hairlut.scene.layer_reads), pair (eq 7: its HSV's two sectors) or track (every sector "
             "its in-plane ray crosses in its track, on its side of the chord: closer to the strands, "
             "a sweep ~5x costlier at paper scale, about as costly on the vendored grooms)",
         ),
@@ -200,10 +202,11 @@ SCHEMA = {
     },
     "shadows": {
         "method": Field(
-            "smap",
+            "auto",
             _S,
             one_of(*SHADOW_METHODS),
-            "smap (eq 12 from the α-maps), light_oriented (bertails), opacity_maps (kim ch. 6) or none",
+            "auto (the planner chooses: hairlut.scene.shadow_method), smap (eq 12 from the α-maps), "
+            "light_oriented (bertails), opacity_maps (kim ch. 6) or none",
         ),
         "resolution": Field(
             32, _I, in_range(2, 512), "cells (light_oriented) or texels (opacity_maps) along the hair's longest extent"
@@ -221,6 +224,13 @@ SCHEMA = {
     "tables": {
         "hrir": Field({}, (dict,), None, "hrir_db recipe keys over the defaults (as hairlut bake hrir --set)"),
         "restrict": Field(True, _B, None, "restrict the database's sector space to the scene's own sectors"),
+        "hair_bsdf": Field(
+            False,
+            (bool, dict),
+            None,
+            "bake the hair_bsdf tables an engine's hair shading reads: true (the defaults), or a table of hair_bsdf "
+            "recipe keys over them (as hairlut bake hair_bsdf --set)",
+        ),
     },
     "strands": {
         "count": Field(200, _I, _int_at_least(0), "strands per procedural cluster"),
@@ -247,7 +257,12 @@ CLUSTER = {
 
 GROOM = {
     "path": Field(None, _S, None, "strand file (.tfx, .hair, .usda)"),
-    "clusters": Field(4, _I, _int_at_least(1), "number of fitted clusters"),
+    "clusters": Field(
+        "auto",
+        (int, str),
+        auto_or(_int_at_least(1)),
+        "number of fitted clusters (auto: chosen from the groom's strand count and curl, hairlut.scene.cluster_count)",
+    ),
     "radius": Field(0.1, _F, _pos, "metric strand radius when the file has no thickness"),
     "layer_radii": Field(list(_D["layer_radii"]), _L, None, ""),
     "core_radius": Field(
@@ -295,10 +310,16 @@ class Scene:
     def shadow_method(self) -> str:
         """The shadow method the online module runs: ``shadows.method``, or ``none`` when
         ``effects.shadow`` is off or the s-map's k_shadow is 0 (no shadow work at all)."""
-        method = self.config["shadows"]["method"]
+        method = self.shadow_choice.value
         if not self.config["effects"]["shadow"] or method == "smap" and self.material["k_shadow"] <= 0:
             return "none"
         return method
+
+    @property
+    def shadow_choice(self) -> Choice:
+        """``shadows.method`` as given, or as ``auto`` chooses it (:func:`hairlut.scene.shadow_method`), with the reason."""
+        has_strands = self.groom_path is not None or self.config["strands"]["count"] > 0
+        return shadow_method(self.config, self.raw, has_strands)
 
     @property
     def environment(self) -> dict | None:
@@ -414,7 +435,7 @@ def resolve_scene(given: Mapping, base_dir=None, *, source: str = "<mapping>") -
                 )
     budget.check_scene(
         cfg,
-        len(specs) if specs else cfg["groom"]["clusters"],
+        len(specs) if specs else (CLUSTERS_MAX if cfg["groom"]["clusters"] == "auto" else cfg["groom"]["clusters"]),
         specs[0].n_layers if specs else len(cfg["groom"]["layer_radii"]),
         len(lights),
         structure=("clusters[0]", specs[0].s_t, specs[0].s_u, _D)

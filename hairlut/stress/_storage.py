@@ -1,5 +1,5 @@
 """Stress cases for float16 storage: every table kind hairlut bakes (``hrir_db``, ``sh_tables``,
-``scene_maps``), baked twice from one recipe (float16 and a wider storage dtype) through the
+``scene_maps``, ``hair_bsdf``), baked twice from one recipe (float16 and a wider storage dtype) through the
 registry, then read back with :func:`hairlut.assets.read_table`.
 
 The bound is float16's own: round-to-nearest changes a value by at most half an ulp, a relative
@@ -100,6 +100,19 @@ def _scene(tally, ctx):
     _compare_files(tally, ctx, "scene_maps", half, wide)
 
 
+#: A tiny ``hair_bsdf`` recipe: every table, on a 4 × 3 × 2 grid and 2 × 3 coverage entries.
+HAIR_BSDF = {"grid": {"resolution": [4, 3, 2]}, "coverage": {"resolution": [2, 3]}}
+
+
+def _hair_bsdf(tally, ctx):
+    from ..bake import registry
+
+    half, wide = ctx.workdir / "b16.h5", ctx.workdir / "b64.h5"
+    for path, dtype in ((half, "float16"), (wide, "float64")):
+        registry.bake("hair_bsdf", {**HAIR_BSDF, "storage": {"dtype": dtype}}, path)
+    _compare_files(tally, ctx, "hair_bsdf", half, wide)
+
+
 _REASON = "float16 round-to-nearest: half an ulp, 2^-11 relative (2^-25 absolute below 2^-14)"
 
 CASES = (
@@ -121,5 +134,13 @@ CASES = (
     ),
     Case(
         "storage.scene_maps_f16", "scene_maps tables stored as float16 vs float32", FLOAT16_BOUND, _REASON, rounding_error, _scene
+    ),
+    Case(
+        "storage.hair_bsdf_f16",
+        "hair_bsdf tables stored as float16 vs float64",
+        FLOAT16_BOUND,
+        _REASON,
+        rounding_error,
+        _hair_bsdf,
     ),
 )

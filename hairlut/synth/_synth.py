@@ -30,7 +30,7 @@ import numpy as np
 
 from .. import errors
 from ..assets import atomic_write_bytes, encode_png, tonemap, write_exr
-from ..scene import Scene, as_scene, scene_clusters, scene_sector_tables
+from ..scene import Scene, as_scene, layer_reads, scene_clusters, scene_sector_tables
 from ._environment import prepare_environment
 from ._maps import SectorFrames, sector_frames, texel_grid
 from ._methods import prepare_map_source
@@ -245,7 +245,8 @@ def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
         name: jnp.asarray(np.stack([getattr(pc, name) for pc in clusters]), jnp.float32)
         for name in ("tangent", "normal", "noise")
     }
-    res, reads = sc.config["render"]["resolution"], sc.config["render"]["layer_reads"]
+    res = sc.config["render"]["resolution"]
+    reads = layer_reads(sc.config["render"]["layer_reads"], n_sec * len(clusters)).value
     if method == "satf":
         index, source = map_index(database, table, frames, clusters[0].spec.n_layers, res, k, reads), None
     else:

@@ -1,4 +1,5 @@
 """Procedural grooms for the tests and the picture benchmark (issue 26, deliverable 4): NumPy only, seeded, deterministic.
+They live in the package, not in ``tests/``, because ``hairlut bench --only picture`` (``_picture``) renders them too.
 
 Three kinds, each a :class:`hairlut.geometry.Strands` with float32 points, the same number of points in every strand
 (so that ``.tfx`` can hold it) and a constant per-point ``thickness`` of ``2 · radius`` (so that the ``.hair`` copy,

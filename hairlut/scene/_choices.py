@@ -1,0 +1,150 @@
+"""What a scene leaves out, chosen from its groom and its settings (issue 26: right by default).
+
+Each rule takes what it needs (the strands, the scene's given keys, the sector count) and returns a
+:class:`Choice`: the value, whether the scene gave it, the reason in words, and the error it predicts, as
+measured by the picture benchmark (``hairlut bench --only picture``: the layered render against the strand
+render converged to 0.02, 128², defaults otherwise).  A value the scene gives is always kept.  The planner
+prints every choice (``hairlut plan``); the online module and the cluster fit read the same rules, so what
+the plan says is what runs.
+
+* ``groom.clusters`` (:func:`cluster_count`): √S · (1 + turns), S strands of a mean of ``turns`` full turns of
+  their tangent (curls), between :data:`CLUSTERS_MIN` and :data:`CLUSTERS_MAX`, and at least
+  :data:`STRANDS_PER_CLUSTER` strands a cluster (a cluster's cross-section is measured from its strands' spread).
+  A groom that bends more needs more clusters to keep its shape: a few clusters turn curls into a straight
+  curtain.  Sintel (228 strands, 0.2 turns): 18; the test suite's curly groom (400, 2.9 turns): 48.
+* ``shadows.method`` (:func:`shadow_method`): the light-oriented density map (bertails), whose transmittance
+  follows each light through the strands' own width; eq 12's s-map when the scene sets its knobs
+  (``material.k_shadow`` or ``shadow_form``); none when no strand can cast a shadow.
+* ``render.layer_reads`` (:func:`layer_reads`): ``track`` (every sector a texel's in-plane ray crosses) while its
+  sweep fits the frame budget, ``pair`` (eq 7) beyond: at paper scale (53,040 sectors) track reads cost 41.6 ms a
+  frame against 13.5 ms for pair on the 2-core CPU.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: The cluster count's bounds (``groom.clusters = "auto"``).
+CLUSTERS_MIN, CLUSTERS_MAX = 4, 48
+#: Fewest strands a fitted cluster holds when the count is chosen.
+STRANDS_PER_CLUSTER = 8
+#: Most sectors for which ``layer_reads = "auto"`` reads the whole track: track reads cost ~0.8 µs a sector on the
+#: 2-core CPU (41.6 ms at 53,040 sectors), so 16,384 sectors keep them within ~13 ms of the frame.
+TRACK_SECTORS = 16384
+
+#: Measured by the picture benchmark (Sintel's groom, defaults, 128², strand render converged to 0.02; 2026-12-04),
+#: the figures each choice's ``predicted`` quotes.
+MEASURED = {
+    "clusters": "Sintel: 4 clusters FLIP 0.206, 12 clusters 0.135, 24 clusters 0.118 (track reads, light-oriented shadows)",
+    "light_oriented": "Sintel: colour per unit α 1.03× the strand render's (eq 12's s-map: 1.54×)",
+    "smap": "Sintel: colour per unit α 1.54× the strand render's (eq 12 darkens only inner layers, whatever the light)",
+    "track": "Sintel: mean α −4.5 % against the strand render (pair: −26.7 %)",
+    "pair": "Sintel: mean α −26.7 % against the strand render (track: −4.5 %)",
+}
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One knob: ``key`` (dotted), ``value``, ``given`` (the scene set it), ``reason`` and ``predicted`` (the error
+    the picture benchmark measured for it, in words, or None)."""
+
+    key: str
+    value: object
+    given: bool
+    reason: str
+    predicted: str | None = None
+
+    def to_json(self) -> dict:
+        return {"key": self.key, "value": self.value, "given": self.given, "reason": self.reason, "predicted": self.predicted}
+
+
+def given_choice(key: str, value) -> Choice:
+    return Choice(key, value, True, "the scene's own value")
+
+
+def strand_turns(strands) -> float:
+    """The mean over strands of the total turning of the tangent along the strand, in full turns (2π)."""
+    p = np.asarray(strands.points, np.float64)
+    d = np.diff(p, axis=0)
+    ln = np.linalg.norm(d, axis=1)
+    owner = np.repeat(np.arange(strands.n_strands), strands.counts)[1:]
+    inside = np.ones(len(d), bool)
+    inside[strands.offsets[1:-1] - 1] = False  # the step from one strand's last point to the next one's first
+    ok = inside & (ln > 0)
+    t = np.zeros_like(d)
+    t[ok] = d[ok] / ln[ok, None]
+    pair = ok[1:] & ok[:-1] & (owner[1:] == owner[:-1])
+    angle = np.arccos(np.clip((t[1:] * t[:-1]).sum(axis=1), -1.0, 1.0)) * pair
+    turns = np.bincount(owner[1:], weights=angle, minlength=strands.n_strands) / (2.0 * math.pi)
+    return float(turns.mean()) if len(turns) else 0.0
+
+
+def cluster_count(strands, given=None) -> Choice:
+    """``groom.clusters``: ``given`` (an int) or √S · (1 + turns) within the bounds (module docstring)."""
+    s = int(strands.n_strands)
+    if given not in (None, "auto"):
+        return given_choice("groom.clusters", min(int(given), s))
+    turns = strand_turns(strands)
+    raw = math.sqrt(s) * (1.0 + turns)
+    cap = max(1, min(CLUSTERS_MAX, s // STRANDS_PER_CLUSTER))
+    n = max(min(CLUSTERS_MIN, s), min(cap, round(raw)))
+    return Choice(
+        "groom.clusters",
+        int(n),
+        False,
+        f"√{s} strands × (1 + {turns:.2f} turns a strand) = {raw:.0f}, kept in [{CLUSTERS_MIN}, {cap}] "
+        f"(≤ {CLUSTERS_MAX}, ≥ {STRANDS_PER_CLUSTER} strands a cluster): a groom that bends more needs more clusters to keep its shape",
+        MEASURED["clusters"],
+    )
+
+
+def shadow_method(config: dict, given: dict, has_strands: bool) -> Choice:
+    """``shadows.method`` for a scene's resolved ``config`` and its ``given`` tables (module docstring)."""
+    method = config["shadows"]["method"]
+    if method != "auto":
+        return given_choice("shadows.method", method)
+    smap_keys = sorted(k for k in ("k_shadow", "shadow_form") if k in given.get("material", {}))
+    if not has_strands:
+        return Choice("shadows.method", "none", False, "the clusters hold no strands: nothing casts a shadow")
+    if smap_keys:
+        return Choice(
+            "shadows.method",
+            "smap",
+            False,
+            f"the scene sets eq 12's own knobs ({', '.join('material.' + k for k in smap_keys)}): eq 12's s-map",
+            MEASURED["smap"],
+        )
+    return Choice(
+        "shadows.method",
+        "light_oriented",
+        False,
+        "the light-oriented density map (bertails): each light's transmittance through the strands' own width, as "
+        "the strands shade each other",
+        MEASURED["light_oriented"],
+    )
+
+
+def layer_reads(value: str, sectors: int) -> Choice:
+    """``render.layer_reads`` for ``value`` (``auto``, ``pair`` or ``track``) and a scene of ``sectors`` sectors."""
+    if value != "auto":
+        return given_choice("render.layer_reads", value)
+    if sectors <= TRACK_SECTORS:
+        return Choice(
+            "render.layer_reads",
+            "track",
+            False,
+            f"{sectors} sectors ≤ {TRACK_SECTORS}: every sector a texel's in-plane ray crosses, within ~"
+            f"{sectors * 41.6 / 53040:.1f} ms a frame on the 2-core CPU",
+            MEASURED["track"],
+        )
+    return Choice(
+        "render.layer_reads",
+        "pair",
+        False,
+        f"{sectors} sectors > {TRACK_SECTORS}: track reads would cost ~{sectors * 41.6 / 53040:.0f} ms a frame on the "
+        "2-core CPU, so eq 7's pair of sectors",
+        MEASURED["pair"],
+    )

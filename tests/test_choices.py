@@ -1,0 +1,95 @@
+"""What the planner chooses for a scene that leaves a knob out (issue 26, deliverable 1): ``hairlut.scene``'s rules,
+checked against independent facts (a straight strand turns 0 times, a circle once), the issue's orderings (a curly
+groom gets more clusters than a straight one of the same strand count) and the promise that a scene's own value is
+always kept."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hairlut.bench import _grooms as g
+from hairlut.geometry import Strands
+from hairlut.scene import cluster_count, layer_reads, load_scene
+from hairlut.scene._choices import CLUSTERS_MAX, CLUSTERS_MIN, STRANDS_PER_CLUSTER, TRACK_SECTORS, strand_turns
+
+
+def _polyline(points: np.ndarray, copies: int = 1) -> Strands:
+    pts = np.concatenate([points + [0.0, 0.0, 0.01 * i] for i in range(copies)]).astype(np.float32)
+    return Strands(pts, np.full(copies, len(points)), thickness=np.full(len(pts), 0.01, np.float32))
+
+
+def test_a_straight_strand_turns_zero_times_and_a_circle_once():
+    line = np.stack([np.linspace(0, 1, 20), np.zeros(20), np.zeros(20)], axis=1)
+    assert strand_turns(_polyline(line, 3)) == pytest.approx(0.0, abs=1e-12)
+    n = 400  # a closed circle sampled at n + 1 points: exterior angles sum to 2π less the one at the closing point
+    t = np.linspace(0, 2 * math.pi, n + 1)
+    circle = np.stack([np.cos(t), np.sin(t), np.zeros_like(t)], axis=1)
+    assert strand_turns(_polyline(circle)) == pytest.approx((n - 1) / n, rel=1e-6)
+
+
+def test_two_strands_do_not_turn_across_their_join():
+    """The step from one strand's last point to the next strand's first is no turn of either strand."""
+    a = np.stack([np.linspace(0, 1, 5), np.zeros(5), np.zeros(5)], axis=1)
+    b = np.stack([np.zeros(5), np.linspace(0, 1, 5), np.full(5, 3.0)], axis=1)
+    s = Strands(np.concatenate([a, b]).astype(np.float32), np.array([5, 5]))
+    assert strand_turns(s) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_a_curly_groom_gets_more_clusters_than_a_straight_one_of_the_same_strand_count():
+    curly, straight = g.curly(n_strands=300, seed=1), g.parted(n_strands=300, seed=1)
+    c, s = cluster_count(curly), cluster_count(straight)
+    assert not c.given and not s.given
+    assert c.value > s.value >= CLUSTERS_MIN
+    assert "turns" in c.reason and c.predicted
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(2, 5000), st.floats(0.0, 10.0))
+def test_the_count_stays_in_its_bounds_and_every_cluster_can_hold_its_strands(strands, turns):
+    class Fake:  # strand_turns is tested above; here only the arithmetic of the bounds
+        n_strands = strands
+
+    from hairlut.scene import _choices
+
+    orig = _choices.strand_turns
+    _choices.strand_turns = lambda s: turns
+    try:
+        n = cluster_count(Fake()).value
+    finally:
+        _choices.strand_turns = orig
+    assert 1 <= n <= CLUSTERS_MAX and n <= strands
+    assert n <= max(CLUSTERS_MIN, strands // STRANDS_PER_CLUSTER)
+
+
+def test_an_explicit_value_is_always_kept():
+    groom = g.curly(n_strands=100, seed=2)
+    assert cluster_count(groom, 7).value == 7 and cluster_count(groom, 7).given
+    assert cluster_count(groom, 10_000).value == 100  # never more clusters than strands
+    for v in ("pair", "track"):
+        assert layer_reads(v, 10**9).value == v and layer_reads(v, 1).given
+
+
+def test_layer_reads_follow_the_sector_count():
+    assert layer_reads("auto", TRACK_SECTORS).value == "track"
+    far = layer_reads("auto", TRACK_SECTORS + 1)
+    assert far.value == "pair" and "ms a frame" in far.reason
+
+
+def test_the_plan_prints_every_choice_and_a_given_value_is_set(tmp_path):
+    from hairlut.planner import choices
+
+    scenes = g.groom_scenes(tmp_path, kinds=("curly",), sizes={"curly": {"n_strands": 60, "points": 8}}, resolution=(32, 32))
+    sc = load_scene(scenes["curly"])
+    chosen = {c.key: c for c in choices(sc)}
+    assert set(chosen) == {"groom.clusters", "render.layer_reads", "shadows.method"}
+    assert not any(c.given for c in chosen.values())
+    text = scenes["curly"].read_text() + "\n[render]\nlayer_reads = \"pair\"\n"
+    scenes["curly"].write_text(text.replace("[groom]\n", "[groom]\nclusters = 5\n"))
+    again = {c.key: c for c in choices(load_scene(scenes["curly"]))}
+    assert again["groom.clusters"].value == 5 and again["groom.clusters"].given
+    assert again["render.layer_reads"].value == "pair" and again["render.layer_reads"].given
