@@ -426,3 +426,27 @@ def test_prune_removes_the_groom_entries_and_nothing_foreign(tmp_path, groom_fil
     assert all(p.exists() for p in ours)
     assert sorted(prune(root, everything=True)) == sorted(ours)
     assert not any(p.exists() for p in ours) and foreign.read_bytes() == b"not hairlut's"
+
+
+def test_a_grooms_light_space_shadows_are_kept(tmp_path, groom_file, monkeypatch):
+    """The light-oriented map's transmittance at the texels (seconds on a production groom) is kept for a groom
+    scene: prepared again, the same T without building a map; another light builds one."""
+    import hairlut.shadows as shadows
+    from hairlut.bench import with_config
+    from hairlut.synth import prepare
+
+    monkeypatch.setenv("HAIRLUT_CACHE", str(tmp_path / "cache"))
+    base = load_scene(_scene(tmp_path / "a", groom_file))
+    scene = with_config(base, shadows={"method": "light_oriented"}, render={"method": "direct"})
+    first = np.asarray(prepare(scene).shadows.transmittance)
+    assert len(_entries(tmp_path / "cache", "shadows")) == 1
+    _forget()
+    calls = []
+    real = shadows.light_transmittance
+    monkeypatch.setattr(shadows, "light_transmittance", lambda *a, **k: calls.append(1) or real(*a, **k))
+    again = np.asarray(prepare(scene).shadows.transmittance)
+    assert np.array_equal(first, again) and not calls
+    lit = with_config(scene, lights={"directions": [[-0.3, 0.9, 0.2]]})
+    other = prepare(lit).shadows
+    assert calls and len(_entries(tmp_path / "cache", "shadows")) == 2
+    assert not np.array_equal(np.asarray(other.transmittance), first)

@@ -60,10 +60,10 @@ def cache_folder(root=None) -> Path:
     return Path(root if root is not None else os.environ.get(ENV, "tables"))
 
 
-@functools.lru_cache(maxsize=1)
-def code_digest() -> str:
-    """SHA-256 over the source files of ``hairlut.geometry`` and ``hairlut.scene`` (what fits and cuts a groom) and
-    the versions of hairlut, NumPy, SciPy and JAX with JAX's backend."""
+@functools.lru_cache(maxsize=4)
+def code_digest(packages: tuple = ("geometry", "scene")) -> str:
+    """SHA-256 over the source files of hairlut's ``packages`` (by default ``geometry`` and ``scene``: what fits and
+    cuts a groom) and the versions of hairlut, NumPy, SciPy and JAX with JAX's backend."""
     import jax
     import scipy
 
@@ -71,7 +71,7 @@ def code_digest() -> str:
 
     base = Path(__file__).resolve().parents[1]
     h = hashlib.sha256()
-    for package in ("geometry", "scene"):
+    for package in packages:
         for path in sorted((base / package).rglob("*.py")):
             h.update(path.relative_to(base).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
     h.update(json.dumps([__version__, np.__version__, scipy.__version__, jax.__version__, jax.default_backend()]).encode())
@@ -401,3 +401,21 @@ def tables_from_arrays(arrays: dict, meta: dict) -> list:
             raise ValueError("an HSV outside the sectors")
         out.append(SectorTable(shape=shape, s_v=int(m["s_v"]), **a))
     return out
+
+
+# ----------------------------------------------------------------------------- for the floors above
+
+
+def cached_arrays(entry: str, doc: dict, compute, check=None, root=None, packages: tuple = ("geometry", "scene")) -> dict:
+    """``compute()`` (a dict of arrays) through the groom cache as ``groom-<entry>-<16 hex>.bin``, keyed by ``doc``
+    (plain data: what decides the arrays) and :func:`code_digest` of ``packages``.  ``check(arrays)`` raises
+    ValueError on arrays read back that are not what ``compute`` makes (then they are rebuilt).  What
+    ``hairlut.synth`` keeps of a groom's light-space shadows."""
+    key = digest({"entry": entry, "doc": doc, "code": code_digest(tuple(packages))})
+
+    def rebuild(arrays, meta):
+        if check is not None:
+            check(arrays)
+        return arrays
+
+    return cached(entry, key, compute, lambda arrays: (arrays, {}), rebuild, root)

@@ -92,6 +92,12 @@ def _root_of(scene: Scene, cache_root=None):
     return cache_root
 
 
+def cache_root_of(scene: Scene):
+    """The table cache folder this process last gave for ``scene`` (``scene_clusters``' ``cache_root``; the
+    planner's), or None (the default: ``$HAIRLUT_CACHE``, else ``tables/``)."""
+    return _root_of(scene)
+
+
 def _check_groom(strands, path) -> None:
     """Refuse a groom the cluster fit cannot use, naming ``groom.path``: fewer than 2 strands (a fitted cluster's
     cross-section is measured from the spread of its strands, and one strand has none), or a strand without length (no
