@@ -450,3 +450,24 @@ def test_a_grooms_light_space_shadows_are_kept(tmp_path, groom_file, monkeypatch
     other = prepare(lit).shadows
     assert calls and len(_entries(tmp_path / "cache", "shadows")) == 2
     assert not np.array_equal(np.asarray(other.transmittance), first)
+
+
+def test_prepare_in_groups_of_clusters_is_each_cluster_alone(tmp_path, groom_file):
+    """synth.prepare sweeps texels and sections 4 clusters to a geometry: every cluster's frames and texels are the
+    same bits as with a geometry of its own."""
+    from hairlut.bench import with_config
+    from hairlut.synth import _synth
+
+    scene = with_config(load_scene(_scene(tmp_path / "a", groom_file, "clusters = 6")), render={"method": "direct"})
+    pairs, tables = scene_clusters(scene, tmp_path), scene_sector_tables(scene, tmp_path)
+    db = _synth._geometry_db(scene)
+    specs = [s for s, _ in pairs]
+    groups, memo = _synth.geometry_groups(specs), {}
+    texels = _synth.texel_points(specs, scene.config["render"]["resolution"], groups)
+    for (spec, st), tb, tx, (g, c) in zip(pairs, tables, texels, groups):
+        alone = _synth.prepare_cluster(scene, db, spec, st, tb)
+        grouped = _synth.prepare_cluster(scene, db, spec, st, tb, tx, _synth._OneCluster(g, c, memo))
+        for f in dataclasses.fields(alone.frames):
+            assert np.array_equal(getattr(alone.frames, f.name), getattr(grouped.frames, f.name)), f.name
+        for name in ("tangent", "normal", "position"):
+            assert np.array_equal(getattr(alone, name), getattr(grouped, name)), name
