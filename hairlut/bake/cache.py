@@ -155,7 +155,8 @@ def entries(root=None) -> list[Entry]:
 def prune(
     root=None, *, kinds=None, older_than_days: float | None = None, everything: bool = False, dry_run: bool = False
 ) -> list[Path]:
-    """Remove cached assets (by kind and/or age, or all), stale temporaries, unused locks and orphaned parts folders."""
+    """Remove cached assets (by kind and/or age, or all; without kinds, the groom cache's entries too), stale
+    temporaries, unused locks and orphaned parts folders."""
     for kind in kinds or ():
         if kind not in KINDS:
             raise errors.ValidationError("kind", kind, f"unknown asset kind; known: {', '.join(known_kinds())}")
@@ -170,6 +171,14 @@ def prune(
             and (everything or not kinds or e.kind in kinds)
             and (older_than_days is None or now - e.path.stat().st_mtime > older_than_days * 86400)
         ]
+        if not kinds:  # the groom cache's entries (hairlut.scene: fits and sectors of grooms) go with the assets
+            from ..scene import groom_cache_entries
+
+            victims += [
+                p
+                for p in groom_cache_entries(cache_dir(root))
+                if older_than_days is None or now - p.stat().st_mtime > older_than_days * 86400
+            ]
     folder = cache_dir(root)
     now = time.time()
     # a temporary younger than STALE_SECONDS may belong to a bake that is still running

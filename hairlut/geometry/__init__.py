@@ -40,6 +40,7 @@ _LAZY = {
     "generate_strands": "strandgen",
     "sector_density": "density",
     "sector_density_numpy": "density",
+    "sector_mean_density": "density",
     "FEATURE_SETS": "features",
     "FeatureStats": "features",
     "PCABasis": "features",

@@ -77,17 +77,35 @@ def kmeans(x: np.ndarray, k: int, seed: int, iters: int = 50) -> np.ndarray:
         d2 = np.minimum(d2, np.sum((x - centres[-1]) ** 2, axis=1))
     c = np.array(centres)
     labels = np.zeros(len(x), dtype=np.int64)
+    x2 = np.sum(x**2, 1)[:, None]
     for it in range(iters):
-        dist = np.sum(x**2, 1)[:, None] - 2 * x @ c.T + np.sum(c**2, 1)[None, :]
+        dist = x2 - 2 * x @ c.T + np.sum(c**2, 1)[None, :]
         new = np.argmin(dist, axis=1)
         if it > 0 and (new == labels).all():
             break
         labels = new
-        for j in range(k):
-            members = labels == j
-            if members.any():
-                c[j] = x[members].mean(axis=0)
+        c = _group_means(x, labels, c)
     return labels
+
+
+def _group_means(x: np.ndarray, labels: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """``c`` with row j replaced by the mean of the rows of ``x`` labelled j (rows of empty groups kept): one
+    stable sort, then each group's rows, a contiguous slice in their order in ``x``, averaged as
+    ``x[labels == j].mean(0)`` averages them (the same bits), instead of one pass over ``x`` per group."""
+    out = c.copy()
+    xs = x[np.argsort(labels, kind="stable")]
+    cuts = np.searchsorted(np.sort(labels), np.arange(len(c) + 1))
+    for j in np.flatnonzero(np.diff(cuts)):
+        out[j] = xs[cuts[j] : cuts[j + 1]].mean(axis=0)
+    return out
+
+
+def _groups(key: np.ndarray, n: int) -> list[np.ndarray]:
+    """The indices of ``key`` (ints; negative ones belong to no group) equal to 0, 1, …, n − 1, each in increasing
+    order: one stable sort instead of a pass over ``key`` per group."""
+    order = np.argsort(key, kind="stable")
+    cuts = np.searchsorted(key[order], np.arange(n + 1))
+    return [order[cuts[j] : cuts[j + 1]] for j in range(n)]
 
 
 def _envelope(t, values, n_control: int, floor: float, iters: int = 30) -> np.ndarray:
@@ -109,9 +127,11 @@ def _extend(mean: np.ndarray, points: np.ndarray, n_control: int, rounds: int = 
     """A trajectory through ``mean`` (M, 3) lengthened at both ends, straight along its end tangents, until no
     point of ``points`` (P, 3) (the group's strands) lies beyond the first or last cross-section's plane.
 
-    Each round fits the spline, finds the points whose nearest of 257 trajectory samples is an end one and that
-    lie past its plane, and prepends/appends one point at the largest overhang (plus ``margin`` of the length).
+    Each round fits the spline, finds the points whose nearest of 257 trajectory samples (a k-d tree over the
+    samples) is an end one and that lie past its plane, and prepends/appends one point at the largest overhang (plus ``margin`` of the length).
     Returns (the spline, the largest distance of a point from its nearest sample)."""
+    from scipy.spatial import cKDTree  # here, not at import: scipy.spatial costs half a second to load
+
     poly = mean
     ts = np.linspace(0.0, 1.0, 257)
     for _ in range(rounds + 1):
@@ -120,12 +140,7 @@ def _extend(mean: np.ndarray, points: np.ndarray, n_control: int, rounds: int = 
         traj = fit_bspline(t, poly, n_control, 3, field="trajectory")
         pos, tan = traj(ts), traj(ts, deriv=1)
         tan = tan / np.maximum(np.linalg.norm(tan, axis=1, keepdims=True), 1e-300)
-        near = np.empty(len(points), np.int64)
-        dist = np.empty(len(points))
-        for a in range(0, len(points), 4096):
-            d = np.linalg.norm(points[a : a + 4096, None] - pos[None], axis=-1)
-            near[a : a + 4096] = np.argmin(d, axis=1)
-            dist[a : a + 4096] = d[np.arange(len(d)), near[a : a + 4096]]
+        dist, near = cKDTree(pos).query(points)  # the nearest sample of each point (exact distances, as a brute force)
         along0 = (points - pos[0]) @ tan[0]
         along1 = (points - pos[-1]) @ tan[-1]
         over0 = np.max(-along0[near == 0], initial=0.0)
@@ -175,22 +190,22 @@ def fit_clusters(
     raw = kmeans(res.reshape(len(res), -1), int(n_clusters), seed)
     # a group whose mean strand has (almost) no length cannot carry a trajectory: dropped
     size = np.linalg.norm(np.ptp(res.reshape(-1, 3), axis=0))
+    means = _group_means(res.reshape(len(res), -1), raw, np.zeros((int(n_clusters), n_resample * 3))).reshape(-1, n_resample, 3)
     for j in np.unique(raw):
-        mean = res[raw == j].mean(axis=0)
-        if np.linalg.norm(np.diff(mean, axis=0), axis=1).sum() <= 1e-6 * size:
+        if np.linalg.norm(np.diff(means[j], axis=0), axis=1).sum() <= 1e-6 * size:
             raw[raw == j] = -1
     used = np.unique(raw[raw >= 0])
     labels = np.where(raw >= 0, np.searchsorted(used, raw), -1)
     if not used.size:
         raise ValidationError("strands", strands.n_strands, "no group of strands has a usable length")
     common = dict(layer_radii=layer_radii, core_radius=core_radius, s_t=s_t, s_v=s_v, s_u=s_u)
-    owner = np.repeat(np.arange(strands.n_strands), strands.counts)
     pts = strands.points.astype(np.float64)
+    point_groups = _groups(np.repeat(labels, strands.counts), used.size)  # each group's points, in the strands' order
     trajs, probes = [], []
     for j in range(used.size):
-        mean = res[labels == j].mean(axis=0)
+        mean = means[used[j]]
         if extend:
-            traj, reach = _extend(mean, pts[labels[owner] == j], n_control)
+            traj, reach = _extend(mean, pts[point_groups[j]], n_control)
         else:
             seg = np.linalg.norm(np.diff(mean, axis=0), axis=1)
             t = np.concatenate([[0.0], np.cumsum(seg)]) / max(seg.sum(), 1e-300)
@@ -205,13 +220,14 @@ def fit_clusters(
     probe = ClusterGeometry(probes)
     t_fit = np.linspace(0.0, 1.0, n_fit)
     x = _crossings(probe, strands, labels, np.zeros(strands.n_points), probe.sections(t_fit))
+    sections = _groups(x["cluster"] * n_fit + x["t_index"], used.size * n_fit)  # each (cluster, section)'s crossings
     specs = []
     for j in range(used.size):
         floor = min_half_axis if min_half_axis is not None else 0.02 * probe.lengths[j]
         a_s, b_s = np.full(n_fit, np.nan), np.full(n_fit, np.nan)
         for i in range(n_fit):
-            sel = (x["cluster"] == j) & (x["t_index"] == i)
-            if not sel.any():
+            sel = sections[j * n_fit + i]
+            if not sel.size:
                 continue
             xa, ya = x["x"][sel], x["y"][sel]
             a0 = max(2.0 * xa.std(), floor)

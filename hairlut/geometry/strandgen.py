@@ -25,7 +25,6 @@ trajectory (sampled at the frame table, densified 4×); −1 if that mean exceed
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..errors import ValidationError
 from ..validate import check_real
@@ -140,6 +139,8 @@ def generate_strands(
 
 def assign_strands(strands: Strands, geometry: ClusterGeometry, *, max_distance: float | None = None) -> np.ndarray:
     """(S,) cluster of each strand by the nearest-trajectory rule (module docstring); −1 if none."""
+    from scipy.spatial import cKDTree  # here, not at import: scipy.spatial costs half a second to load
+
     if not isinstance(strands, Strands):
         raise ValidationError("strands", type(strands).__name__, "must be a hairlut.geometry.Strands")
     if max_distance is not None:

@@ -181,9 +181,10 @@ class Strands:
         """(S,) float64 polyline length of each strand."""
         if not self.n_strands:
             return np.zeros(0)
-        seg = self.segments
         pts = self.points.astype(np.float64, copy=False)
-        seg_len = np.linalg.norm(pts[seg[:, 1]] - pts[seg[:, 0]], axis=1)
+        # consecutive points' distances, less those from a strand's last point to the next strand's first: the
+        # segments' lengths in ``segments`` order, without gathering both ends of every segment
+        seg_len = np.delete(np.linalg.norm(np.diff(pts, axis=0), axis=1), self.offsets[1:-1] - 1)
         first_segment = self.offsets[:-1] - np.arange(self.n_strands)
         return np.add.reduceat(seg_len, first_segment)
 

@@ -168,11 +168,12 @@ class ClusterGeometry:
         return self._tables["frame_x"], self._tables["frame_tangent"], self._tables["frame_ref"]
 
     # -- queries -----------------------------------------------------------------------------
-    def _run(self, fn, t):
+    def _run(self, fn, t, columns: int | None = None):
         """fn(tables, t) on (C, M) parameters, in blocks of fixed shapes so compiled kernels are reused:
-        clusters in groups of 4 or 16, parameters in columns of 64, 512 or chunks of 4096."""
+        clusters in groups of 4 or 16, parameters in columns of 64, 512 or chunks of 4096 (chosen for ``columns``
+        parameters a row when given, else M: the kernel of a wider query, so the same bits as that query's)."""
         n_c, m = t.shape
-        width = next((w for w in (64, 512) if m <= w), _CHUNK)
+        width = next((w for w in (64, 512) if max(m, columns or 0) <= w), _CHUNK)
         cols = -(-m // width) * width
         parts = []
         with jax.enable_x64(True):
@@ -227,16 +228,24 @@ class ClusterGeometry:
                 int(cl.min() if cl.min() < 0 else cl.max()),
                 f"cluster index out of range for {self.n_clusters} clusters",
             )
-        counts = np.bincount(cl, minlength=self.n_clusters)
-        width = max(int(counts.max()) if cl.size else 0, 1)
-        order = np.argsort(cl, kind="stable")
+        # a section depends on (cluster, t) alone: each distinct pair is swept once (a grid of texels or mesh vertices
+        # repeats every t over its u and v: 192 times in a 3-layer, 64-texel-wide grid) and handed to all its items
+        by = np.lexsort((tt, cl))
+        fresh = np.ones(cl.size, dtype=bool)
+        fresh[1:] = (cl[by][1:] != cl[by][:-1]) | (tt[by][1:] != tt[by][:-1])
+        inverse = np.empty(cl.size, dtype=np.int64)
+        inverse[by] = np.cumsum(fresh) - 1
+        ucl, utt = cl[by][fresh], tt[by][fresh]
+        counts = np.bincount(ucl, minlength=self.n_clusters)
+        width = max(int(counts.max()) if ucl.size else 0, 1)
         starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-        slot = np.empty(cl.size, dtype=np.int64)
-        slot[order] = np.arange(cl.size) - np.repeat(starts, counts)
+        slot = np.arange(ucl.size) - np.repeat(starts, counts)  # ucl is sorted: each cluster's pairs in a row
         padded = np.zeros((self.n_clusters, width))
-        padded[cl, slot] = tt
-        sec = self._run(_sections, padded)
-        out = {k: v[cl, slot] for k, v in sec.items()}
+        padded[ucl, slot] = utt
+        # the kernel the items would have run on, not one fitted to the fewer pairs: XLA compiles each width alone,
+        # and a narrower one rounds some sections differently (~1e-14)
+        sec = self._run(_sections, padded, columns=int(np.bincount(cl, minlength=self.n_clusters).max()) if cl.size else 1)
+        out = {k: v[ucl, slot][inverse] for k, v in sec.items()}
         out["length"] = self.lengths[cl]
         return out
 

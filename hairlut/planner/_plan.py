@@ -581,7 +581,7 @@ def plan(scene, cache_root=None) -> Plan:
     """Decide, rule by rule, what ``scene`` needs (module docstring)."""
     sc = as_scene(scene)
     root = cache.cache_dir(cache_root)
-    ss = scene_sectors(sc)
+    ss = scene_sectors(sc, root)
     method, map_steps = _map_steps(sc, ss, root)
     hrir = (
         _hrir_step(sc, ss, root)

@@ -22,6 +22,10 @@ _LAZY = {
     "resolve_path": "_schema",
     "resolve_scene": "_schema",
     "scene_clusters": "_clusters",
+    "groom_cache_entries": "_cache",
+    "cached_arrays": "_cache",
+    "strands_digest": "_cache",
+    "cache_root_of": "_clusters",
     "cluster_choice": "_clusters",
     "Choice": "_choices",
     "cluster_count": "_choices",
@@ -38,6 +42,7 @@ _LAZY = {
     "grid_coverage": "_sectors",
     "restricted_space": "_sectors",
     "scene_sectors": "_sectors",
+    "scene_sector_tables": "_sectors",
 }
 
 __all__ = [

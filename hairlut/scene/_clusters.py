@@ -48,10 +48,12 @@ def _copy(pairs: list) -> list:
     ]
 
 
-def scene_clusters(scene: Scene) -> list:
+def scene_clusters(scene: Scene, cache_root=None) -> list:
     """[(ClusterSpec, Strands)] for each cluster of the scene, in the scene's order (remembered for the last few
-    scenes: :data:`_MEMO`)."""
-    return _copy(_memo(scene)[0])
+    scenes: :data:`_MEMO`; a groom's fit is kept on disk in the table cache under ``cache_root``, else the folder last
+    given for the scene in this process, else ``$HAIRLUT_CACHE``, else ``tables/``, keyed by the strands' content and
+    the fit's arguments: ``_cache``)."""
+    return _copy(_memo(scene, cache_root)[0])
 
 
 def cluster_choice(scene: Scene) -> Choice:
@@ -62,13 +64,38 @@ def cluster_choice(scene: Scene) -> Choice:
     return _memo(scene)[1]
 
 
-def _memo(scene: Scene) -> tuple:
+def _memo(scene: Scene, cache_root=None) -> tuple:
     key = _key(scene)
     if key not in _MEMO:
         if len(_MEMO) >= _MEMO_SIZE:
             _MEMO.pop(next(iter(_MEMO)))
-        _MEMO[key] = _build(scene)
+        _MEMO[key] = _build(scene, _root_of(scene, cache_root))
     return _MEMO[key]
+
+
+#: The table cache folder each of the last few scenes (by :func:`_key`) was last given: the planner passes its
+#: ``--cache`` folder, and what runs after it in the same process (a bake, ``hairlut.synth.prepare``) finds the
+#: groom cache there without being told.
+_ROOTS: dict = {}
+
+
+def _root_of(scene: Scene, cache_root=None):
+    """``cache_root`` when given (remembered for the scene), else the one last given for the scene, else None (the
+    default folder)."""
+    key = _key(scene)
+    if cache_root is None:
+        return _ROOTS.get(key)
+    _ROOTS.pop(key, None)
+    _ROOTS[key] = cache_root
+    while len(_ROOTS) > _MEMO_SIZE:
+        _ROOTS.pop(next(iter(_ROOTS)))
+    return cache_root
+
+
+def cache_root_of(scene: Scene):
+    """The table cache folder this process last gave for ``scene`` (``scene_clusters``' ``cache_root``; the
+    planner's), or None (the default: ``$HAIRLUT_CACHE``, else ``tables/``)."""
+    return _root_of(scene)
 
 
 def _check_groom(strands, path) -> None:
@@ -83,7 +110,9 @@ def _check_groom(strands, path) -> None:
             f"the groom holds {n} strand{'' if n == 1 else 's'}; the cluster fit needs at least 2 "
             "(a cluster's cross-section is measured from the spread of its strands)",
         )
-    extent = float(np.linalg.norm(np.ptp(strands.points.astype(np.float64), axis=0)))
+    cols = np.ascontiguousarray(strands.points.T)  # the extent as np.ptp of the float64 points: min and max are exact,
+    lo, hi = cols.min(axis=1).astype(np.float64), cols.max(axis=1).astype(np.float64)  # and by rows 10x faster
+    extent = float(np.linalg.norm(hi - lo))
     flat = np.flatnonzero(strands.lengths() <= 1e-6 * extent)
     if flat.size:
         i = int(flat[0])
@@ -95,8 +124,34 @@ def _check_groom(strands, path) -> None:
         )
 
 
-def _build(scene: Scene) -> list:
-    from ..geometry import ClusterGeometry, Strands, fit_clusters, generate_strands, read_strands
+def _split(strands, specs, labels) -> list:
+    """[(spec, Strands)]: each cluster's strands (label c), in the groom's order, with their thickness."""
+    from ..geometry import Strands
+
+    strand_order = np.argsort(labels, kind="stable")  # each cluster's strands together, in the groom's order
+    counts = strands.counts[strand_order]
+    ends = np.cumsum(counts)
+    # the points of those strands, in that order: each strand's own run of indices, moved to its new place
+    order = np.repeat(strands.offsets[:-1][strand_order] - (ends - counts), counts) + np.arange(int(ends[-1]) if len(ends) else 0)
+    strand_cuts = np.searchsorted(labels[strand_order], np.arange(len(specs) + 1))
+    cuts = np.concatenate([[0], ends])[strand_cuts]
+    points, thickness = strands.points[order], strands.thickness[order]
+    return [
+        (
+            spec,
+            Strands(
+                points[cuts[c] : cuts[c + 1]],
+                counts[strand_cuts[c] : strand_cuts[c + 1]],
+                thickness=thickness[cuts[c] : cuts[c + 1]],
+            ),
+        )
+        for c, spec in enumerate(specs)
+    ]
+
+
+def _build(scene: Scene, cache_root=None) -> list:
+    from ..geometry import ClusterGeometry, Strands, generate_strands, read_strands
+    from ._cache import cached_fit
 
     if scene.groom_path is not None:
         g = scene.config["groom"]
@@ -105,7 +160,7 @@ def _build(scene: Scene) -> list:
         if strands.thickness is None:
             strands = Strands(strands.points, strands.counts, thickness=np.full(strands.n_points, 2.0 * g["radius"], np.float32))
         choice = cluster_count(strands, g["clusters"])
-        batch, labels = fit_clusters(
+        batch, labels = cached_fit(
             strands,
             choice.value,
             layer_radii=g["layer_radii"],
@@ -113,15 +168,9 @@ def _build(scene: Scene) -> list:
             s_t=g["s_t"],
             s_u=g["s_u"],
             seed=g["seed"],
+            root=cache_root,
         )
-        off = strands.offsets
-        out = []
-        for c, spec in enumerate(batch.specs):
-            idx = np.flatnonzero(labels == c)
-            pts = np.concatenate([strands.points[off[i] : off[i + 1]] for i in idx])
-            thick = np.concatenate([strands.thickness[off[i] : off[i + 1]] for i in idx])
-            out.append((spec, Strands(pts, strands.counts[idx], thickness=thick)))
-        return out, choice
+        return _split(strands, batch.specs, labels), choice
     s = scene.config["strands"]
     out = []
     for spec, seed in zip(scene.specs, scene.cluster_seeds):

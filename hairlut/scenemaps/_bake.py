@@ -68,14 +68,12 @@ class SceneMaps:
 def scene_inputs(scene, recipe: dict) -> tuple[np.ndarray, np.ndarray]:
     """density (N, n_s, n_r) and geometry (N, 11) of every sector of every cluster of ``scene``
     (prepare's order), for the recipe's density grid and trace settings."""
-    from ..geometry import ClusterGeometry, build_sectors
     from ..march import scene_sector_inputs
-    from ..scene import as_scene, scene_clusters
+    from ..scene import as_scene, scene_sector_tables
 
     full = hrir_recipe(recipe)
     dens, geom = [], []
-    for spec, strands in scene_clusters(as_scene(scene)):
-        table = build_sectors(ClusterGeometry(spec), strands, np.zeros(strands.n_strands, np.int64))
+    for table in scene_sector_tables(as_scene(scene)):  # the sectors the planner cut (the groom cache)
         d, g = scene_sector_inputs(table, full)
         dens.append(d)
         geom.append(g)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from pathlib import Path
 
 from .. import errors
@@ -92,12 +93,24 @@ def hrir_recipe(recipe: dict) -> dict:
         raise errors.ValidationError(f"hrir.{exc.field}", exc.value, exc.reason) from None
 
 
+#: The last few groom files' digests, by their identity (path, device, inode, size, modification and change times):
+#: a plan and a render ask for a scene's geometry key several times, and a production groom is tens of MB to hash.
+_SHA256: dict = {}
+
+
 def _file_sha256(path) -> str:
-    h = hashlib.sha256()
-    with open(regular_file(path, "a groom file"), "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+    path = regular_file(path, "a groom file")
+    st = os.stat(path)
+    ident = (os.path.abspath(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+    if ident not in _SHA256:
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+        while len(_SHA256) >= 8:
+            _SHA256.pop(next(iter(_SHA256)))
+        _SHA256[ident] = h.hexdigest()
+    return _SHA256[ident]
 
 
 def geometry_key(scene) -> str:

@@ -45,7 +45,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import errors
-from ..geometry.density import sector_density
+from ..geometry.density import sector_density, sector_mean_density
 from ..geometry.features import PROJECTION, sector_features
 from ..geometry.inplane import TWO_PI, azimuths, sector_axes
 from ..hrir import projection_features, query_kernel
@@ -103,17 +103,23 @@ def sector_frames(geometry, table, db) -> SectorFrames:
 
     A ``projection``-indexed database's features are each sector's own density grid projected with
     the tracer's march in its own geometry rows (``scene_sector_inputs``, at the extent the texels
-    use), scored on the database's stored basis (``hairlut.hrir.projection_features``)."""
+    use), scored on the database's stored basis (``hairlut.hrir.projection_features``).  A ``db`` marked
+    ``geometry_only`` (the map methods that read no database: ``hairlut.synth``'s ``_geometry_db``) keeps its one
+    feature, ``rho_st``, from the splats without a density grid (``hairlut.geometry.density.sector_mean_density``:
+    the same value to float32 rounding, at a fraction of the cost on a large groom)."""
     names = tuple(db.stats.names)
     if any(n.startswith("pc") for n in names):
         raise errors.ValidationError("db.features", names, "principal-component features need the bake's PCA basis")
     rec = db.recipe.get("sectors", {})
     grid = tuple(rec.get("grid", (32, 32)))
-    splats = table.splats()
     extent = sector_extent(table)
-    if names == PROJECTION:
+    occupied = np.diff(table.splat_offsets) > 0  # a sector any splat reaches
+    if getattr(db, "geometry_only", False) and names == ("rho_st",):  # no database: its one feature, without a grid
+        feats = sector_mean_density(table, density_scale=float(rec.get("density_scale", 1.0)))[:, None]
+    elif names == PROJECTION:
         feats = projection_features(db, *scene_sector_inputs(table, db.recipe, extent=extent))
     else:
+        splats = table.splats()
         dens = sector_density(splats, grid, density_scale=float(rec.get("density_scale", 1.0)))
         feats = sector_features(dens, splats, names)
     reference, binormal, ex, ey = sector_axes(geometry, table)
@@ -130,7 +136,7 @@ def sector_frames(geometry, table, db) -> SectorFrames:
         table.v_range[:, 1].copy(),
         reference,
         binormal,
-        splats.mask.any(axis=1),
+        occupied,
         table.v_range[:, 0].copy(),
     )
 

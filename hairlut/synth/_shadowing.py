@@ -16,6 +16,7 @@ only when a view's lights differ from those it holds.
 
 from __future__ import annotations
 
+import hashlib
 import time
 from dataclasses import dataclass
 
@@ -35,6 +36,7 @@ class Shadows:
     params: dict | None = None
     lights: np.ndarray | None = None
     transmittance: object = None
+    cache: dict | None = None  # a groom scene's: the table cache folder and what keys its maps (prepare_shadows)
 
     @property
     def per_light(self) -> bool:
@@ -47,14 +49,34 @@ class Shadows:
             return None
         lights = np.atleast_2d(np.asarray(lights, np.float64))
         if self.lights is None or self.lights.shape != lights.shape or not np.array_equal(self.lights, lights):
-            from ..shadows import light_transmittance
-
             t0 = time.perf_counter()
-            tr = light_transmittance(self.strands, lights, self.points, method=self.method, **self.params)
+            tr = self._transmittance(lights)
             self.transmittance, self.lights = jnp.asarray(tr, jnp.float32), lights.copy()
             if timing is not None:
                 timing["shadows"] = timing.get("shadows", 0.0) + time.perf_counter() - t0
         return self.transmittance
+
+    def _transmittance(self, lights: np.ndarray) -> np.ndarray:
+        """The light-space method's T at the texels, through the groom cache when the scene is a groom's (the maps of
+        100,000 strands take seconds, and depend on the strands, the lights, the texels and the method alone)."""
+        from ..shadows import light_transmittance
+
+        def compute():
+            return {"T": light_transmittance(self.strands, lights, self.points, method=self.method, **self.params)}
+
+        if self.cache is None:
+            return compute()["T"]
+        from ..scene import cached_arrays
+
+        want = self.points.shape[:-1] + (len(lights),)
+
+        def check(arrays):
+            t = arrays["T"]
+            if t.shape != want or t.dtype != np.float64 or not (np.isfinite(t).all() and (t >= 0).all() and (t <= 1).all()):
+                raise ValueError(f"T of shape {t.shape}, dtype {t.dtype}, not transmittances of shape {want}")
+
+        doc = {**self.cache["doc"], "lights": lights, "method": self.method, "params": self.params}
+        return cached_arrays("shadows", doc, compute, check, self.cache["root"], ("geometry", "scene", "shadows"))["T"]
 
 
 def prepare_shadows(scene, strands: list, points: np.ndarray, timing: dict | None = None) -> Shadows:
@@ -74,5 +96,10 @@ def prepare_shadows(scene, strands: list, points: np.ndarray, timing: dict | Non
     params = {"resolution": cfg["resolution"], "kappa": None if cfg["kappa"] == "auto" else float(cfg["kappa"])}
     params |= {"padding": cfg["padding"]} if method == "light_oriented" else {"slices": cfg["slices"]}
     out = Shadows(method, merged, np.asarray(points, np.float64), params)
+    if scene.groom_path is not None:  # a groom's maps are kept with its fit (hairlut.scene's groom cache)
+        from ..scene import cache_root_of, strands_digest
+
+        texels = hashlib.sha256(f"{out.points.shape}".encode() + out.points.tobytes()).hexdigest()
+        out.cache = {"root": cache_root_of(scene), "doc": {"strands": strands_digest(merged), "points": texels}}
     out.for_lights(scene.lights, timing)
     return out

@@ -30,7 +30,7 @@ import numpy as np
 
 from .. import errors
 from ..assets import atomic_write_bytes, encode_png, tonemap, write_exr
-from ..scene import Scene, as_scene, layer_reads, scene_clusters
+from ..scene import Scene, as_scene, layer_reads, scene_clusters, scene_sector_tables
 from ._environment import prepare_environment
 from ._maps import SectorFrames, sector_frames, texel_grid
 from ._methods import prepare_map_source
@@ -151,7 +151,7 @@ def _geometry_db(scene: Scene):
     """What ``sector_frames`` reads of a database, for the map methods that read none (one cheap feature)."""
     from ..planner import direct_recipe
 
-    return SimpleNamespace(stats=SimpleNamespace(names=("rho_st",)), recipe=direct_recipe(scene))
+    return SimpleNamespace(stats=SimpleNamespace(names=("rho_st",)), recipe=direct_recipe(scene), geometry_only=True)
 
 
 def resolve_method(scene: Scene, db=None, maps=None) -> tuple[str, str]:
@@ -165,21 +165,74 @@ def resolve_method(scene: Scene, db=None, maps=None) -> tuple[str, str]:
     return method, why
 
 
-def prepare_cluster(scene: Scene, db, spec, strands) -> PreparedCluster:
-    """Sectors, features and frames (the index of §6.2.1) and the texels' frames on each layer surface."""
+#: Clusters per sweep of :func:`texel_points`: the block ``ClusterGeometry`` pads a single cluster to, so that each
+#: cluster's texels come out the same bits as swept alone (a block of 16 rounds some differently, ~1e-14).
+TEXEL_GROUP = 4
+
+
+def geometry_groups(specs) -> list:
+    """The clusters' geometries, :data:`TEXEL_GROUP` to a ``ClusterGeometry``: [(geometry, index in it)] per cluster.
+    A group's tables and sweeps give each cluster the same bits as a geometry of its own (the sweep pads one cluster
+    to the same block of four), at a quarter of the geometries (27 ms each: 48 clusters, 1.3 s)."""
+    from ..geometry import ClusterGeometry
+
+    out = []
+    for g0 in range(0, len(specs), TEXEL_GROUP):
+        geom = ClusterGeometry(specs[g0 : g0 + TEXEL_GROUP])
+        out += [(geom, c) for c in range(geom.n_clusters)]
+    return out
+
+
+class _OneCluster:
+    """Cluster ``index`` of a group's ``ClusterGeometry`` as far as :func:`sector_frames` reads a geometry (its
+    cross-sections, through ``sector_axes``); the group's sections at a set of t are swept once for all its
+    clusters (``memo``, shared)."""
+
+    def __init__(self, geometry, index: int, memo: dict):
+        self.geometry, self.index, self.memo = geometry, index, memo
+
+    def sections(self, t):
+        t = np.asarray(t, np.float64)
+        key = (id(self.geometry), t.shape, t.tobytes())
+        if key not in self.memo:
+            self.memo[key] = self.geometry.sections(t)
+        return type(self.memo[key])(*(f[self.index : self.index + 1] for f in self.memo[key]))
+
+
+def texel_points(specs, resolution, groups=None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """P, ∂P/∂t, ∂P/∂u (1, K, n_t, n_u, 3) at the texels of each cluster's K layer surfaces (``resolution`` =
+    (n_u, n_t)), swept :data:`TEXEL_GROUP` clusters at a time (one cluster at a time, each call filled three padded
+    rows of four: 0.2 s a cluster); ``groups``: :func:`geometry_groups` of ``specs`` when made already."""
+    n_u, n_t = resolution
+    u, t = texel_grid((n_u, n_t))
+    groups = geometry_groups(specs) if groups is None else groups
+    out = []
+    for geom in dict.fromkeys(g for g, _ in groups):  # each group once, in order
+        group = geom.batch.specs
+        shape = (len(group), group[0].n_layers, n_t, n_u)
+        cl = np.broadcast_to(np.arange(len(group))[:, None, None, None], shape)
+        tt = np.broadcast_to(t[None, None, :, None], shape)
+        uu = np.broadcast_to(u[None, None, None, :], shape)
+        vv = np.broadcast_to(np.stack([s.layer_radii for s in group])[:, :, None, None], shape)
+        p, pt, pu = geom.derivatives_of(cl, tt, vv, uu)
+        out += [(p[c : c + 1], pt[c : c + 1], pu[c : c + 1]) for c in range(len(group))]
+    return out
+
+
+def prepare_cluster(scene: Scene, db, spec, strands, table=None, texels=None, geometry=None) -> PreparedCluster:
+    """Sectors, features and frames (the index of §6.2.1) and the texels' frames on each layer surface; ``table``:
+    the cluster's sector table when known (``hairlut.scene.scene_sector_tables``), else built here; ``texels``: its
+    :func:`texel_points` when swept with other clusters', else swept here; ``geometry``: what the sector frames read
+    of its geometry (a group's, ``_OneCluster``), else its own."""
     from ..geometry import ClusterGeometry, build_sectors
 
     n_u, n_t = scene.config["render"]["resolution"]
-    geom = ClusterGeometry(spec)
-    table = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))
-    frames = sector_frames(geom, table, db)
-    u, t = texel_grid((n_u, n_t))
+    geom = ClusterGeometry(spec) if geometry is None or table is None else None
+    if table is None:
+        table = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))
+    frames = sector_frames(geom if geometry is None else geometry, table, db)
     K = spec.n_layers
-    shape = (1, K, n_t, n_u)
-    tt = np.broadcast_to(t[None, None, :, None], shape)
-    uu = np.broadcast_to(u[None, None, None, :], shape)
-    vv = np.broadcast_to(spec.layer_radii[None, :, None, None], shape)
-    p, pt, pu = geom.derivatives_of(np.zeros(shape, np.int64), tt, vv, uu)
+    p, pt, pu = texel_points([spec], (n_u, n_t))[0] if texels is None else texels
     noise = np.stack([value_noise((n_t, n_u), scene.material["noise_frequency"], 7919 + k) for k in range(K)])
     return PreparedCluster(spec, table, frames, _unit3(pt[0]), _unit3(np.cross(pu[0], pt[0])), p[0], noise)
 
@@ -201,8 +254,19 @@ def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
         raise errors.ValidationError("render.neighbours", k, f"the database holds only {len(database.features)} sectors")
     t0 = time.perf_counter()
     pairs = scene_clusters(sc)
+    tables = scene_sector_tables(sc)  # the groom cache's, when the scene's groom was cut before
     t1 = time.perf_counter()
-    clusters = [prepare_cluster(sc, database, spec, strands) for spec, strands in pairs]
+    specs = [spec for spec, _ in pairs]
+    if len({spec.structure() for spec in specs}) == 1:  # else the check below names the clusters
+        groups, memo = geometry_groups(specs), {}
+        texels = texel_points(specs, sc.config["render"]["resolution"], groups)
+        views = [_OneCluster(g, c, memo) for g, c in groups]
+    else:
+        texels = views = [None] * len(specs)
+    clusters = [
+        prepare_cluster(sc, database, spec, strands, tb, tx, view)
+        for (spec, strands), tb, tx, view in zip(pairs, tables, texels, views)
+    ]
     shapes = {pc.table.shape[1:] for pc in clusters}
     if len(shapes) != 1:
         raise errors.ValidationError("clusters", sorted(shapes), "clusters must share s_t, layer count and s_u")
