@@ -8,7 +8,6 @@ from pathlib import Path
 import click
 
 
-
 def default_scenes() -> list[Path]:
     """The procedural sky scene and the Sintel and curly groom scenes (their grooms beside them in grooms/): the
     installed wheel's copies (``hairlut.examples``), else the clone's ``tables/``."""

@@ -88,7 +88,7 @@ def test_the_plan_prints_every_choice_and_a_given_value_is_set(tmp_path):
     chosen = {c.key: c for c in choices(sc)}
     assert set(chosen) == {"groom.clusters", "render.layer_reads", "shadows.method"}
     assert not any(c.given for c in chosen.values())
-    text = scenes["curly"].read_text() + "\n[render]\nlayer_reads = \"pair\"\n"
+    text = scenes["curly"].read_text() + '\n[render]\nlayer_reads = "pair"\n'
     scenes["curly"].write_text(text.replace("[groom]\n", "[groom]\nclusters = 5\n"))
     again = {c.key: c for c in choices(load_scene(scenes["curly"]))}
     assert again["groom.clusters"].value == 5 and again["groom.clusters"].given

@@ -12,9 +12,8 @@ import pytest
 from click.testing import CliRunner
 
 from hairlut import errors
-from hairlut.geometry import Strands, read_strands, write_strands
-
 from hairlut.bench import _grooms as g
+from hairlut.geometry import Strands, read_strands, write_strands
 
 KINDS = tuple(g.KINDS)
 

@@ -48,7 +48,11 @@ PARTS: dict[str, Part] = {
         Part("hrir", "HRIR database bake: density grid, march steps, rays per pixel (satf §4–5)", _runner("_hrir")),
         Part("maps", "Online maps: every map method against a converged truth, and the online frame (satf §6)", _runner("_maps")),
         Part("render", "Camera renders: the layered model and the strand render's levels", _runner("_render")),
-        Part("picture", "The picture with the defaults: layered against the converged strand render on untuned grooms", _runner("_picture")),
+        Part(
+            "picture",
+            "The picture with the defaults: layered against the converged strand render on untuned grooms",
+            _runner("_picture"),
+        ),
         Part("shadows", "Shadow methods against an exact strand-level transmittance", _runner("_shadows")),
         Part("plan", "The planner: needed-only bakes against a full bake", _runner("_plan")),
         Part(

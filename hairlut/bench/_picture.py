@@ -172,7 +172,14 @@ def run(ctx: Context) -> list[Figure]:
             paper=r["setting"] == "paper",
             extra={
                 k: r[k]
-                for k in ("alpha_bias_relative", "colour_per_alpha", "alpha_outside", "cold_s", "strands_converged", "strands_level")
+                for k in (
+                    "alpha_bias_relative",
+                    "colour_per_alpha",
+                    "alpha_outside",
+                    "cold_s",
+                    "strands_converged",
+                    "strands_level",
+                )
             },
         )
         for r in rows
