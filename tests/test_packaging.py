@@ -40,6 +40,7 @@ def test_the_example_inputs_are_shipped():
         "grooms/LICENSE-ratboy.txt",
         "grooms/sintel_lite.tfx",
         "grooms/ratboy_mohawk.tfx",
+        "grooms/curly.hair",
         *(f"scenes/{p.name}" for p in (ROOT / "tables" / "scenes").glob("*.toml")),
     }
     shipped = {p.relative_to(ROOT / "tables").as_posix() for pat in patterns for p in (ROOT / "tables").glob(pat)}
@@ -47,6 +48,7 @@ def test_the_example_inputs_are_shipped():
     from hairlut.bench import example
 
     assert example("scenes/sintel-groom.toml").is_file() and example("grooms/sintel_lite.tfx").is_file()
+    assert example("scenes/curly-groom.toml").is_file() and example("grooms/curly.hair").is_file()  # the demo's
 
 
 def test_the_bench_runs_no_script_by_path():
