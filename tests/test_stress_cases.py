@@ -20,7 +20,12 @@ ITEMS = {
     "grazing in-plane angles": ("hrir.grazing",),
     "empty, single-voxel and one-strand grooms": ("shadow.empty_groom", "shadow.single_voxel", "shadow.one_strand"),
     "transmittances that underflow exp()": ("shadow.underflow",),
-    "float16 storage of every table": ("storage.hrir_db_f16", "storage.sh_tables_f16", "storage.scene_maps_f16"),
+    "float16 storage of every table": (
+        "storage.hrir_db_f16",
+        "storage.sh_tables_f16",
+        "storage.scene_maps_f16",
+        "storage.hair_bsdf_f16",
+    ),
     "the same cases on a GPU, where present": ("gpu.float32",),
     "issue 29 m16: the Kajiya–Kay cosine form at t ∥ ω with fractional p": ("sh.kk_cosine_edge",),
 }

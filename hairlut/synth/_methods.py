@@ -175,7 +175,7 @@ def prepare_map_source(scene, method: str, reason: str, tables, frames, maps=Non
             scene.source,
             "render.method resolves to 'scene' and its scene_maps table was not "
             f"given: bake it with `hairlut bake --scene {scene.source}` (or `hairlut bake "
-            f"scene --scene {scene.source}`) and pass it as maps=",
+            f"scene_maps --scene {scene.source}`) and pass it as maps=",
         )
     from ..scenemaps import geometry_key
 
