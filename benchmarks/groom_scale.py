@@ -65,10 +65,11 @@ print(json.dumps(out))
 
 
 def write_groom(folder: Path, n: int, kind: str, fmt: str, points: int, seed: int, resolution: int) -> Path:
-    """Generate a ``kind`` groom of ``n`` strands (``hairlut.bench._grooms``), write it as ``fmt`` and a minimal scene beside
+    """Generate a ``kind`` groom of ``n`` strands (``hairlut.bench.GROOM_KINDS``), write it as ``fmt`` and a minimal scene beside
     it; the scene's path."""
-    from hairlut.bench._grooms import KINDS, VIEWS
-    from hairlut.bench._grooms import write_groom as write
+    from hairlut.bench import GROOM_KINDS as KINDS
+    from hairlut.bench import GROOM_VIEWS as VIEWS
+    from hairlut.bench import write_groom as write
 
     folder.mkdir(parents=True, exist_ok=True)
     groom = write(folder, f"{kind}{n}", KINDS[kind](n, points, seed=seed), formats=(fmt,))[fmt]

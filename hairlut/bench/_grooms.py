@@ -220,6 +220,8 @@ def crop(
 KINDS = {"curly": curly, "parted": parted, "crop": crop}
 #: The formats a groom is written in (:func:`write_groom`).
 FORMATS = ("hair", "tfx")
+#: The generators and the views as ``hairlut.bench`` lends them to the repository's benchmarks.
+GROOM_KINDS, GROOM_VIEWS = KINDS, VIEWS
 
 
 # ----------------------------------------------------------------------------- measures
