@@ -58,6 +58,7 @@ class Choice:
     predicted: str | None = None
 
     def to_json(self) -> dict:
+        """The choice as a JSON object, as `hairlut plan --json` prints it."""
         return {"key": self.key, "value": self.value, "given": self.given, "reason": self.reason, "predicted": self.predicted}
 
 
