@@ -152,6 +152,7 @@ def test_the_same_groom_bytes_at_another_path_hit(tmp_path, groom_file, monkeypa
     root = tmp_path / "cache"
     first = load_scene(_scene(tmp_path / "a", groom_file))
     ref = (scene_clusters(first, root), scene_sector_tables(first, root), scene_sectors(first, root))
+    choice = _clusters.cluster_choice(first)
     files = {p: p.stat().st_mtime_ns for p in root.iterdir()}
     _forget()
 
@@ -160,11 +161,13 @@ def test_the_same_groom_bytes_at_another_path_hit(tmp_path, groom_file, monkeypa
 
     monkeypatch.setattr(geometry, "fit_clusters", refuse)
     monkeypatch.setattr(geometry, "build_sectors", refuse)
+    monkeypatch.setattr(_clusters, "cluster_count", refuse)  # the count chosen from the strands: kept too
     second = load_scene(_scene(tmp_path / "elsewhere" / "b", groom_file))
     assert second.groom_path != first.groom_path
     got = (scene_clusters(second, root), scene_sector_tables(second, root), scene_sectors(second, root))
     assert _same_pairs(got[0], ref[0]) and _same_tables(got[1], ref[1]) and _same_sectors(got[2], ref[2])
     assert {p: p.stat().st_mtime_ns for p in root.iterdir()} == files  # nothing written
+    assert _clusters.cluster_choice(second) == choice
 
 
 def test_changed_bytes_or_fit_arguments_miss(tmp_path, groom_file):
@@ -417,7 +420,8 @@ def test_prune_removes_the_groom_entries_and_nothing_foreign(tmp_path, groom_fil
 
     root = tmp_path / "cache"
     scene_sectors(load_scene(_scene(tmp_path / "a", groom_file)), root)
-    ours = _entries(root, "fit") + _entries(root, "sectors") + _entries(root, "tables")
+    ours = sorted(root.glob("groom-*-*.bin"))
+    assert {p.name.split("-")[1] for p in ours} == {"choice", "fit", "sectors", "tables"}
     foreign = root / "groom-fit-0123456789abcdef.bin"
     foreign.write_bytes(b"not hairlut's")
     assert prune(root) == [] and prune(root, kinds=["sh_tables"]) == []  # neither all, nor by age: kept

@@ -151,7 +151,7 @@ def _split(strands, specs, labels) -> list:
 
 def _build(scene: Scene, cache_root=None) -> list:
     from ..geometry import ClusterGeometry, Strands, generate_strands, read_strands
-    from ._cache import cached_fit
+    from ._cache import cached_choice, cached_fit
 
     if scene.groom_path is not None:
         g = scene.config["groom"]
@@ -159,7 +159,7 @@ def _build(scene: Scene, cache_root=None) -> list:
         _check_groom(strands, scene.groom_path)
         if strands.thickness is None:
             strands = Strands(strands.points, strands.counts, thickness=np.full(strands.n_points, 2.0 * g["radius"], np.float32))
-        choice = cluster_count(strands, g["clusters"])
+        choice = cached_choice(strands, g["clusters"], cluster_count, root=cache_root)
         batch, labels = cached_fit(
             strands,
             choice.value,

@@ -59,9 +59,10 @@ class Shadows:
     def _transmittance(self, lights: np.ndarray) -> np.ndarray:
         """The light-space method's T at the texels, through the groom cache when the scene is a groom's (the maps of
         100,000 strands take seconds, and depend on the strands, the lights, the texels and the method alone)."""
-        from ..shadows import light_transmittance
 
         def compute():
+            from ..shadows import light_transmittance  # here: hairlut.shadows loads scipy.spatial (0.2 s), a hit needs neither
+
             return {"T": light_transmittance(self.strands, lights, self.points, method=self.method, **self.params)}
 
         if self.cache is None:
