@@ -230,6 +230,15 @@ def test_geometry_keys_the_table():
     assert scene_maps_recipe(resolve_scene(moved))["geometry"] != a["geometry"]
 
 
+def test_geometry_key_follows_the_code_that_cuts_the_sectors(monkeypatch):
+    """A hairlut whose fit or sector cutting changed (hairlut.scene.code_digest) does not reuse an old table."""
+    import hairlut.scene
+
+    a = scene_maps_recipe(resolve_scene(scene("scene")))
+    monkeypatch.setattr(hairlut.scene, "code_digest", lambda: "another build")
+    assert scene_maps_recipe(resolve_scene(scene("scene")))["geometry"] != a["geometry"]
+
+
 @pytest.mark.parametrize(
     "render,field",
     [

@@ -88,6 +88,22 @@ def test_crossings_keep_the_nearest_in_shell_point():
     np.testing.assert_allclose(tab.crossing_point[second][:, 2], [0.0, 2.0, 4.0][: int(second.sum())], atol=1e-12)
 
 
+@pytest.mark.parametrize("tilt_deg", [0.0, 30.0, 60.0, 85.0])
+def test_a_tilted_strand_keeps_its_hair_per_unit_length(tilt_deg):
+    """A straight strand at angle γ to the cluster's axis holds π r² / cos γ of hair per unit length of the axis:
+    its crossing is the disc of that area (π r_eff² = π r² / cos γ), capped at MAX_TILT_STRETCH near the plane."""
+    from hairlut.geometry.sectors import MAX_TILT_STRETCH
+
+    g = np.radians(tilt_deg)
+    d = np.array([np.sin(g), 0.0, np.cos(g)])
+    start = np.array([0.0, 0.3, 2.0]) - 3.0 * d  # through (0, 0.3, 2): inside the shells at t = 0.5
+    tab = build_sectors(cylinder(), polylines([start, start + 6.0 * d]), np.zeros(1, int), radius=0.01)
+    mid = tab.t_index[tab.crossing_sector] == 1
+    assert mid.sum() == 1
+    stretch = min(1.0 / np.cos(g), MAX_TILT_STRETCH)
+    np.testing.assert_allclose(tab.crossing_radius[mid] ** 2, 0.01**2 * stretch, rtol=1e-12)
+
+
 # -- strand generation and assignment --------------------------------------------------------------------
 @pytest.mark.parametrize("profile", ["uniform", "gaussian", "clumped"])
 def test_generated_strands_are_deterministic_and_inside_their_cluster(profile):

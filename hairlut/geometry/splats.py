@@ -1,7 +1,7 @@
 """Strand splats on generalized sectors: the input of the sector density kernel (satf §3.3).
 
 A strand crossing a cross-section at (v, u) of eq 1 is a circular disc of radius r in
-the normal plane.  Its density is a 2-D Gaussian of total mass m = κ·π r² (κ the density
+the normal plane (r widened to r / √cos γ for a strand tilted by γ: ``sectors``' module docstring).  Its density is a 2-D Gaussian of total mass m = κ·π r² (κ the density
 scale) and standard deviation
 
     σ = r / √2                                            (SIGMA_PER_RADIUS = 1/√2)

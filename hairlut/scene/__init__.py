@@ -25,6 +25,7 @@ _LAZY = {
     "groom_cache_entries": "_cache",
     "cached_arrays": "_cache",
     "strands_digest": "_cache",
+    "code_digest": "_cache",
     "cache_root_of": "_clusters",
     "cluster_choice": "_clusters",
     "Choice": "_choices",

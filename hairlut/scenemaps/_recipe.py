@@ -115,9 +115,10 @@ def _file_sha256(path) -> str:
 
 def geometry_key(scene) -> str:
     """SHA-256 of what fixes a scene's sectors and strands: the groom file's bytes and the ``[groom]``
-    fit settings, or the ``[[clusters]]`` tables and ``[strands]`` settings.  Camera, lights, material
-    and render settings do not enter it (they do not move a strand)."""
-    from ..scene import as_scene
+    fit settings, or the ``[[clusters]]`` tables and ``[strands]`` settings, and the code that fits and cuts them
+    (``hairlut.scene.code_digest``: a hairlut whose fit or sectors changed does not reuse an old table).  Camera,
+    lights, material and render settings do not enter it (they do not move a strand)."""
+    from ..scene import as_scene, code_digest
 
     sc = as_scene(scene)
     if sc.groom_path is not None:
@@ -127,6 +128,7 @@ def geometry_key(scene) -> str:
         }
     else:
         doc = {"clusters": sc.raw.get("clusters"), "strands": sc.config["strands"]}
+    doc["code"] = code_digest()
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
 
 
