@@ -101,7 +101,9 @@ def test_a_tilted_strand_keeps_its_hair_per_unit_length(tilt_deg):
     mid = tab.t_index[tab.crossing_sector] == 1
     assert mid.sum() == 1
     stretch = min(1.0 / np.cos(g), MAX_TILT_STRETCH)
-    np.testing.assert_allclose(tab.crossing_radius[mid] ** 2, 0.01**2 * stretch, rtol=1e-12)
+    np.testing.assert_allclose(tab.crossing_radius[mid], 0.01, rtol=1e-12)
+    np.testing.assert_allclose(tab.crossing_stretch[mid], stretch, rtol=1e-12)
+    np.testing.assert_allclose(tab.splat_radius()[np.isin(tab.splat_crossing, np.flatnonzero(mid))] ** 2, 0.01**2 * stretch)
 
 
 # -- strand generation and assignment --------------------------------------------------------------------

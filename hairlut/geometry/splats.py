@@ -57,7 +57,7 @@ class SplatBatch:
 
     ``center`` (N, K, 2) and ``sigma`` (N, K, 2) are (s, r) in the sector's parametric
     units (centres may lie outside [0, 1]²: a neighbour's strand); ``radius`` (N, K) the
-    metric strand radius; ``mask`` (N, K) marks real slots.  ``area_scale`` (N,) is
+    metric radius of the splat's disc (a strand's, widened for its tilt: ``sectors``); ``mask`` (N, K) marks real slots.  ``area_scale`` (N,) is
     A·B·Δu and ``v_range`` (N, 2) the sector's radial range, so that the metric area of
     cell row j is area_scale/n_s · (v_{j+1}² − v_j²)/2.
     """

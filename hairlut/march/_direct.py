@@ -410,10 +410,9 @@ def scene_sector_inputs(table, recipe: dict, *, extent=None, n_pix: int | None =
     splats = table.splats()
     density = sector_density(splats, grid, density_scale=scale)
     (a, b), du = np.asarray(table.half_axes, np.float64).T, table.u_range[:, 1] - table.u_range[:, 0]
-    m = splats.mask
-    # an empty sector takes the median crossing radius; with no crossing at all any radius will do (no density)
-    fill = np.median(table.crossing_radius) if table.crossing_radius.size else np.sqrt(splats.sector_areas()) / 20
-    r = np.where(m.any(1), (splats.radius * m).sum(1) / np.maximum(m.sum(1), 1), fill)
+    # the strands' own radius (σ_t = κ / r; the splats' discs are widened for tilt): an empty sector takes the
+    # median crossing radius; with no crossing at all any radius will do (no density)
+    r = table.sector_radius(None if table.crossing_radius.size else np.sqrt(splats.sector_areas()) / 20)
     params = {
         "phase": table.twist + table.u_range[:, 0],
         "s_u": 2 * np.pi / du,

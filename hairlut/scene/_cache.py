@@ -406,7 +406,15 @@ def tables_from_arrays(arrays: dict, meta: dict) -> list:
         per_sector = ("cluster", "t_index", "track", "layer", "u_index", "t", "v_range", "u_range", "half_axes", "twist")
         if len(shape) != 4 or any(len(a[k]) != n for k in (*per_sector, "corners")) or len(a["splat_offsets"]) != n + 1:
             raise ValueError(f"sector arrays do not match the shape {shape}")
-        crossing = ("crossing_sector", "crossing_sr", "crossing_xy", "crossing_vu", "crossing_point", "crossing_radius")
+        crossing = (
+            "crossing_sector",
+            "crossing_sr",
+            "crossing_xy",
+            "crossing_vu",
+            "crossing_point",
+            "crossing_radius",
+            "crossing_stretch",
+        )
         if any(len(a[k]) != x for k in crossing) or any(len(a[k]) != j for k in ("splat_center", "splat_sigma")):
             raise ValueError("crossing or splat arrays of different lengths")
         off = a["splat_offsets"]
