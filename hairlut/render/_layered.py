@@ -236,7 +236,7 @@ def render_layered(
     rays are averaged (:func:`sector_paths`); ``"strands"`` (the default with the other map methods) each texel by
     :func:`strand_path`'s exponent, ``"volume"`` by 1 / sin ψ, ``"off"`` (False) not at all (the in-plane α).
     ``trim`` (default): each cluster draws only within its own strands' footprint through the camera, widened by
-    one texel (``_trim``: the layers stay on the hair); ``info["trim"]`` gives the margins and the fragments
+    two texels (``_trim``: the layers stay on the hair); ``info["trim"]`` gives the margins and the fragments
     dropped, ``info["seconds"]["trim"]`` the footprints' time (part of the camera pass)."""
     from ..geometry import ClusterGeometry
     from ..scene import as_scene
