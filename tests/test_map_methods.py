@@ -235,7 +235,7 @@ def test_geometry_key_follows_the_code_that_cuts_the_sectors(monkeypatch):
     import hairlut.scene
 
     a = scene_maps_recipe(resolve_scene(scene("scene")))
-    monkeypatch.setattr(hairlut.scene, "code_digest", lambda: "another build")
+    monkeypatch.setattr(hairlut.scene, "code_digest", lambda **kw: "another build")
     assert scene_maps_recipe(resolve_scene(scene("scene")))["geometry"] != a["geometry"]
 
 

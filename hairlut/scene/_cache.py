@@ -63,9 +63,10 @@ def cache_folder(root=None) -> Path:
 
 
 @functools.lru_cache(maxsize=4)
-def code_digest(packages: tuple = ("geometry", "scene")) -> str:
+def code_digest(packages: tuple = ("geometry", "scene"), *, backend: bool = True) -> str:
     """SHA-256 over the source files of hairlut's ``packages`` (by default ``geometry`` and ``scene``: what fits and
-    cuts a groom) and the versions of hairlut, NumPy, SciPy and JAX with JAX's backend."""
+    cuts a groom) and the versions of hairlut, NumPy, SciPy and JAX, with JAX's backend unless ``backend`` is False
+    (asking for it starts JAX's backend, which a process must not do before ``jax.distributed.initialize``)."""
     import jax
     import scipy
 
@@ -76,7 +77,8 @@ def code_digest(packages: tuple = ("geometry", "scene")) -> str:
     for package in packages:
         for path in sorted((base / package).rglob("*.py")):
             h.update(path.relative_to(base).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
-    h.update(json.dumps([__version__, np.__version__, scipy.__version__, jax.__version__, jax.default_backend()]).encode())
+    versions = [__version__, np.__version__, scipy.__version__, jax.__version__]
+    h.update(json.dumps(versions + [jax.default_backend()] if backend else versions).encode())
     return h.hexdigest()
 
 

@@ -128,7 +128,7 @@ def geometry_key(scene) -> str:
         }
     else:
         doc = {"clusters": sc.raw.get("clusters"), "strands": sc.config["strands"]}
-    doc["code"] = code_digest()
+    doc["code"] = code_digest(backend=False)  # a recipe is resolved before a distributed bake starts JAX
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
 
 
