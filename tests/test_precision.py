@@ -221,17 +221,17 @@ KERNELS = {
     "hairlut.hairbsdf._bsdf:lobes_kernel": [(True, lambda: _hair_args(wi=True))],
     "hairlut.hairbsdf._bsdf:pdf_kernel": [(True, lambda: _hair_args(wi=True))],
     "hairlut.hairbsdf._bsdf:sample_kernel": [(True, lambda: _hair_args(wi=False))],
-    "hairlut.hairbsdf._integrals:bsdf_row_kernel": [
+    "hairlut.hairbsdf._energy:bsdf_row_kernel": [
         (True, lambda: ((A(dtype=f64), A(4, dtype=f64), A(4, 3, dtype=f64), A(dtype=f64), A(dtype=f64)), dict(m=4, levels=2)))
     ],
-    "hairlut.hairbsdf._integrals:bsdf_point_kernel": [
+    "hairlut.hairbsdf._energy:bsdf_point_kernel": [
         (True, lambda: ((A(3, dtype=f64), A(3, dtype=f64), A(3, dtype=f64), A(dtype=f64), A(dtype=f64)), dict(m=4, levels=2)))
     ],
-    "hairlut.hairbsdf._integrals:coverage_row_kernel": [(True, lambda: ((A(dtype=f64), A(5, dtype=f64)), dict(m=4)))],
-    "hairlut.hairbsdf._integrals:furnace_kernel": [
+    "hairlut.hairbsdf._coverage:coverage_row_kernel": [(True, lambda: ((A(dtype=f64), A(5, dtype=f64)), dict(m=4)))],
+    "hairlut.hairbsdf._energy:furnace_kernel": [
         (True, lambda: (tuple(A(3, dtype=f64) for _ in range(5)) + (A(dtype=f64), A(dtype=f64)), dict(m=4)))
     ],
-    "hairlut.hairbsdf._integrals:montecarlo_row_kernel": [
+    "hairlut.hairbsdf._montecarlo:montecarlo_row_kernel": [
         (
             True,
             lambda: (
@@ -250,7 +250,7 @@ KERNELS = {
             ),
         )
     ],
-    "hairlut.hairbsdf._integrals:montecarlo_coverage_kernel": [
+    "hairlut.hairbsdf._montecarlo:montecarlo_coverage_kernel": [
         (True, lambda: ((A(2, dtype=jnp.uint32), A(dtype=f64), A(5, dtype=f64)), dict(trials=8, strands=4)))
     ],
     # geometry

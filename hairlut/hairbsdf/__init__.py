@@ -12,7 +12,8 @@ Approximation for Fast Multiple Scattering in Hair") and ``mean_energy`` (R, TT,
 with ``atlas=`` the EXR atlas engines sample), :func:`load` reads either into :class:`HairBSDFTables`, whose
 ``sample`` interpolates as a GPU's sampler does, and :func:`write_atlas` writes the atlas of loaded tables.
 ``BAKER`` is the kind's declaration for :mod:`hairlut.bake.registry` and ``KIND`` its name.  The fibre itself is
-``_bsdf`` (JAX) with its NumPy transcription ``_reference``, the quadrature ``_integrals``.  Importing the package
+``_bsdf`` (JAX) with its NumPy transcription ``_reference``, the quadrature ``_integrals`` (its parts
+``_axes``, ``_quadrature``, ``_energy``, ``_coverage`` and ``_montecarlo``).  Importing the package
 loads the declaration only (no JAX)."""
 
 from .._lazy import lazy_exports

@@ -156,7 +156,7 @@ def whole_parts(recipe: dict, parts, index=None, **_):
 
 def budget(recipe: dict, block: int, held: int, note: str = "") -> None:
     """Refuse (BudgetError naming the key) a bake whose row kernels and held tables would not fit the memory budget,
-    before anything is allocated: one grid row kernel per local device (:func:`_integrals.peak_bytes`, the
+    before anything is allocated: one grid row kernel per local device (:func:`_axes.peak_bytes`, the
     quadrature's own estimate) and the tables of ``held`` sin θ rows (float64 values and errors), then the coverage
     kernel.  ``note`` says why that many rows are held."""
     from .. import budget as _budget

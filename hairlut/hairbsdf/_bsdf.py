@@ -58,7 +58,7 @@ guarded.
 
 The public functions validate and convert (float64 NumPy out); the ``*_kernel`` functions are the jitted
 float64 kernels (call them under ``jax.enable_x64``); the lower-case primitives are pure ``jax.numpy``
-functions that the quadratures of :mod:`._integrals` compose.
+functions that the quadratures of :mod:`._quadrature`, :mod:`._energy` and :mod:`._montecarlo` compose.
 """
 
 from __future__ import annotations
