@@ -21,8 +21,8 @@ cluster, so its splat is the disc of that area, r / √cos γ (1/cos γ, ``cross
 (``sector_radius``): the optical depth of cylinders is their length per volume times 2r, so the
 density's 1/cos γ is the whole correction.  The paper's splat takes r alone, as if every strand ran along its
 cluster; curls and waves then lost their extra length: the curly groom's layered α was 13.2 %
-below the strand render's with r alone and 6.9 % below with the tilt (Sintel: 6.6 % and 5.2 %;
-128², scene maps, defaults; hairlut bench --only picture measures it).
+below the strand render's with r alone and 2.3 % below with the tilt (Sintel: 6.6 % and 4.1 %;
+128², scene maps, defaults, one texel of trim; benchmarks/records.md, hairlut bench --only picture).
 
 Splats: a crossing's Gaussian (see ``splats``) may reach into neighbouring sectors of
 the same cross-section; it is entered, in each sector's own (s, r) units, into every
