@@ -151,7 +151,8 @@ def test_rendered_texels_facing_the_light_are_lit_and_the_far_side_darker(views,
             dark.append(T[facing < -0.5])
         lit, dark = np.concatenate(lit), np.concatenate(dark)
         assert lit.size and dark.size
-        assert lit.max() > 0.9 and lit.mean() > dark.mean() + 0.2
+        # a texel's T is its strands' below the surface (synth._shadowing.seen_points), so even a lit one is shaded
+        assert lit.max() > 0.6 and lit.max() > dark.max() and lit.mean() > dark.mean() + 0.2
     inner, outer = (np.concatenate([c.shadow[k].ravel() for c in res.clusters]) for k in (0, -1))
     assert inner.mean() < outer.mean()  # the inner layer lies deeper in the hair
 

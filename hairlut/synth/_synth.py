@@ -35,7 +35,7 @@ from ._environment import prepare_environment
 from ._maps import SectorFrames, sector_frames, texel_grid
 from ._methods import prepare_map_source
 from ._shading import compose_clusters_kernel, lighting_kernel, value_noise
-from ._shadowing import prepare_shadows
+from ._shadowing import prepare_shadows, seen_points
 from ._view import geometry_index, map_index, view_maps
 
 KIND = "synth_maps"
@@ -293,7 +293,8 @@ def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
         sc, sh, [s for _, s in pairs], np.stack([pc.tangent for pc in clusters]), np.stack([pc.position for pc in clusters])
     )
     seconds = {"strands": t1 - t0, "index": t2 - t1} | ({"environment": time.perf_counter() - t2} if env else {})
-    shadows = prepare_shadows(sc, [s for _, s in pairs], np.stack([pc.position for pc in clusters]), seconds)
+    seen = seen_points(np.stack([pc.position for pc in clusters]), [pc.table for pc in clusters], texel_grid(res)[1])
+    shadows = prepare_shadows(sc, [s for _, s in pairs], seen, seconds)
     return Prepared(
         sc, database if method == "satf" else None, clusters, seconds, table, frames, stacked, index, env, shadows, method, source
     )
