@@ -35,12 +35,14 @@ STRANDS_PER_CLUSTER = 8
 #: 2-core CPU (41.6 ms at 53,040 sectors), so 16,384 sectors keep them within ~13 ms of the frame.
 TRACK_SECTORS = 16384
 
-#: Measured by the picture benchmark (Sintel's groom, defaults, 128², strand render converged to 0.02; 2026-12-04,
-#: benchmarks/records.md), the figures each choice's ``predicted`` quotes.
+#: Measured by the picture benchmark (Sintel's groom and, where said, the other untuned scenes; defaults, 128², strand
+#: render converged to 0.02; 2026-12-04 and 2026-12-05, benchmarks/records.md), the figures each choice's ``predicted``
+#: quotes.
 MEASURED = {
     "clusters": "Sintel: 9 clusters FLIP 0.165, 18 clusters 0.136, 36 clusters 0.120 with mean α −8.0 % "
     "(track reads, light-oriented shadows)",
-    "light_oriented": "Sintel: colour per unit α 1.08× the strand render's (eq 12's s-map: 1.62×)",
+    "light_oriented": "colour per unit α 0.82–1.20× the strand render's on 10 untuned scenes (Sintel front 0.99×; "
+    "eq 12's s-map on Sintel: 1.62×)",
     "smap": "Sintel: colour per unit α 1.62× the strand render's (eq 12 darkens only inner layers, whatever the light)",
     "track": "Sintel: mean α −2.2 % against the strand render (pair: −24.9 %)",
     "pair": "Sintel: mean α −24.9 % against the strand render (track: −2.2 %)",
