@@ -121,6 +121,10 @@ def driver(*pairs) -> tuple[str, object]:
 STRAND_POINTS = 32  # points per procedural strand (hairlut.geometry.generate_strands)
 STRAND_BYTES = STRAND_POINTS * 3 * 8 * 4  # float64 points, tangents and two work copies
 TEXEL_BYTES = 256  # per texel, layer and cluster: frames, positions and maps (float64 / float32)
+#: The most texels, all layers of all clusters together, that ``render.resolution = "auto"`` chooses
+#: (``hairlut.scene.texel_resolution``): the frame's maps, shading and raster grow with them, and the curly groom's 48
+#: clusters × 3 layers × 64 × 32 (295k) took 30 ms a warm frame on the 2-core CPU, so about twice that.
+AUTO_TEXELS = 1 << 19
 TEXEL_LIGHT_BYTES = 32  # per texel, layer, cluster and light: transmittance and shading terms
 MAX_EXPONENT = 1e6  # material.p_I / p_II: the float32 shading's exponent range
 MAX_LIGHTS = 256  # direct lights: each one's maps are computed and written separately (synth time grows with it)
@@ -171,8 +175,11 @@ def check_scene(
             f"the sectors of {n_clusters} clusters × {s_t + 1} rings × {n_layers} layers × {s_u} columns",
             limit,
         )
-    n_u, n_t = cfg["render"]["resolution"]
-    texels = product(n_u, n_t, max(n_layers, 1), max(n_clusters, 1))
+    if cfg["render"]["resolution"] == "auto":  # the planner's choice stays within AUTO_TEXELS
+        texels = float(AUTO_TEXELS)
+    else:
+        n_u, n_t = cfg["render"]["resolution"]
+        texels = product(n_u, n_t, max(n_layers, 1), max(n_clusters, 1))
     check(
         "render.resolution",
         cfg["render"]["resolution"],

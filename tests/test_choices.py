@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from hairlut.bench import _grooms as g
 from hairlut.geometry import Strands
-from hairlut.scene import cluster_count, layer_reads, load_scene
+from hairlut.scene import cluster_count, layer_reads, load_scene, texel_resolution
 from hairlut.scene._choices import CLUSTERS_MAX, CLUSTERS_MIN, STRANDS_PER_CLUSTER, TRACK_SECTORS, strand_turns
 
 
@@ -86,10 +86,58 @@ def test_the_plan_prints_every_choice_and_a_given_value_is_set(tmp_path):
     scenes = g.groom_scenes(tmp_path, kinds=("curly",), sizes={"curly": {"n_strands": 60, "points": 8}}, resolution=(32, 32))
     sc = load_scene(scenes["curly"])
     chosen = {c.key: c for c in choices(sc)}
-    assert set(chosen) == {"groom.clusters", "render.layer_reads", "shadows.method"}
+    assert set(chosen) == {"groom.clusters", "render.resolution", "render.layer_reads", "shadows.method"}
     assert not any(c.given for c in chosen.values())
     text = scenes["curly"].read_text() + '\n[render]\nlayer_reads = "pair"\n'
     scenes["curly"].write_text(text.replace("[groom]\n", "[groom]\nclusters = 5\n"))
     again = {c.key: c for c in choices(load_scene(scenes["curly"]))}
     assert again["groom.clusters"].value == 5 and again["groom.clusters"].given
     assert again["render.layer_reads"].value == "pair" and again["render.layer_reads"].given
+
+
+# ----------------------------------------------------------------------------- render.resolution
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.floats(0.0, 1e5), min_size=1, max_size=60),
+    st.lists(st.floats(0.0, 1e4), min_size=1, max_size=60),
+    st.integers(1, 600),
+)
+def test_chosen_texels_are_bounded_rounded_and_within_the_budget(lengths, widths, layers):
+    from hairlut.budget import AUTO_TEXELS
+    from hairlut.scene._choices import COLUMNS, ROWS, TEXEL_STEP
+
+    c = texel_resolution("auto", lengths, widths, layers)
+    cols, rows = c.value
+    assert not c.given and c.key == "render.resolution"
+    assert ROWS[0] <= rows <= ROWS[1] and COLUMNS[0] <= cols <= COLUMNS[1]
+    assert rows % TEXEL_STEP == 0 and cols % TEXEL_STEP == 0
+    assert rows * cols * layers <= AUTO_TEXELS or (rows, cols) == (ROWS[0], COLUMNS[0])
+
+
+def test_texels_follow_the_projected_size_a_row_every_few_pixels_along_and_a_column_across():
+    from hairlut.scene._choices import COLUMN_PIXELS, ROW_PIXELS
+
+    cols, rows = texel_resolution("auto", [100.0, 80.0, 60.0], [10.0, 12.0, 8.0], 3).value
+    assert rows == 4 * math.ceil(np.percentile([100, 80, 60], 90) / ROW_PIXELS / 4)
+    assert cols == 4 * math.ceil(math.pi * np.percentile([10, 12, 8], 90) / COLUMN_PIXELS / 4)
+    bigger = texel_resolution("auto", [200.0, 160.0, 120.0], [20.0, 24.0, 16.0], 3).value
+    assert bigger[0] > cols and bigger[1] > rows  # a closer camera or a larger frame: finer texels
+
+
+def test_a_given_texel_resolution_is_kept():
+    c = texel_resolution([12, 6], [1e4], [1e4], 1000)
+    assert c.value == [12, 6] and c.given
+
+
+def test_the_camera_chooses_the_texels_of_a_groom_scene(tmp_path):
+    """A 4× larger frame of the same groom gets finer texels (until the budget), and ``hairlut plan`` says why."""
+    from hairlut.scene import texel_choice
+
+    size = {"curly": {"n_strands": 60, "points": 8}}
+    small = g.groom_scenes(tmp_path / "a", kinds=("curly",), sizes=size, resolution=(32, 32))
+    large = g.groom_scenes(tmp_path / "b", kinds=("curly",), sizes=size, resolution=(128, 128))
+    a, b = texel_choice(load_scene(small["curly"])), texel_choice(load_scene(large["curly"]))
+    assert b.value[1] > a.value[1] and b.value[0] > a.value[0]
+    assert "px long" in a.reason and not a.given

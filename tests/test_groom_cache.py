@@ -24,6 +24,7 @@ from hairlut.scene import (
     scene_clusters,
     scene_sector_tables,
     scene_sectors,
+    texel_choice,
 )
 
 from ._readonly import read_only_dir  # noqa: F401  (a fixture)
@@ -467,7 +468,7 @@ def test_prepare_in_groups_of_clusters_is_each_cluster_alone(tmp_path, groom_fil
     db = _synth._geometry_db(scene)
     specs = [s for s, _ in pairs]
     groups, memo = _synth.geometry_groups(specs), {}
-    texels = _synth.texel_points(specs, scene.config["render"]["resolution"], groups)
+    texels = _synth.texel_points(specs, texel_choice(scene).value, groups)
     for (spec, st), tb, tx, (g, c) in zip(pairs, tables, texels, groups):
         alone = _synth.prepare_cluster(scene, db, spec, st, tb)
         grouped = _synth.prepare_cluster(scene, db, spec, st, tb, tx, _synth._OneCluster(g, c, memo))

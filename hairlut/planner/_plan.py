@@ -50,7 +50,7 @@ from pathlib import Path
 from .. import budget, errors
 from ..assets import recipe_hash
 from ..bake import cache, registry
-from ..scene import SceneSectors, as_scene, cluster_choice, grid_coverage, layer_reads, restricted_space, scene_sectors
+from ..scene import SceneSectors, as_scene, cluster_choice, grid_coverage, layer_reads, restricted_space, scene_sectors, texel_choice
 from ._lighting import environment_bands, environment_light, sh_recipe
 
 #: Voxel SH transmittance: casts (voxel · direction · step) per second (``hairlut bench --only plan``).
@@ -615,6 +615,7 @@ def choices(scene, ss: SceneSectors | None = None) -> list:
     ss = scene_sectors(sc) if ss is None else ss
     return [
         cluster_choice(sc),
+        texel_choice(sc),
         layer_reads(sc.config["render"]["layer_reads"], int(len(ss.strands))),
         sc.shadow_choice,
     ]

@@ -28,6 +28,8 @@ _LAZY = {
     "code_digest": "_cache",
     "cache_root_of": "_clusters",
     "cluster_choice": "_clusters",
+    "texel_choice": "_clusters",
+    "texel_resolution": "_choices",
     "Choice": "_choices",
     "cluster_count": "_choices",
     "layer_reads": "_choices",

@@ -15,6 +15,11 @@ the plan says is what runs.
 * ``shadows.method`` (:func:`shadow_method`): the light-oriented density map (bertails), whose transmittance
   follows each light through the strands' own width; eq 12's s-map when the scene sets its knobs
   (``material.k_shadow`` or ``shadow_form``); none when no strand can cast a shadow.
+* ``render.resolution`` (:func:`texel_resolution`): the texels of every layer, from each cluster's projected size
+  through the camera: a texel row every :data:`ROW_PIXELS` pixels along the cluster and a column every
+  :data:`COLUMN_PIXELS` across it (its visible half-circumference holds half the columns), for the 90th percentile
+  cluster, kept within :data:`~hairlut.budget.AUTO_TEXELS` texels in all.  The picture's detail is finer across the
+  strands than along them, and texels smaller than a pixel add cost, not picture.
 * ``render.layer_reads`` (:func:`layer_reads`): ``track`` (every sector a texel's in-plane ray crosses) while its
   sweep fits the frame budget, ``pair`` (eq 7) beyond: at paper scale (53,040 sectors) track reads cost 41.6 ms a
   frame against 13.5 ms for pair on the 2-core CPU.
@@ -35,6 +40,11 @@ STRANDS_PER_CLUSTER = 8
 #: 2-core CPU (41.6 ms at 53,040 sectors), so 16,384 sectors keep them within ~13 ms of the frame.
 TRACK_SECTORS = 16384
 
+#: Pixels along a cluster per texel row, and across it per column (``render.resolution = "auto"``).
+ROW_PIXELS, COLUMN_PIXELS = 2.5, 2.0
+#: The bounds of the chosen rows and columns, and the step they are rounded up to.
+ROWS, COLUMNS, TEXEL_STEP = (8, 256), (16, 512), 4
+
 #: Measured by the picture benchmark (Sintel's groom and, where said, the other untuned scenes; defaults, 128², strand
 #: render converged to 0.02; 2026-12-04 and 2026-12-05, benchmarks/records.md), the figures each choice's ``predicted``
 #: quotes.
@@ -44,6 +54,9 @@ MEASURED = {
     "light_oriented": "colour per unit α 0.82–1.20× the strand render's on 10 untuned scenes (Sintel front 0.99×; "
     "eq 12's s-map on Sintel: 1.62×)",
     "smap": "Sintel: colour per unit α 1.62× the strand render's (eq 12 darkens only inner layers, whatever the light)",
+    "texels": "no resolution limits the picture: at 128², Sintel [72, 36] FLIP 0.131 against 0.132 at [64, 32], the "
+    "curly groom [44, 32] 0.138 against 0.138; at 768², Sintel [96, 48] FLIP 0.198 against 0.207, α outside 1.8 % "
+    "against 2.5 %, mean α 6.8 % low against 4.9 % (the trim's two texels are narrower)",
     "track": "Sintel: mean α −2.2 % against the strand render (pair: −24.9 %)",
     "pair": "Sintel: mean α −24.9 % against the strand render (track: −2.2 %)",
 }
@@ -128,6 +141,39 @@ def shadow_method(config: dict, given: dict, has_strands: bool) -> Choice:
         "the light-oriented density map (bertails): each light's transmittance through the strands' own width, as "
         "the strands shade each other",
         MEASURED["light_oriented"],
+    )
+
+
+def texel_resolution(value, lengths_px, widths_px, layers: int) -> Choice:
+    """``render.resolution`` for ``value`` (``auto`` or [u columns, t rows]) and clusters whose trajectories project
+    to ``lengths_px`` pixels and whose widths (twice the larger half axis) to ``widths_px`` (module docstring);
+    ``layers``: the layer surfaces of all clusters together."""
+    if value != "auto":
+        return given_choice("render.resolution", list(value))
+    from ..budget import AUTO_TEXELS
+
+    def up(x, lo_hi):
+        return int(min(max(TEXEL_STEP * math.ceil(x / TEXEL_STEP), lo_hi[0]), lo_hi[1]))
+
+    length = float(np.percentile(lengths_px, 90)) if len(lengths_px) else 0.0
+    width = float(np.percentile(widths_px, 90)) if len(widths_px) else 0.0
+    rows, cols = up(length / ROW_PIXELS, ROWS), up(math.pi * width / COLUMN_PIXELS, COLUMNS)
+    shrink = math.sqrt(AUTO_TEXELS / max(rows * cols * max(layers, 1), 1))
+    capped = shrink < 1.0
+    if capped:  # the same share off both, rounded down; then off the other where one is at its least
+        rows = max(ROWS[0], TEXEL_STEP * int(rows * shrink / TEXEL_STEP))
+        cols = max(COLUMNS[0], TEXEL_STEP * int(cols * shrink / TEXEL_STEP))
+        room = AUTO_TEXELS // max(layers, 1)
+        cols = max(COLUMNS[0], min(cols, TEXEL_STEP * (room // rows // TEXEL_STEP)))
+        rows = max(ROWS[0], min(rows, TEXEL_STEP * (room // cols // TEXEL_STEP)))
+    return Choice(
+        "render.resolution",
+        [cols, rows],
+        False,
+        f"clusters {length:.0f} px long and {width:.0f} px wide through the camera (90th percentile): a row every "
+        f"{ROW_PIXELS:g} px along, a column every {COLUMN_PIXELS:g} px across"
+        + (f", shrunk to {AUTO_TEXELS:,} texels over {layers} layers" if capped else f", {rows * cols * layers:,} texels in all"),
+        MEASURED["texels"],
     )
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import errors
-from ._choices import Choice, cluster_count
+from ._choices import Choice, cluster_count, texel_resolution
 from ._schema import Scene
 
 #: The last few scenes' clusters, by :func:`_key`: the planner, the scene-maps bake, the synthesis and the camera
@@ -62,6 +62,36 @@ def cluster_choice(scene: Scene) -> Choice:
     if scene.groom_path is None:
         return Choice("clusters", len(scene.specs), True, "the scene's own [[clusters]]")
     return _memo(scene)[1]
+
+
+#: Where a cluster's projected size is measured: points along its trajectory.
+_SIZE_SAMPLES = 33
+
+
+def texel_choice(scene: Scene) -> Choice:
+    """``render.resolution`` as given, or as :func:`hairlut.scene.texel_resolution` chooses it from each cluster's
+    trajectory and width projected through the scene's camera (fitted to its strands as the camera frame fits it)."""
+    value = scene.config["render"]["resolution"]
+    if value != "auto":
+        return texel_resolution(value, [], [], 0)
+    from ..geometry import ClusterGeometry
+    from ._camera import make_camera
+
+    pairs = scene_clusters(scene)
+    specs = [spec for spec, _ in pairs]
+    cam = make_camera(scene.config["camera"], np.concatenate([s.points for _, s in pairs]))
+    geom = ClusterGeometry(specs)
+    t = np.tile(np.linspace(0.0, 1.0, _SIZE_SAMPLES), len(specs))
+    sec = geom.sections_of(np.repeat(np.arange(len(specs)), _SIZE_SAMPLES), t)
+    x, y, _ = cam.project(sec.origin)
+    ax, ay, _ = cam.project(sec.origin + sec.normal * sec.a[:, None])  # the ends of the half axes A and B
+    bx, by, _ = cam.project(sec.origin + sec.binormal * sec.b[:, None])
+    across = np.maximum(np.hypot(ax - x, ay - y), np.hypot(bx - x, by - y))  # the larger projected half axis
+    shape = (len(specs), _SIZE_SAMPLES)
+    x, y = x.reshape(shape), y.reshape(shape)
+    lengths = np.hypot(np.diff(x, axis=1), np.diff(y, axis=1)).sum(axis=1)
+    widths = 2.0 * np.median(across.reshape(shape), axis=1)
+    return texel_resolution(value, lengths, widths, sum(spec.n_layers for spec in specs))
 
 
 def _memo(scene: Scene, cache_root=None) -> tuple:

@@ -101,7 +101,12 @@ _F, _I, _B, _L, _S = (float, int), (int,), (bool,), (list,), (str,)
 
 SCHEMA = {
     "render": {
-        "resolution": Field([64, 32], _L, _pair(_int_at_least(2)), "texels per layer: [u columns, t rows]"),
+        "resolution": Field(
+            "auto",
+            (list, str),
+            auto_or(_pair(_int_at_least(2))),
+            "texels per layer: [u columns, t rows], or auto (the planner chooses from the camera: hairlut.scene.texel_resolution)",
+        ),
         "background": Field([0.0, 0.0, 0.0], _L, _colour, "RGB behind the innermost layer (eq 14)"),
         "neighbours": Field(4, _I, _int_at_least(1), "k of the SATF k-NN lookup"),
         "preview_size": Field(256, _I, _int_at_least(16), "pixels of the orthographic preview"),

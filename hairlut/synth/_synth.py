@@ -30,7 +30,7 @@ import numpy as np
 
 from .. import errors
 from ..assets import atomic_write_bytes, encode_png, tonemap, write_exr
-from ..scene import Scene, as_scene, layer_reads, scene_clusters, scene_sector_tables
+from ..scene import Scene, as_scene, layer_reads, scene_clusters, scene_sector_tables, texel_choice
 from ._environment import prepare_environment
 from ._maps import SectorFrames, sector_frames, texel_grid
 from ._methods import prepare_map_source
@@ -219,14 +219,15 @@ def texel_points(specs, resolution, groups=None) -> list[tuple[np.ndarray, np.nd
     return out
 
 
-def prepare_cluster(scene: Scene, db, spec, strands, table=None, texels=None, geometry=None) -> PreparedCluster:
+def prepare_cluster(scene: Scene, db, spec, strands, table=None, texels=None, geometry=None, resolution=None) -> PreparedCluster:
     """Sectors, features and frames (the index of §6.2.1) and the texels' frames on each layer surface; ``table``:
     the cluster's sector table when known (``hairlut.scene.scene_sector_tables``), else built here; ``texels``: its
     :func:`texel_points` when swept with other clusters', else swept here; ``geometry``: what the sector frames read
-    of its geometry (a group's, ``_OneCluster``), else its own."""
+    of its geometry (a group's, ``_OneCluster``), else its own; ``resolution``: the scene's texels
+    (:func:`hairlut.scene.texel_choice`), when known."""
     from ..geometry import ClusterGeometry, build_sectors
 
-    n_u, n_t = scene.config["render"]["resolution"]
+    n_u, n_t = texel_choice(scene).value if resolution is None else resolution
     geom = ClusterGeometry(spec) if geometry is None or table is None else None
     if table is None:
         table = build_sectors(geom, strands, np.zeros(strands.n_strands, np.int64))
@@ -257,14 +258,15 @@ def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
     tables = scene_sector_tables(sc)  # the groom cache's, when the scene's groom was cut before
     t1 = time.perf_counter()
     specs = [spec for spec, _ in pairs]
+    res = texel_choice(sc).value
     if len({spec.structure() for spec in specs}) == 1:  # else the check below names the clusters
         groups, memo = geometry_groups(specs), {}
-        texels = texel_points(specs, sc.config["render"]["resolution"], groups)
+        texels = texel_points(specs, res, groups)
         views = [_OneCluster(g, c, memo) for g, c in groups]
     else:
         texels = views = [None] * len(specs)
     clusters = [
-        prepare_cluster(sc, database, spec, strands, tb, tx, view)
+        prepare_cluster(sc, database, spec, strands, tb, tx, view, res)
         for (spec, strands), tb, tx, view in zip(pairs, tables, texels, views)
     ]
     shapes = {pc.table.shape[1:] for pc in clusters}
@@ -281,7 +283,6 @@ def prepare(scene, db=None, sh=None, maps=None) -> Prepared:
         name: jnp.asarray(np.stack([getattr(pc, name) for pc in clusters]), jnp.float32)
         for name in ("tangent", "normal", "noise")
     }
-    res = sc.config["render"]["resolution"]
     reads = layer_reads(sc.config["render"]["layer_reads"], n_sec * len(clusters)).value
     if method == "satf":
         index, source = map_index(database, table, frames, clusters[0].spec.n_layers, res, k, reads), None
