@@ -50,7 +50,16 @@ from pathlib import Path
 from .. import budget, errors
 from ..assets import recipe_hash
 from ..bake import cache, registry
-from ..scene import SceneSectors, as_scene, cluster_choice, grid_coverage, layer_reads, restricted_space, scene_sectors, texel_choice
+from ..scene import (
+    SceneSectors,
+    as_scene,
+    cluster_choice,
+    grid_coverage,
+    layer_reads,
+    restricted_space,
+    scene_sectors,
+    texel_choice,
+)
 from ._lighting import environment_bands, environment_light, sh_recipe
 
 #: Voxel SH transmittance: casts (voxel · direction · step) per second (``hairlut bench --only plan``).
