@@ -119,11 +119,20 @@ def test_chosen_texels_are_bounded_rounded_and_within_the_budget(lengths, widths
 def test_texels_follow_the_projected_size_a_row_every_few_pixels_along_and_a_column_across():
     from hairlut.scene._choices import COLUMN_PIXELS, ROW_PIXELS
 
-    cols, rows = texel_resolution("auto", [100.0, 80.0, 60.0], [10.0, 12.0, 8.0], 3).value
+    cols, rows = texel_resolution("auto", [100.0, 80.0, 60.0], [20.0, 24.0, 16.0], 3).value
     assert rows == 4 * math.ceil(np.percentile([100, 80, 60], 90) / ROW_PIXELS / 4)
-    assert cols == 4 * math.ceil(math.pi * np.percentile([10, 12, 8], 90) / COLUMN_PIXELS / 4)
-    bigger = texel_resolution("auto", [200.0, 160.0, 120.0], [20.0, 24.0, 16.0], 3).value
+    assert cols == 4 * math.ceil(math.pi * np.percentile([20, 24, 16], 90) / COLUMN_PIXELS / 4)
+    bigger = texel_resolution("auto", [200.0, 160.0, 120.0], [40.0, 48.0, 32.0], 3).value
     assert bigger[0] > cols and bigger[1] > rows  # a closer camera or a larger frame: finer texels
+
+
+@pytest.mark.parametrize(("s_u", "s_t"), [(8, 8), (4, 16), (3, 5)])
+def test_a_small_cluster_still_gets_four_texels_a_sector_each_way(s_u, s_t):
+    from hairlut.scene._choices import TEXELS_PER_SECTOR
+
+    assert TEXELS_PER_SECTOR == 4
+    cols, rows = texel_resolution("auto", [3.0], [1.0], 3, (s_u, s_t)).value
+    assert cols == max(16, 4 * math.ceil(4 * s_u / 4)) and rows == max(8, 4 * math.ceil(4 * s_t / 4))
 
 
 def test_a_given_texel_resolution_is_kept():

@@ -18,7 +18,8 @@ the plan says is what runs.
 * ``render.resolution`` (:func:`texel_resolution`): the texels of every layer, from each cluster's projected size
   through the camera: a texel row every :data:`ROW_PIXELS` pixels along the cluster and a column every
   :data:`COLUMN_PIXELS` across it (its visible half-circumference holds half the columns), for the 90th percentile
-  cluster, kept within :data:`~hairlut.budget.AUTO_TEXELS` texels in all.  The picture's detail is finer across the
+  cluster, at least :data:`TEXELS_PER_SECTOR` a sector each way, kept within :data:`~hairlut.budget.AUTO_TEXELS`
+  texels in all.  The picture's detail is finer across the
   strands than along them, and texels smaller than a pixel add cost, not picture.
 * ``render.layer_reads`` (:func:`layer_reads`): ``track`` (every sector a texel's in-plane ray crosses) while its
   sweep fits the frame budget, ``pair`` (eq 7) beyond: at paper scale (53,040 sectors) track reads cost 41.6 ms a
@@ -44,6 +45,10 @@ TRACK_SECTORS = 16384
 ROW_PIXELS, COLUMN_PIXELS = 2.5, 2.0
 #: The bounds of the chosen rows and columns, and the step they are rounded up to.
 ROWS, COLUMNS, TEXEL_STEP = (8, 256), (16, 512), 4
+#: The fewest texels per sector along each axis: eq 7 interpolates a texel row between the two cross-sections around
+#: it, and the short clusters of a crop at 128² (8 rows for 8 steps) gave mean α 6–13 % high and up to 2.2 % of it
+#: outside the strands, against 2 % and 0.7 % at 4 rows a step.
+TEXELS_PER_SECTOR = 4
 
 #: Measured by the picture benchmark (Sintel's groom and, where said, the other untuned scenes; defaults, 128², strand
 #: render converged to 0.02; 2026-12-04 and 2026-12-05, benchmarks/records.md), the figures each choice's ``predicted``
@@ -144,10 +149,11 @@ def shadow_method(config: dict, given: dict, has_strands: bool) -> Choice:
     )
 
 
-def texel_resolution(value, lengths_px, widths_px, layers: int) -> Choice:
+def texel_resolution(value, lengths_px, widths_px, layers: int, sectors=(8, 8)) -> Choice:
     """``render.resolution`` for ``value`` (``auto`` or [u columns, t rows]) and clusters whose trajectories project
     to ``lengths_px`` pixels and whose widths (twice the larger half axis) to ``widths_px`` (module docstring);
-    ``layers``: the layer surfaces of all clusters together."""
+    ``layers``: the layer surfaces of all clusters together; ``sectors``: (s_u, s_t), the sectors' columns and steps,
+    of which each gets at least :data:`TEXELS_PER_SECTOR` texels each way."""
     if value != "auto":
         return given_choice("render.resolution", list(value))
     from ..budget import AUTO_TEXELS
@@ -157,7 +163,9 @@ def texel_resolution(value, lengths_px, widths_px, layers: int) -> Choice:
 
     length = float(np.percentile(lengths_px, 90)) if len(lengths_px) else 0.0
     width = float(np.percentile(widths_px, 90)) if len(widths_px) else 0.0
-    rows, cols = up(length / ROW_PIXELS, ROWS), up(math.pi * width / COLUMN_PIXELS, COLUMNS)
+    s_u, s_t = sectors
+    rows = max(up(length / ROW_PIXELS, ROWS), up(TEXELS_PER_SECTOR * s_t, ROWS))
+    cols = max(up(math.pi * width / COLUMN_PIXELS, COLUMNS), up(TEXELS_PER_SECTOR * s_u, COLUMNS))
     shrink = math.sqrt(AUTO_TEXELS / max(rows * cols * max(layers, 1), 1))
     capped = shrink < 1.0
     if capped:  # the same share off both, rounded down; then off the other where one is at its least

@@ -91,7 +91,7 @@ def texel_choice(scene: Scene) -> Choice:
     x, y = x.reshape(shape), y.reshape(shape)
     lengths = np.hypot(np.diff(x, axis=1), np.diff(y, axis=1)).sum(axis=1)
     widths = 2.0 * np.median(across.reshape(shape), axis=1)
-    return texel_resolution(value, lengths, widths, sum(spec.n_layers for spec in specs))
+    return texel_resolution(value, lengths, widths, sum(spec.n_layers for spec in specs), (specs[0].s_u, specs[0].s_t))
 
 
 def _memo(scene: Scene, cache_root=None) -> tuple:
