@@ -114,10 +114,7 @@ def section_extinction(table) -> tuple[np.ndarray, np.ndarray]:
     σ = Σ 2 r · stretch / (π A B) of the strands crossing it (their cut widths over the ellipse's area; the planar
     trace's own σ_t = κ / r, summed), at its t."""
     n = table.shape[1]
-    first = np.full(n, -1)
-    for i, ti in enumerate(table.t_index):  # any sector of each cross-section holds its t and half axes
-        if first[ti] < 0:
-            first[ti] = i
+    _, first = np.unique(np.asarray(table.t_index), return_index=True)  # any sector of a cross-section has its t, A, B
     t = np.asarray(table.t, np.float64)[first]
     a, b = np.asarray(table.half_axes, np.float64)[first].T
     width = 2.0 * np.asarray(table.crossing_radius, np.float64) * np.asarray(table.crossing_stretch, np.float64)
