@@ -14,8 +14,18 @@ from hypothesis import strategies as st
 
 from hairlut.bench import _grooms as g
 from hairlut.geometry import Strands
-from hairlut.scene import cluster_count, layer_reads, load_scene, texel_resolution
-from hairlut.scene._choices import CLUSTERS_MAX, CLUSTERS_MIN, STRANDS_PER_CLUSTER, TRACK_SECTORS, strand_turns
+from hairlut.geometry.splats import SIGMA_PER_RADIUS
+from hairlut.scene import cluster_count, layer_reads, load_scene, sector_grid, texel_resolution
+from hairlut.scene._choices import (
+    CLUSTERS_MAX,
+    CLUSTERS_MIN,
+    GRID,
+    GRID_STEP,
+    SIGMA_CELLS,
+    STRANDS_PER_CLUSTER,
+    TRACK_SECTORS,
+    strand_turns,
+)
 
 
 def _polyline(points: np.ndarray, copies: int = 1) -> Strands:
@@ -86,7 +96,13 @@ def test_the_plan_prints_every_choice_and_a_given_value_is_set(tmp_path):
     scenes = g.groom_scenes(tmp_path, kinds=("curly",), sizes={"curly": {"n_strands": 60, "points": 8}}, resolution=(32, 32))
     sc = load_scene(scenes["curly"])
     chosen = {c.key: c for c in choices(sc)}
-    assert set(chosen) == {"groom.clusters", "render.resolution", "render.layer_reads", "shadows.method"}
+    assert set(chosen) == {
+        "groom.clusters",
+        "render.resolution",
+        "tables.hrir.sectors.grid",
+        "render.layer_reads",
+        "shadows.method",
+    }
     assert not any(c.given for c in chosen.values())
     text = scenes["curly"].read_text() + '\n[render]\nlayer_reads = "pair"\n'
     scenes["curly"].write_text(text.replace("[groom]\n", "[groom]\nclusters = 5\n"))
@@ -150,3 +166,57 @@ def test_the_camera_chooses_the_texels_of_a_groom_scene(tmp_path):
     a, b = texel_choice(load_scene(small["curly"])), texel_choice(load_scene(large["curly"]))
     assert b.value[1] > a.value[1] and b.value[0] > a.value[0]
     assert "px long" in a.reason and not a.given
+
+
+# ----------------------------------------------------------------------------- tables.hrir.sectors.grid
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.lists(st.one_of(st.floats(1e-6, 2.0), st.just(float("nan"))), min_size=1, max_size=40), st.floats(0.1, 0.99))
+def test_a_thinner_strand_gets_a_grid_at_least_as_fine_and_its_sigma_spans_the_cells(radii, thinner):
+    """The grid is a multiple of its step within its bounds; thinner strands (every radius scaled down) never get a
+    coarser one; the median strand's σ = r/√2 spans at least :data:`SIGMA_CELLS` cells unless the bound stops it."""
+    a = sector_grid({}, radii)
+    b = sector_grid({}, [thinner * r for r in radii])
+    for c in (a, b):
+        n = c.value[0]
+        assert c.value == [n, n] and not c.given
+        assert GRID[0] <= n <= GRID[1] and n % GRID_STEP == 0
+    assert b.value[0] >= a.value[0]
+    finite = [r for r in radii if math.isfinite(r)]
+    if finite:
+        cells = SIGMA_PER_RADIUS * float(np.median(finite)) * a.value[0]
+        assert cells >= SIGMA_CELLS * (1 - 1e-9) or a.value[0] == GRID[1]
+    else:
+        assert a.value == [GRID[0]] * 2
+
+
+def test_a_given_grid_is_kept_and_a_thick_strand_keeps_the_default_recipe():
+    from hairlut.hrir import resolve_recipe
+    from hairlut.scene import hrir_with_grid
+
+    given = {"sectors": {"grid": [20, 24]}}
+    c = sector_grid(given, [1e-4])
+    assert c.value == [20, 24] and c.given and hrir_with_grid(given, c) == given
+    thick = sector_grid({}, [0.2, 0.3])  # σ = 0.14 √area spans 1.2 cells on far fewer than 32
+    assert thick.value == [GRID[0]] * 2
+    assert resolve_recipe(hrir_with_grid({}, thick)) == resolve_recipe({})  # the database and table hashes stay
+    thin = sector_grid({"trace": {"steps": 40}}, [0.01])
+    folded = hrir_with_grid({"trace": {"steps": 40}}, thin)
+    assert folded["sectors"]["grid"] == thin.value and folded["trace"]["steps"] == 40  # a given step count is kept
+
+
+def test_the_same_groom_with_thinner_strands_is_traced_on_a_finer_grid(tmp_path):
+    """Issue 26's ordering: the planner gives a groom of thinner strands a finer sector grid, the direct maps trace on
+    it with two steps a cell, and ``hairlut plan`` lists it."""
+    from hairlut.planner import choices, direct_recipe
+
+    def scene(radius, folder):
+        groom = g.write_groom(folder, "crop", g.crop(n_strands=80, seed=1, radius=radius), formats=("hair",))["hair"]
+        return load_scene(g.write_scene(folder / "crop.toml", groom, resolution=(32, 32)))
+
+    thick, thin = scene(0.1, tmp_path / "thick"), scene(0.01, tmp_path / "thin")
+    a, b = (next(c for c in choices(s) if c.key == "tables.hrir.sectors.grid") for s in (thick, thin))
+    assert b.value[0] > a.value[0] and "median strand radius" in b.reason
+    rec = direct_recipe(thin)
+    assert rec["sectors"]["grid"] == b.value and rec["trace"]["steps"] == 2 * b.value[0]

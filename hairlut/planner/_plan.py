@@ -54,7 +54,9 @@ from ..scene import (
     SceneSectors,
     as_scene,
     cluster_choice,
+    grid_choice,
     grid_coverage,
+    hrir_with_grid,
     layer_reads,
     restricted_space,
     scene_sectors,
@@ -139,15 +141,16 @@ def _hrir_step(scene, ss: SceneSectors, root) -> Step:
     from ..hrir import resolve_recipe
 
     tab = scene.config["tables"]
+    given = hrir_with_grid(tab["hrir"], grid_choice(scene, ss))
     try:
-        base = resolve_recipe(dict(tab["hrir"]))
+        base = resolve_recipe(given)
     except errors.ValidationError as exc:
         raise errors.ValidationError(f"tables.hrir.{exc.field}", exc.value, exc.reason) from None
     recipe = base
     details = {"sectors": int(len(ss.aspect)), "strands_per_sector": [int(ss.strands.min()), int(ss.strands.max())]}
     if tab["restrict"]:
         space = restricted_space(ss, base["sectors"]["space"])
-        recipe = resolve_recipe({**tab["hrir"], "sectors": {**tab["hrir"].get("sectors", {}), "space": space}})
+        recipe = resolve_recipe({**given, "sectors": {**given["sectors"], "space": space}})
         details["space"] = {
             k: {"scene": space[k], "default": base["sectors"]["space"][k]}
             for k in space
@@ -344,11 +347,12 @@ _MAP_FIELDS = {
 
 def direct_recipe(scene) -> dict:
     """The HRIR recipe (trace, Phong, density grid) the ``direct`` and ``scene`` map methods trace
-    with: the scene's ``[tables.hrir]`` over the defaults, ``render.rays`` rays per pixel."""
+    with: the scene's ``[tables.hrir]`` over the defaults, the sector grid the scene leaves out chosen
+    (:func:`hairlut.scene.sector_grid`), ``render.rays`` rays per pixel."""
     from ..hrir import resolve_recipe
 
     sc = as_scene(scene)
-    given = dict(sc.config["tables"]["hrir"])
+    given = hrir_with_grid(sc.config["tables"]["hrir"], grid_choice(sc))
     trace = {**given.get("trace", {}), "rays_per_pixel": sc.config["render"]["rays"]}
     try:
         return resolve_recipe({**given, "trace": trace})
@@ -625,6 +629,7 @@ def choices(scene, ss: SceneSectors | None = None) -> list:
     return [
         cluster_choice(sc),
         texel_choice(sc),
+        grid_choice(sc, ss),
         layer_reads(sc.config["render"]["layer_reads"], int(len(ss.strands))),
         sc.shadow_choice,
     ]

@@ -21,6 +21,11 @@ the plan says is what runs.
   cluster, at least :data:`TEXELS_PER_SECTOR` a sector each way, kept within :data:`~hairlut.budget.AUTO_TEXELS`
   texels in all.  The picture's detail is finer across the
   strands than along them, and texels smaller than a pixel add cost, not picture.
+* ``tables.hrir.sectors.grid`` (:func:`sector_grid`): the density grid each sector's strands are splatted on before
+  the planar march (satf §5.1), fine enough that the median sector's strand Gaussian (σ = r/√2, eq 3's splat) spans
+  :data:`SIGMA_CELLS` cells, with :data:`STEPS_PER_CELL` march steps a cell; at least the default 32², at most
+  :data:`GRID` [1].  A coarse grid smears a thin strand over cells it does not cover, and a smeared optical depth
+  covers more (Jensen): α and re come out high.  Thick strands keep the default grid; thin ones get a finer one.
 * ``render.layer_reads`` (:func:`layer_reads`): ``track`` (every sector a texel's in-plane ray crosses) while its
   sweep fits the frame budget, ``pair`` (eq 7) beyond: at paper scale (53,040 sectors) track reads cost 41.6 ms a
   frame against 13.5 ms for pair on the 2-core CPU.
@@ -50,6 +55,13 @@ ROWS, COLUMNS, TEXEL_STEP = (8, 256), (16, 512), 4
 #: outside the strands, against 2 % and 0.7 % at 4 rows a step.
 TEXELS_PER_SECTOR = 4
 
+#: The sector grid (``tables.hrir.sectors.grid``): its bounds, its step, the cells the median sector's strand σ spans,
+#: and the march steps per cell.  Ratboy's groom at strand radius 0.05 (48 clusters, median radius 0.039 √area), the
+#: direct maps against the 192² truth (``benchmarks.map_variants --grid-study``): 32² (0.88 cells) missed the direct
+#: targets (re 0.132, α 0.064, coverage 0.051), 48² (1.33 cells, the rule's) met them (0.079, 0.033, 0.028); the
+#: tuned scene file's 12 clusters (median 0.0196) missed at 64² (0.89 cells) and met them at 96² (1.33).
+GRID, GRID_STEP, SIGMA_CELLS, STEPS_PER_CELL = (32, 128), 16, 1.2, 2
+
 #: Measured by the picture benchmark (Sintel's groom and, where said, the other untuned scenes; defaults, 128², strand
 #: render converged to 0.02; 2026-12-04 and 2026-12-05, benchmarks/records.md), the figures each choice's ``predicted``
 #: quotes.
@@ -62,6 +74,9 @@ MEASURED = {
     "texels": "no resolution limits the picture: at 128², Sintel [72, 36] FLIP 0.131 against 0.132 at [64, 32], the "
     "curly groom [44, 32] 0.138 against 0.138; at 768², Sintel [96, 48] FLIP 0.198 against 0.207, α outside 1.8 % "
     "against 2.5 %, mean α 6.8 % low against 4.9 % (the trim's two texels are narrower)",
+    "grid": "Ratboy at strand radius 0.05, direct maps against the 192² truth: 32² (0.88 cells a strand σ) re 0.132, "
+    "α 0.064, coverage 0.051 (the direct targets: 0.12, 0.06, 0.035); 48² (1.33 cells) 0.079, 0.033, 0.028; 96² 0.028, "
+    "0.011, 0.010",
     "track": "Sintel: mean α −2.2 % against the strand render (pair: −24.9 %)",
     "pair": "Sintel: mean α −24.9 % against the strand render (track: −2.2 %)",
 }
@@ -183,6 +198,44 @@ def texel_resolution(value, lengths_px, widths_px, layers: int, sectors=(8, 8)) 
         + (f", shrunk to {AUTO_TEXELS:,} texels over {layers} layers" if capped else f", {rows * cols * layers:,} texels in all"),
         MEASURED["texels"],
     )
+
+
+def sector_grid(given: dict, radius_rel) -> Choice:
+    """``tables.hrir.sectors.grid`` for a scene's ``[tables.hrir]`` table ``given`` and its sectors' strand radii
+    relative to √area ``radius_rel`` (NaN for an empty sector): n × n cells, n = :data:`SIGMA_CELLS` / (σ/r ·
+    median radius_rel) rounded up to :data:`GRID_STEP` within :data:`GRID` (module docstring)."""
+    from ..geometry.splats import SIGMA_PER_RADIUS
+
+    grid = given.get("sectors", {}).get("grid")
+    if grid is not None:
+        return given_choice("tables.hrir.sectors.grid", list(grid))
+    r = np.asarray(radius_rel, np.float64)
+    r = r[np.isfinite(r) & (r > 0)]
+    if not len(r):
+        return Choice("tables.hrir.sectors.grid", [GRID[0]] * 2, False, "no sector holds a strand: the default grid")
+    median = float(np.median(r))
+    raw = SIGMA_CELLS / (SIGMA_PER_RADIUS * median)
+    n = int(min(max(GRID_STEP * math.ceil(raw / GRID_STEP), GRID[0]), GRID[1]))
+    steps = "" if "steps" in given.get("trace", {}) else f", {STEPS_PER_CELL * n} march steps"
+    return Choice(
+        "tables.hrir.sectors.grid",
+        [n, n],
+        False,
+        f"median strand radius {median:.3g} √area of a sector: its splat σ spans {SIGMA_CELLS:g} cells at {raw:.0f}², kept in "
+        f"[{GRID[0]}, {GRID[1]}]²{steps}, {SIGMA_PER_RADIUS * median * n:.2f} cells a strand σ (a coarser grid smears thin "
+        "strands and overstates α)",
+        MEASURED["grid"],
+    )
+
+
+def hrir_with_grid(given: dict, choice: Choice) -> dict:
+    """The scene's ``[tables.hrir]`` table ``given`` with a chosen sector grid (:func:`sector_grid`) folded in, and
+    :data:`STEPS_PER_CELL` march steps a cell unless ``trace.steps`` is given; a given grid leaves it as it is."""
+    if choice.given:
+        return dict(given)
+    n = choice.value[0]
+    trace = {"steps": STEPS_PER_CELL * n, **given.get("trace", {})}
+    return {**given, "sectors": {**given.get("sectors", {}), "grid": list(choice.value)}, "trace": trace}
 
 
 def layer_reads(value: str, sectors: int) -> Choice:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._choices import Choice, sector_grid
 from ._clusters import _root_of, scene_clusters
 
 MARGIN = 0.1  # relative widening of each measured sector-space range
@@ -37,6 +38,13 @@ class SceneSectors:
 #: What :func:`scene_sectors` keeps in the groom cache per sector: the measures and the in-plane axes (the view's and
 #: lights' azimuths are computed from the axes on every call).
 _KEPT = ("aspect", "v_range", "strands", "radius_rel", "reference", "binormal", "ex", "ey")
+
+
+def grid_choice(scene, ss: SceneSectors | None = None) -> Choice:
+    """:func:`~hairlut.scene.sector_grid` for ``scene`` (its ``[tables.hrir]`` and its sectors ``ss``, measured
+    when not given)."""
+    ss = scene_sectors(scene) if ss is None else ss
+    return sector_grid(scene.config["tables"]["hrir"], ss.radius_rel)
 
 
 def scene_sectors(scene, cache_root=None) -> SceneSectors:
