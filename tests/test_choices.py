@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from hairlut.bench import _grooms as g
 from hairlut.geometry import Strands
 from hairlut.geometry.splats import SIGMA_PER_RADIUS
-from hairlut.scene import cluster_count, layer_reads, load_scene, sector_grid, texel_resolution
+from hairlut.scene import cluster_count, layer_reads, load_scene, sector_grid, table_layout, texel_resolution
 from hairlut.scene._choices import (
     CLUSTERS_MAX,
     CLUSTERS_MIN,
@@ -100,6 +100,8 @@ def test_the_plan_prints_every_choice_and_a_given_value_is_set(tmp_path):
         "groom.clusters",
         "render.resolution",
         "tables.hrir.sectors.grid",
+        "render.views",
+        "render.shading_pixels",
         "render.layer_reads",
         "shadows.method",
     }
@@ -220,3 +222,22 @@ def test_the_same_groom_with_thinner_strands_is_traced_on_a_finer_grid(tmp_path)
     assert b.value[0] > a.value[0] and "median strand radius" in b.reason
     rec = direct_recipe(thin)
     assert rec["sectors"]["grid"] == b.value and rec["trace"]["steps"] == 2 * b.value[0]
+    from hairlut.planner import scene_maps_recipe
+
+    t_thick, t_thin = (scene_maps_recipe(s)["table"] for s in (thick, thin))
+    assert (t_thick["views"], t_thick["shading_pixels"]) == (64, 8)  # the defaults on the default grid
+    assert t_thin["views"] >= t_thick["views"] and t_thin["shading_pixels"] > t_thick["shading_pixels"]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(2, 512), st.sampled_from([8, 16, 32, 64, 96, 128, 256]))
+def test_the_scene_table_follows_the_grid_its_bins_divide_the_pixels(grid, pixels):
+    auto = {"views": "auto", "shading_pixels": "auto"}
+    views, bins = table_layout(auto, grid, pixels)
+    assert views.value % 32 == 0 and views.value >= 64 and views.value >= 4 * grid / 3 - 1e-9
+    assert pixels % bins.value == 0 and (bins.value >= grid / 4 or bins.value == pixels)
+    finer_views, finer_bins = table_layout(auto, 2 * grid, pixels)
+    assert finer_views.value >= views.value and finer_bins.value >= bins.value
+    assert [c.value for c in table_layout(auto, 32, 64)] == [64, 8]  # the former defaults on the default grid
+    kept = table_layout({"views": 10, "shading_pixels": 3}, grid, pixels)
+    assert [c.value for c in kept] == [10, 3] and all(c.given for c in kept)

@@ -229,7 +229,7 @@ def map_accuracy_study(
     Returns ``{"scene", "truth_seconds", "quick", "records"}``; each record has ``method``, ``knobs`` (text),
     ``re_rel_l2``, ``alpha_rel_l2``, ``coverage_rel_l2``, ``alpha_bias``, ``frame_ms``, ``bake_s`` and ``bytes``."""
     from hairlut.bake import registry
-    from hairlut.planner import scene_maps_recipe
+    from hairlut.planner import scene_maps_recipe, scene_table_layout
     from hairlut.synth import prepare
 
     say = progress or (lambda message: None)
@@ -253,7 +253,8 @@ def map_accuracy_study(
         )
         say(f"maps: direct rays={rays}: re rel-L2 {records[-1]['re_rel_l2']:.3f}")
     own = map_scene(scene).config["render"]
-    first = {**{k: own[k] for k in MAP_KNOBS}, **(first_knobs or {})}
+    layout = {c.key.removeprefix("render."): c.value for c in scene_table_layout(map_scene(scene, method="scene"))}
+    first = {**{k: layout.get(k, own[k]) for k in MAP_KNOBS}, **(first_knobs or {})}
     knobs = [first] if "scene" in methods else []
     if not (quick or default_only) and knobs:
         knobs += [dict(k) for k in SCENE_ROWS]

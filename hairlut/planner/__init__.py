@@ -21,6 +21,7 @@ _LAZY = {
     "direct_recipe": "_plan",
     "map_method": "_plan",
     "scene_maps_recipe": "_plan",
+    "scene_table_layout": "_plan",
     "environment_light": "_lighting",
     "environment_bands": "_lighting",
     "reference_light": "_lighting",

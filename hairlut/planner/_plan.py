@@ -60,6 +60,7 @@ from ..scene import (
     layer_reads,
     restricted_space,
     scene_sectors,
+    table_layout,
     texel_choice,
 )
 from ._lighting import environment_bands, environment_light, sh_recipe
@@ -360,15 +361,24 @@ def direct_recipe(scene) -> dict:
         raise errors.ValidationError(f"tables.hrir.{exc.field}", exc.value, exc.reason) from None
 
 
+def scene_table_layout(scene, recipe: dict | None = None) -> tuple:
+    """The scene table's ``render.views`` and ``render.shading_pixels`` (:func:`hairlut.scene.table_layout`, two
+    :class:`~hairlut.scene.Choice`) on the sector grid and trace pixels of ``recipe`` (:func:`direct_recipe`)."""
+    sc = as_scene(scene)
+    rec = direct_recipe(sc) if recipe is None else recipe
+    return table_layout(sc.config["render"], max(rec["sectors"]["grid"]), rec["trace"]["pixels"])
+
+
 def scene_maps_recipe(scene) -> dict:
     """The ``scene_maps`` recipe of a scene (its groom's geometry key folded in): the trace settings of
-    :func:`direct_recipe` and the table layout from ``render.views``, ``terms``, ``shading_pixels``,
-    ``ratio_step`` and ``precision`` (light angles: 4·terms + 1; on Sintel the re error at 2 terms was 0.147 at 9 and 16
+    :func:`direct_recipe` and the table layout from ``render.views``, ``terms``, ``shading_pixels`` (``auto``:
+    :func:`scene_table_layout`), ``ratio_step`` and ``precision`` (light angles: 4·terms + 1; on Sintel the re error at 2 terms was 0.147 at 9 and 16
     light angles and 0.149 at 5, ``benchmarks/scene_layouts.py``)."""
     from ..scenemaps import resolve_recipe
 
     sc = as_scene(scene)
     r, rec = sc.config["render"], direct_recipe(sc)
+    views, bins = (c.value for c in scene_table_layout(sc, rec))
     given = {
         "hrir": {
             "sectors": {k: rec["sectors"][k] for k in ("grid", "density_scale")},
@@ -376,10 +386,10 @@ def scene_maps_recipe(scene) -> dict:
             "phong": rec["phong"],
         },
         "table": {
-            "views": r["views"],
+            "views": views,
             "lights": 4 * r["terms"] + 1,
             "terms": r["terms"],
-            "shading_pixels": r["shading_pixels"],
+            "shading_pixels": bins,
             "ratio_step": r["ratio_step"],
             "dtype": r["precision"],
         },
@@ -630,6 +640,7 @@ def choices(scene, ss: SceneSectors | None = None) -> list:
         cluster_choice(sc),
         texel_choice(sc),
         grid_choice(sc, ss),
+        *scene_table_layout(sc),
         layer_reads(sc.config["render"]["layer_reads"], int(len(ss.strands))),
         sc.shadow_choice,
     ]

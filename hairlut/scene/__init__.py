@@ -4,7 +4,7 @@
 (clusters or a groom, camera, lights, material, effects, environment light, shadows,
 tables); ``scene_clusters`` builds its clusters and strands (satf §3), and
 ``scene_sectors`` measures their sectors (a :class:`SceneSectors`).  What a scene leaves out is chosen here
-(``_choices``: the cluster count, the texels, the sector grid, the shadow method, the layer reads), each a :class:`Choice` with its reason.  The camera is ``Camera`` / ``make_camera``.
+(``_choices``: the cluster count, the texels, the sector grid, the scene table's layout, the shadow method, the layer reads), each a :class:`Choice` with its reason.  The camera is ``Camera`` / ``make_camera``.
 This package reads ``hairlut.geometry`` only; the planner (``hairlut.planner``) and
 everything else build on it.  NumPy and JAX load on first use of a name."""
 
@@ -32,6 +32,7 @@ _LAZY = {
     "texel_resolution": "_choices",
     "sector_grid": "_choices",
     "hrir_with_grid": "_choices",
+    "table_layout": "_choices",
     "grid_choice": "_sectors",
     "Choice": "_choices",
     "cluster_count": "_choices",

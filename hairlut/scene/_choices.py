@@ -26,6 +26,11 @@ the plan says is what runs.
   :data:`SIGMA_CELLS` cells, with :data:`STEPS_PER_CELL` march steps a cell; at least the default 32², at most
   :data:`GRID` [1].  A coarse grid smears a thin strand over cells it does not cover, and a smeared optical depth
   covers more (Jensen): α and re come out high.  Thick strands keep the default grid; thin ones get a finer one.
+* ``render.views`` and ``render.shading_pixels`` (:func:`table_layout`): the scene table's view angles and re/α pixel
+  bins follow the sector grid n (a finer grid holds sharper projections, which change faster with the view and across
+  the pixels): :data:`VIEWS_PER_CELL` · n views rounded up to :data:`VIEW_STEP`, at least :data:`VIEWS_MIN`, and the
+  fewest bins dividing the trace's pixels that are at least :data:`BINS_PER_CELL` · n.  On the default 32² they are
+  the defaults, 64 views and 8 bins.  ``render.terms`` stays 2: terms beyond 2 bought nothing (benchmarks/records.md).
 * ``render.layer_reads`` (:func:`layer_reads`): ``track`` (every sector a texel's in-plane ray crosses) while its
   sweep fits the frame budget, ``pair`` (eq 7) beyond: at paper scale (53,040 sectors) track reads cost 41.6 ms a
   frame against 13.5 ms for pair on the 2-core CPU.
@@ -62,6 +67,13 @@ TEXELS_PER_SECTOR = 4
 #: tuned scene file's 12 clusters (median 0.0196) missed at 64² (0.89 cells) and met them at 96² (1.33).
 GRID, GRID_STEP, SIGMA_CELLS, STEPS_PER_CELL = (32, 128), 16, 1.2, 2
 
+#: The scene table's layout (``render.views``, ``render.shading_pixels``) per sector grid side n, against the direct
+#: trace at twice the grid (scene targets: re ≤ 0.15, α ≤ 0.08, coverage ≤ 0.04): Sintel on 32², 64 views and 8 bins,
+#: re 0.113, α 0.043; Ratboy at radius 0.05 on 48², 64 views and 16 bins, re 0.118, α 0.042 (96 views: α 0.031);
+#: the 12-cluster Ratboy on 96²: 64 views α 0.081 (a miss), 128 views with 16 bins re 0.150 (a miss), with 32 bins
+#: re 0.130, α 0.040.
+VIEWS_PER_CELL, VIEW_STEP, VIEWS_MIN, BINS_PER_CELL = 4 / 3, 32, 64, 1 / 4
+
 #: Measured by the picture benchmark (Sintel's groom and, where said, the other untuned scenes; defaults, 128², strand
 #: render converged to 0.02; 2026-12-04 and 2026-12-05, benchmarks/records.md), the figures each choice's ``predicted``
 #: quotes.
@@ -77,6 +89,9 @@ MEASURED = {
     "grid": "Ratboy at strand radius 0.05, direct maps against the 192² truth: 32² (0.88 cells a strand σ) re 0.132, "
     "α 0.064, coverage 0.051 (the direct targets: 0.12, 0.06, 0.035); 48² (1.33 cells) 0.079, 0.033, 0.028; 96² 0.028, "
     "0.011, 0.010",
+    "layout": "against the direct trace at twice the grid (scene targets re 0.15, α 0.08): Sintel on 32² with 64 views "
+    "and 8 bins re 0.113, α 0.043; Ratboy at radius 0.05 on 48² with 64 views and 16 bins re 0.118, α 0.042; the "
+    "12-cluster Ratboy on 96² with 128 views and 32 bins re 0.130, α 0.040 (64 views: α 0.081; 16 bins: re 0.150)",
     "track": "Sintel: mean α −2.2 % against the strand render (pair: −24.9 %)",
     "pair": "Sintel: mean α −24.9 % against the strand render (track: −2.2 %)",
 }
@@ -236,6 +251,43 @@ def hrir_with_grid(given: dict, choice: Choice) -> dict:
     n = choice.value[0]
     trace = {"steps": STEPS_PER_CELL * n, **given.get("trace", {})}
     return {**given, "sectors": {**given.get("sectors", {}), "grid": list(choice.value)}, "trace": trace}
+
+
+def table_layout(render: dict, grid: int, pixels: int) -> tuple[Choice, Choice]:
+    """``render.views`` and ``render.shading_pixels`` of the scene table for a scene's ``[render]`` table, its sector
+    grid side ``grid`` (:func:`sector_grid`) and the trace's ``pixels`` per sector projection (module docstring)."""
+    views, bins = render["views"], render["shading_pixels"]
+    out = []
+    if views != "auto":
+        out.append(given_choice("render.views", views))
+    else:
+        n = max(VIEWS_MIN, VIEW_STEP * math.ceil(VIEWS_PER_CELL * grid / VIEW_STEP))
+        out.append(
+            Choice(
+                "render.views",
+                int(n),
+                False,
+                f"the scene table's view angles: {VIEWS_PER_CELL:.3g} a cell of the {grid}² sector grid, rounded up to "
+                f"{VIEW_STEP}, at least {VIEWS_MIN} (a finer grid's projections change faster with the view)",
+                MEASURED["layout"],
+            )
+        )
+    if bins != "auto":
+        out.append(given_choice("render.shading_pixels", bins))
+    else:
+        want = BINS_PER_CELL * grid
+        b = min((d for d in range(1, pixels + 1) if pixels % d == 0 and d >= want), default=pixels)
+        out.append(
+            Choice(
+                "render.shading_pixels",
+                int(b),
+                False,
+                f"the scene table's re/α bins: the fewest dividing the trace's {pixels} pixels that are at least "
+                f"{BINS_PER_CELL:g} a cell of the {grid}² sector grid",
+                MEASURED["layout"],
+            )
+        )
+    return out[0], out[1]
 
 
 def layer_reads(value: str, sectors: int) -> Choice:

@@ -116,14 +116,19 @@ SCHEMA = {
         "animated": Field(False, _B, None, "the hair moves between frames (auto then never picks a per-groom table)"),
         "rays": Field(2, _I, in_range(1, 64), "direct and scene: rays per pixel of each sector's projection"),
         "views": Field(
-            64,
-            _I,
-            lambda x: None if 8 <= x <= 1024 and x % 2 == 0 else "an even number in [8, 1024]",
-            "scene: view angles of the per-groom table",
+            "auto",
+            (int, str),
+            auto_or(lambda x: None if isinstance(x, int) and 8 <= x <= 1024 and x % 2 == 0 else "an even number in [8, 1024]"),
+            "scene: view angles of the per-groom table, or auto (the planner chooses from the sector grid: "
+            "hairlut.scene.table_layout)",
         ),
         "terms": Field(2, _I, in_range(0, 16), "scene: Fourier terms of each sector's re/α ratio in θl − θv"),
         "shading_pixels": Field(
-            8, _I, in_range(1, 8192), "scene: pixel bins of the re/α ratio (a divisor of tables.hrir trace.pixels)"
+            "auto",
+            (int, str),
+            auto_or(in_range(1, 8192)),
+            "scene: pixel bins of the re/α ratio (a divisor of tables.hrir trace.pixels), or auto (the planner chooses "
+            "from the sector grid: hairlut.scene.table_layout)",
         ),
         "ratio_step": Field(
             2, _I, in_range(1, 1024), "scene: the re/α terms are kept on every ratio_step-th view (a divisor of views)"
