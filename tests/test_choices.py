@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 from hairlut.bench import _grooms as g
 from hairlut.geometry import Strands
 from hairlut.geometry.splats import SIGMA_PER_RADIUS
-from hairlut.scene import cluster_count, layer_reads, load_scene, sector_grid, table_layout, texel_resolution
+from hairlut.scene import cluster_count, layer_reads, layer_shells, load_scene, sector_grid, table_layout, texel_resolution
 from hairlut.scene._choices import (
     CLUSTERS_MAX,
     CLUSTERS_MIN,
@@ -84,6 +84,14 @@ def test_an_explicit_value_is_always_kept():
         assert layer_reads(v, 10**9).value == v and layer_reads(v, 1).given
 
 
+def test_the_layer_shells_are_the_measured_default_unless_given():
+    from hairlut.geometry.cluster_defaults import STRUCTURE_DEFAULTS
+
+    chosen = layer_shells()
+    assert chosen.value == list(STRUCTURE_DEFAULTS["layer_radii"]) and not chosen.given and "shells" in chosen.reason
+    assert layer_shells([0.3, 1.0]).value == [0.3, 1.0] and layer_shells([0.3, 1.0]).given
+
+
 def test_layer_reads_follow_the_sector_count():
     assert layer_reads("auto", TRACK_SECTORS).value == "track"
     far = layer_reads("auto", TRACK_SECTORS + 1)
@@ -98,6 +106,7 @@ def test_the_plan_prints_every_choice_and_a_given_value_is_set(tmp_path):
     chosen = {c.key: c for c in choices(sc)}
     assert set(chosen) == {
         "groom.clusters",
+        "groom.layer_radii",
         "render.resolution",
         "tables.hrir.sectors.grid",
         "render.views",

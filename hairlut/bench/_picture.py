@@ -15,7 +15,7 @@ knob is the planner's.  Per groom and camera (:func:`picture_study`):
 
 Each groom and camera is one table whose baseline is the paper's own knobs (4 clusters, eq 7's pair reads, eq 12's
 s-map, eq 13 × the HRIR's re).  On the first camera of the first groom the table also holds the settings the planner
-considered (half and twice its cluster count, pair reads, the s-map), so the plot shows FLIP against frame time for
+considered (half and twice its cluster count, two and four layer shells, pair reads, the s-map), so the plot shows FLIP against frame time for
 each of them."""
 
 from __future__ import annotations
@@ -121,6 +121,8 @@ def picture_study(grooms, views, resolution: int, workdir, *, sizes=None, consid
                 settings |= {
                     f"{max(n // 2, 1)} clusters": {"groom": {"clusters": max(n // 2, 1)}},
                     f"{2 * n} clusters": {"groom": {"clusters": 2 * n}},
+                    "2 shells": {"groom": {"layer_radii": [0.6, 1.0], "core_radius": 0.3}},
+                    "4 shells": {"groom": {"layer_radii": [0.4, 0.6, 0.8, 1.0], "core_radius": 0.2}},
                     "pair reads": {"render": {"layer_reads": "pair"}},
                     "s-map shadows": {"shadows": {"method": "smap"}},
                 }

@@ -51,6 +51,7 @@ from .. import budget, errors
 from ..assets import recipe_hash
 from ..bake import cache, registry
 from ..scene import (
+    Choice,
     SceneSectors,
     as_scene,
     cluster_choice,
@@ -58,6 +59,7 @@ from ..scene import (
     grid_coverage,
     hrir_with_grid,
     layer_reads,
+    layer_shells,
     restricted_space,
     scene_sectors,
     table_layout,
@@ -638,6 +640,9 @@ def choices(scene, ss: SceneSectors | None = None) -> list:
     ss = scene_sectors(sc) if ss is None else ss
     return [
         cluster_choice(sc),
+        layer_shells(sc.raw.get("groom", {}).get("layer_radii"))
+        if sc.groom_path is not None
+        else Choice("clusters.layers", [s.n_layers for s in sc.specs], True, "the layer shells of the scene's own [[clusters]]"),
         texel_choice(sc),
         grid_choice(sc, ss),
         *scene_table_layout(sc),

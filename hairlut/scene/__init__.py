@@ -4,7 +4,7 @@
 (clusters or a groom, camera, lights, material, effects, environment light, shadows,
 tables); ``scene_clusters`` builds its clusters and strands (satf §3), and
 ``scene_sectors`` measures their sectors (a :class:`SceneSectors`).  What a scene leaves out is chosen here
-(``_choices``: the cluster count, the texels, the sector grid, the scene table's layout, the shadow method, the layer reads), each a :class:`Choice` with its reason.  The camera is ``Camera`` / ``make_camera``.
+(``_choices``: the cluster count, the layer shells, the texels, the sector grid, the scene table's layout, the shadow method, the layer reads), each a :class:`Choice` with its reason.  The camera is ``Camera`` / ``make_camera``.
 This package reads ``hairlut.geometry`` only; the planner (``hairlut.planner``) and
 everything else build on it.  NumPy and JAX load on first use of a name."""
 
@@ -37,6 +37,7 @@ _LAZY = {
     "Choice": "_choices",
     "cluster_count": "_choices",
     "layer_reads": "_choices",
+    "layer_shells": "_choices",
     "shadow_method": "_choices",
     "CAMERA": "_camera",
     "Camera": "_camera",

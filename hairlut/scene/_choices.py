@@ -15,6 +15,9 @@ the plan says is what runs.
 * ``shadows.method`` (:func:`shadow_method`): the light-oriented density map (bertails), whose transmittance
   follows each light through the strands' own width; eq 12's s-map when the scene sets its knobs
   (``material.k_shadow`` or ``shadow_form``); none when no strand can cast a shadow.
+* ``groom.layer_radii`` (:func:`layer_shells`): the default three shells and a core (``cluster_defaults``), which the
+  picture benchmark measured best among two, three and four on the grooms with long clusters (Sintel, the parted
+  groom); the short crop was better with four, so the rule is the measured default, not yet a function of the groom.
 * ``render.resolution`` (:func:`texel_resolution`): the texels of every layer, from each cluster's projected size
   through the camera: a texel row every :data:`ROW_PIXELS` pixels along the cluster and a column every
   :data:`COLUMN_PIXELS` across it (its visible half-circumference holds half the columns), for the 90th percentile
@@ -80,6 +83,9 @@ VIEWS_PER_CELL, VIEW_STEP, VIEWS_MIN, BINS_PER_CELL = 4 / 3, 32, 64, 1 / 4
 MEASURED = {
     "clusters": "Sintel: 9 clusters FLIP 0.165, 18 clusters 0.136, 36 clusters 0.120 with mean α −8.0 % "
     "(track reads, light-oriented shadows)",
+    "layers": "mean α against the strand render, front and back: Sintel −3.0 %, −3.7 % with 3 shells, −18.6 %, −18.9 % "
+    "with 2, −11.9 %, −12.7 % with 4; the parted groom −4.5 %, −6.1 % (2: −12.5 %, −14.5 %; 4: −8.2 %, −9.7 %); the "
+    "crop +2.0 %, +3.9 % (2: −7.3 %, −8.1 %; 4: −2.0 %, +0.8 %)",
     "light_oriented": "colour per unit α 0.82–1.20× the strand render's on 10 untuned scenes (Sintel front 0.99×; "
     "eq 12's s-map on Sintel: 1.62×)",
     "smap": "Sintel: colour per unit α 1.62× the strand render's (eq 12 darkens only inner layers, whatever the light)",
@@ -150,6 +156,24 @@ def cluster_count(strands, given=None) -> Choice:
         f"√{s} strands × (1 + {turns:.2f} turns a strand) = {raw:.0f}, kept in [{CLUSTERS_MIN}, {cap}] "
         f"(≤ {CLUSTERS_MAX}, ≥ {STRANDS_PER_CLUSTER} strands a cluster): a groom that bends more needs more clusters to keep its shape",
         MEASURED["clusters"],
+    )
+
+
+def layer_shells(given=None) -> Choice:
+    """``groom.layer_radii``: ``given`` (the scene's list) or the default shells (module docstring)."""
+    from ..geometry.cluster_defaults import STRUCTURE_DEFAULTS
+
+    if given is not None:
+        return given_choice("groom.layer_radii", list(given))
+    radii = list(STRUCTURE_DEFAULTS["layer_radii"])
+    return Choice(
+        "groom.layer_radii",
+        radii,
+        False,
+        f"{len(radii)} shells at v = {', '.join(f'{r:g}' for r in radii)} around a core at "
+        f"{STRUCTURE_DEFAULTS['core_radius']:g}: the layer count whose mean α the picture benchmark measured closest to "
+        "the strands' on long clusters (two or four shells lose 8–19 % of it there)",
+        MEASURED["layers"],
     )
 
 
