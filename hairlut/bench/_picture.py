@@ -121,8 +121,8 @@ def picture_study(grooms, views, resolution: int, workdir, *, sizes=None, consid
                 settings |= {
                     f"{max(n // 2, 1)} clusters": {"groom": {"clusters": max(n // 2, 1)}},
                     f"{2 * n} clusters": {"groom": {"clusters": 2 * n}},
-                    "2 shells": {"groom": {"layer_radii": [0.6, 1.0], "core_radius": 0.3}},
-                    "4 shells": {"groom": {"layer_radii": [0.4, 0.6, 0.8, 1.0], "core_radius": 0.2}},
+                    "2 shells": {"groom": {"layer_radii": [0.5, 1.0]}},
+                    "4 shells": {"groom": {"layer_radii": [0.25, 0.5, 0.75, 1.0]}},
                     "pair reads": {"render": {"layer_reads": "pair"}},
                     "s-map shadows": {"shadows": {"method": "smap"}},
                 }

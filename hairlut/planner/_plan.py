@@ -640,7 +640,7 @@ def choices(scene, ss: SceneSectors | None = None) -> list:
     ss = scene_sectors(sc) if ss is None else ss
     return [
         cluster_choice(sc),
-        layer_shells(sc.raw.get("groom", {}).get("layer_radii"))
+        layer_shells(sc.raw.get("groom", {}).get("layer_radii"), sc.config["groom"]["core_radius"])
         if sc.groom_path is not None
         else Choice("clusters.layers", [s.n_layers for s in sc.specs], True, "the layer shells of the scene's own [[clusters]]"),
         texel_choice(sc),

@@ -61,21 +61,14 @@ def scene_strands(scene) -> list:
     return [s for _, s in scene_clusters(scene)]
 
 
-def thinnest_radius(strands) -> float | None:
-    """Half the smallest positive strand thickness of ``strands`` (the detail a frame must resolve), None without
-    thicknesses."""
-    th = [np.asarray(s.thickness, np.float64) for s in strands if s.thickness is not None]
-    th = np.concatenate(th) if th else np.zeros(0)
-    th = th[th > 0]
-    return 0.5 * float(th.min()) if len(th) else None
-
-
 def scene_camera(scene, strands=None):
-    """The scene's :class:`~hairlut.scene.Camera`, fitted to its strands where ``[camera]`` says 'auto' and refused
-    where float32 could not resolve their thinnest radius (``hairlut.scene.make_camera``)."""
-    from ..scene import make_camera
+    """The scene's :class:`~hairlut.scene.Camera` (:func:`hairlut.scene.scene_camera`: fitted to its strands where
+    ``[camera]`` says 'auto'), or fitted to ``strands`` when given."""
+    from ..scene import make_camera, thinnest_radius
+    from ..scene import scene_camera as fitted
 
-    strands = scene_strands(scene) if strands is None else strands
+    if strands is None:
+        return fitted(scene)
     return make_camera(scene.config["camera"], np.concatenate([s.points for s in strands]), thinnest_radius(strands))
 
 

@@ -29,6 +29,8 @@ _LAZY = {
     "cache_root_of": "_clusters",
     "cluster_choice": "_clusters",
     "texel_choice": "_clusters",
+    "scene_camera": "_clusters",
+    "thinnest_radius": "_clusters",
     "texel_resolution": "_choices",
     "sector_grid": "_choices",
     "hrir_with_grid": "_choices",

@@ -159,8 +159,9 @@ def cluster_count(strands, given=None) -> Choice:
     )
 
 
-def layer_shells(given=None) -> Choice:
-    """``groom.layer_radii``: ``given`` (the scene's list) or the default shells (module docstring)."""
+def layer_shells(given=None, core: float = 0.0) -> Choice:
+    """``groom.layer_radii``: ``given`` (the scene's list) or the default shells (module docstring) around a core at
+    ``core`` (``groom.core_radius``: none by default)."""
     from ..geometry.cluster_defaults import STRUCTURE_DEFAULTS
 
     if given is not None:
@@ -170,9 +171,9 @@ def layer_shells(given=None) -> Choice:
         "groom.layer_radii",
         radii,
         False,
-        f"{len(radii)} shells at v = {', '.join(f'{r:g}' for r in radii)} around a core at "
-        f"{STRUCTURE_DEFAULTS['core_radius']:g}: the layer count whose mean α the picture benchmark measured closest to "
-        "the strands' on long clusters (two or four shells lose 8–19 % of it there)",
+        f"{len(radii)} shells at v = {', '.join(f'{r:g}' for r in radii)}"
+        + (f" around a core at {core:g}" if core > 0 else ", no core")
+        + ": the layer count the picture benchmark measured best of two, three and four",
         MEASURED["layers"],
     )
 

@@ -75,11 +75,9 @@ def texel_choice(scene: Scene) -> Choice:
     if value != "auto":
         return texel_resolution(value, [], [], 0)
     from ..geometry import ClusterGeometry
-    from ._camera import make_camera
 
-    pairs = scene_clusters(scene)
-    specs = [spec for spec, _ in pairs]
-    cam = make_camera(scene.config["camera"], np.concatenate([s.points for _, s in pairs]))
+    specs = [spec for spec, _ in scene_clusters(scene)]
+    cam = scene_camera(scene)
     geom = ClusterGeometry(specs)
     t = np.tile(np.linspace(0.0, 1.0, _SIZE_SAMPLES), len(specs))
     sec = geom.sections_of(np.repeat(np.arange(len(specs)), _SIZE_SAMPLES), t)
@@ -92,6 +90,36 @@ def texel_choice(scene: Scene) -> Choice:
     lengths = np.hypot(np.diff(x, axis=1), np.diff(y, axis=1)).sum(axis=1)
     widths = 2.0 * np.median(across.reshape(shape), axis=1)
     return texel_resolution(value, lengths, widths, sum(spec.n_layers for spec in specs), (specs[0].s_u, specs[0].s_t))
+
+
+def thinnest_radius(strands) -> float | None:
+    """Half the smallest positive strand thickness of ``strands`` (the detail a frame must resolve), None without
+    thicknesses."""
+    th = [np.asarray(s.thickness, np.float64) for s in strands if s.thickness is not None]
+    th = np.concatenate(th) if th else np.zeros(0)
+    th = th[th > 0]
+    return 0.5 * float(th.min()) if len(th) else None
+
+
+#: The last few scenes' fitted cameras (:func:`scene_camera`), by :func:`_key` and ``[camera]``.
+_CAMERAS: dict = {}
+
+
+def scene_camera(scene: Scene):
+    """The scene's :class:`~hairlut.scene.Camera`, fitted to its strands where ``[camera]`` says 'auto' and refused
+    where float32 could not resolve their thinnest radius (:func:`~hairlut.scene.make_camera`).  Kept for the last few
+    scenes of the process: the planner's texel choice, ``prepare`` and the render fit the same camera (a fit reads
+    every strand point: 0.9 s at 100,000 strands)."""
+    from ._camera import make_camera
+
+    key = _key(scene) + json.dumps(scene.config["camera"], sort_keys=True, default=repr)
+    if key not in _CAMERAS:
+        strands = [s for _, s in scene_clusters(scene)]
+        cam = make_camera(scene.config["camera"], np.concatenate([s.points for s in strands]), thinnest_radius(strands))
+        while len(_CAMERAS) >= _MEMO_SIZE:
+            _CAMERAS.pop(next(iter(_CAMERAS)))
+        _CAMERAS[key] = cam
+    return _CAMERAS[key]
 
 
 def _memo(scene: Scene, cache_root=None) -> tuple:
