@@ -107,19 +107,49 @@ _CAMERAS: dict = {}
 
 def scene_camera(scene: Scene):
     """The scene's :class:`~hairlut.scene.Camera`, fitted to its strands where ``[camera]`` says 'auto' and refused
-    where float32 could not resolve their thinnest radius (:func:`~hairlut.scene.make_camera`).  Kept for the last few
-    scenes of the process: the planner's texel choice, ``prepare`` and the render fit the same camera (a fit reads
-    every strand point: 0.9 s at 100,000 strands)."""
-    from ._camera import make_camera
-
+    where float32 could not resolve their thinnest radius (:func:`~hairlut.scene.make_camera`).  A fit reads every
+    strand point (0.9 s at 100,000 strands), so the camera is kept for the last few scenes of the process (the
+    planner's texel choice, ``prepare`` and the render fit the same one) and, for a groom, in the groom cache
+    (``groom-camera-*``), keyed by its clusters and strands and the ``[camera]`` table."""
     key = _key(scene) + json.dumps(scene.config["camera"], sort_keys=True, default=repr)
     if key not in _CAMERAS:
-        strands = [s for _, s in scene_clusters(scene)]
-        cam = make_camera(scene.config["camera"], np.concatenate([s.points for s in strands]), thinnest_radius(strands))
         while len(_CAMERAS) >= _MEMO_SIZE:
             _CAMERAS.pop(next(iter(_CAMERAS)))
-        _CAMERAS[key] = cam
+        _CAMERAS[key] = _fit_camera(scene)
     return _CAMERAS[key]
+
+
+def _fit_camera(scene: Scene):
+    from ._camera import Camera, make_camera
+
+    cfg = scene.config["camera"]
+    pairs = scene_clusters(scene)
+
+    def fit():
+        strands = [s for _, s in pairs]
+        return make_camera(cfg, np.concatenate([s.points for s in strands]), thinnest_radius(strands))
+
+    if scene.groom_path is None:  # generated strands ([[clusters]]): nothing is kept on disk
+        return fit()
+    from ._cache import cached_arrays
+    from ._sectors import _pairs_key
+
+    def compute():
+        cam = fit()  # refuses a camera float32 cannot draw before anything is kept
+        return {
+            "frame": np.stack([cam.eye, cam.right, cam.up, cam.back]).astype(np.float64),
+            "scalars": np.array([cam.extent, cam.fov, cam.near, cam.far], np.float64),
+        }
+
+    def check(arrays):
+        f, v = arrays["frame"], arrays["scalars"]
+        if f.shape != (4, 3) or v.shape != (4,) or not (np.isfinite(f).all() and np.isfinite(v).all()):
+            raise ValueError(f"a camera of frame {f.shape} and scalars {v.shape}, not (4, 3) and (4,) finite")
+
+    doc = {"clusters": _pairs_key(scene, pairs), "camera": cfg}
+    a = cached_arrays("camera", doc, compute, check, _root_of(scene))
+    w, h = cfg["resolution"]
+    return Camera(cfg["projection"], *a["frame"], int(w), int(h), *(float(x) for x in a["scalars"]))
 
 
 def _memo(scene: Scene, cache_root=None) -> tuple:
