@@ -36,6 +36,7 @@ SS_FIELDS = ("aspect", "v_range", "strands", "radius_rel", "theta_v", "theta_l")
 def _fresh_memo(monkeypatch):
     monkeypatch.setattr(_clusters, "_MEMO", {})
     monkeypatch.setattr(_clusters, "_CAMERAS", {})
+    monkeypatch.setattr(_clusters, "_TEXELS", {})
     monkeypatch.setattr(_clusters, "_ROOTS", {})
     monkeypatch.setattr(_sectors, "_KEYS", {})
 
@@ -66,6 +67,7 @@ def _entries(root: Path, entry: str) -> list[Path]:
 def _forget():
     _clusters._MEMO.clear()
     _clusters._CAMERAS.clear()
+    _clusters._TEXELS.clear()
     _clusters._ROOTS.clear()
     _sectors._KEYS.clear()
 

@@ -323,16 +323,20 @@ def fit_from_arrays(n_strands: int):
     return rebuild
 
 
-def cached_fit(strands, n_clusters, *, root=None, **kw):
+def cached_fit(strands, n_clusters, *, root=None, check=None, **kw):
     """:func:`~hairlut.geometry.fit_clusters` ``(strands, n_clusters, **kw)`` through the cache (module docstring):
-    (batch, labels), the same arrays as a fresh fit's."""
+    (batch, labels), the same arrays as a fresh fit's.  ``check()`` (raises on strands the fit cannot use) runs before
+    a fit is computed; a kept fit passed it when it was made, from the same points and counts (its key)."""
     from ..geometry import fit_clusters
+
+    def compute():
+        if check is not None:
+            check()
+        return fit_clusters(strands, n_clusters, **kw)
 
     args = {"n_clusters": int(n_clusters), **kw}
     key = digest({"entry": "fit", "strands": strands_digest(strands, thickness=False), "args": args, "code": code_digest()})
-    return cached(
-        "fit", key, lambda: fit_clusters(strands, n_clusters, **kw), fit_arrays, fit_from_arrays(strands.n_strands), root
-    )
+    return cached("fit", key, compute, fit_arrays, fit_from_arrays(strands.n_strands), root)
 
 
 def cached_choice(strands, given, choose, *, root=None):

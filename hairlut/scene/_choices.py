@@ -27,8 +27,8 @@ the plan says is what runs.
   strands than along them, and texels smaller than a pixel add cost, not picture.
 * ``tables.hrir.sectors.grid`` (:func:`sector_grid`): the density grid each sector's strands are splatted on before
   the planar march (satf §5.1), fine enough that the median sector's strand Gaussian (σ = r/√2, eq 3's splat) spans
-  :data:`SIGMA_CELLS` cells, with :data:`STEPS_PER_CELL` march steps a cell; at least the default 32², at most
-  :data:`GRID` [1].  A coarse grid smears a thin strand over cells it does not cover, and a smeared optical depth
+  :data:`SIGMA_CELLS` cells, with :data:`STEPS_PER_CELL` march steps a cell, within :data:`GRID` (the default 32²
+  at least).  A coarse grid smears a thin strand over cells it does not cover, and a smeared optical depth
   covers more (Jensen): α and re come out high.  Thick strands keep the default grid; thin ones get a finer one.
 * ``render.views`` and ``render.shading_pixels`` (:func:`table_layout`): the scene table's view angles and re/α pixel
   bins follow the sector grid n (a finer grid holds sharper projections, which change faster with the view and across
@@ -64,18 +64,13 @@ ROWS, COLUMNS, TEXEL_STEP = (8, 256), (16, 512), 4
 #: outside the strands, against 2 % and 0.7 % at 4 rows a step.
 TEXELS_PER_SECTOR = 4
 
-#: The sector grid (``tables.hrir.sectors.grid``): its bounds, its step, the cells the median sector's strand σ spans,
-#: and the march steps per cell.  Ratboy's groom at strand radius 0.05 (48 clusters, median radius 0.039 √area), the
-#: direct maps against the 192² truth (``benchmarks.map_variants --grid-study``): 32² (0.88 cells) missed the direct
-#: targets (re 0.132, α 0.064, coverage 0.051), 48² (1.33 cells, the rule's) met them (0.079, 0.033, 0.028); the
-#: tuned scene file's 12 clusters (median 0.0196) missed at 64² (0.89 cells) and met them at 96² (1.33).
+#: The sector grid (``tables.hrir.sectors.grid``): its bounds, its step, the cells the median sector's strand σ spans
+#: (0.88 cells missed the direct-map targets on Ratboy's thin strands, 1.33 met them: ``MEASURED["grid"]``), and the
+#: march steps per cell.
 GRID, GRID_STEP, SIGMA_CELLS, STEPS_PER_CELL = (32, 128), 16, 1.2, 2
 
-#: The scene table's layout (``render.views``, ``render.shading_pixels``) per sector grid side n, against the direct
-#: trace at twice the grid (scene targets: re ≤ 0.15, α ≤ 0.08, coverage ≤ 0.04): Sintel on 32², 64 views and 8 bins,
-#: re 0.113, α 0.043; Ratboy at radius 0.05 on 48², 64 views and 16 bins, re 0.118, α 0.042 (96 views: α 0.031);
-#: the 12-cluster Ratboy on 96²: 64 views α 0.081 (a miss), 128 views with 16 bins re 0.150 (a miss), with 32 bins
-#: re 0.130, α 0.040.
+#: The scene table's layout (``render.views``, ``render.shading_pixels``) per sector grid side n: views a cell, their
+#: step and least count, and bins a cell (calibrated on Sintel at 32², Ratboy at 48² and 96²: ``MEASURED["layout"]``).
 VIEWS_PER_CELL, VIEW_STEP, VIEWS_MIN, BINS_PER_CELL = 4 / 3, 32, 64, 1 / 4
 
 #: Measured by the picture benchmark (Sintel's groom and, where said, the other untuned scenes; defaults, 128², strand
