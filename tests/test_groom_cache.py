@@ -487,6 +487,19 @@ def test_a_grooms_fitted_camera_is_kept(tmp_path, groom_file, monkeypatch):
     assert not np.array_equal(side.back, first.back)
 
 
+def test_a_grooms_chosen_texels_are_kept(tmp_path, groom_file, monkeypatch):
+    """The clusters' projected sizes the texel choice reads (their sweeps: 0.6 s at 48 clusters) are kept: the same
+    choice again in a fresh process without sweeping a cluster."""
+    monkeypatch.setenv("HAIRLUT_CACHE", str(tmp_path / "cache"))
+    scene = load_scene(_scene(tmp_path / "a", groom_file))
+    first = texel_choice(scene)
+    assert len(_entries(tmp_path / "cache", "texels")) == 1 and not first.given
+    _forget()
+    monkeypatch.setattr(_clusters, "_projected_sizes", lambda *a: pytest.fail("swept the clusters again"))
+    again = texel_choice(scene)
+    assert (again.value, again.reason) == (first.value, first.reason)
+
+
 def test_prepare_in_groups_of_clusters_is_each_cluster_alone(tmp_path, groom_file):
     """synth.prepare sweeps texels and sections 4 clusters to a geometry: every cluster's frames and texels are the
     same bits as with a geometry of its own."""

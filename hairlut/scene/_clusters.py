@@ -88,9 +88,29 @@ def texel_choice(scene: Scene) -> Choice:
 
 
 def _texel_choice(scene: Scene, value) -> Choice:
+    specs = [spec for spec, _ in scene_clusters(scene)]
+    if scene.groom_path is None:  # generated strands ([[clusters]]): nothing is kept on disk
+        sizes = _projected_sizes(scene, specs)
+    else:  # a groom's: in the groom cache with its camera (the clusters' sweeps: 0.6 s at 48 clusters)
+        from ._cache import cached_arrays
+        from ._sectors import _pairs_key
+
+        def check(arrays):
+            for k in ("lengths", "widths"):
+                if arrays[k].shape != (len(specs),) or not np.isfinite(arrays[k]).all():
+                    raise ValueError(f"{k} of shape {arrays[k].shape}, not ({len(specs)},) finite")
+
+        doc = {"clusters": _pairs_key(scene, scene_clusters(scene)), "camera": scene.config["camera"]}
+        sizes = cached_arrays("texels", doc, lambda: _projected_sizes(scene, specs), check, _root_of(scene))
+    layers = sum(spec.n_layers for spec in specs)
+    return texel_resolution(value, sizes["lengths"], sizes["widths"], layers, (specs[0].s_u, specs[0].s_t))
+
+
+def _projected_sizes(scene: Scene, specs) -> dict:
+    """Each cluster's trajectory length and width (twice the larger half axis, the median along it) in pixels through
+    the scene's camera: {"lengths", "widths"} (C,)."""
     from ..geometry import ClusterGeometry
 
-    specs = [spec for spec, _ in scene_clusters(scene)]
     cam = scene_camera(scene)
     geom = ClusterGeometry(specs)
     t = np.tile(np.linspace(0.0, 1.0, _SIZE_SAMPLES), len(specs))
@@ -103,7 +123,7 @@ def _texel_choice(scene: Scene, value) -> Choice:
     x, y = x.reshape(shape), y.reshape(shape)
     lengths = np.hypot(np.diff(x, axis=1), np.diff(y, axis=1)).sum(axis=1)
     widths = 2.0 * np.median(across.reshape(shape), axis=1)
-    return texel_resolution(value, lengths, widths, sum(spec.n_layers for spec in specs), (specs[0].s_u, specs[0].s_t))
+    return {"lengths": np.asarray(lengths, np.float64), "widths": np.asarray(widths, np.float64)}
 
 
 def thinnest_radius(strands) -> float | None:
