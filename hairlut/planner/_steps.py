@@ -63,6 +63,18 @@ def _cached(kind: str, recipe: dict, root) -> tuple[Path, bool]:
     return path, cache.is_valid(path, kind, recipe_hash(recipe))
 
 
+def _asset_step(kind: str, recipe: dict, root, words: str, bake_words: str, estimate, **extra) -> Step:
+    """The step of an asset whose cache entry is exactly ``recipe``: ``reuse`` when the cache holds it (its size),
+    else ``bake`` with ``estimate()`` = (bytes, seconds); ``extra``: the Step's other fields."""
+    path, hit = _cached(kind, recipe, root)
+    if hit:
+        return Step(
+            kind, "reuse", "recipe hash matches the cache; " + words, kind, recipe, str(path), path.stat().st_size, **extra
+        )
+    nbytes, seconds = estimate()
+    return Step(kind, "bake", bake_words, kind, recipe, str(path), nbytes, seconds, **extra)
+
+
 def _hrir_step(scene, ss: SceneSectors, root) -> Step:
     from ..hrir import resolve_recipe
 
@@ -230,14 +242,7 @@ def _hair_bsdf_step(scene, root) -> Step:
         f"{', '.join(t for t in ('dual_scattering', 'mean_energy', 'coverage') if recipe[t]['bake'])} on "
         f"{' × '.join(map(str, g['resolution']))} (sin θ × roughness × {recipe['absorption']['axis']})"
     )
-    path, hit = _cached("hair_bsdf", recipe, root)
-    if hit:
-        return Step(
-            "hair_bsdf", "reuse", "recipe hash matches the cache; " + words, "hair_bsdf", recipe, str(path),
-            path.stat().st_size, online=False,
-        )  # fmt: skip
-    nbytes, seconds = registry.get("hair_bsdf").estimate(recipe)
-    return Step("hair_bsdf", "bake", words, "hair_bsdf", recipe, str(path), nbytes, seconds, online=False)
+    return _asset_step("hair_bsdf", recipe, root, words, words, lambda: registry.get("hair_bsdf").estimate(recipe), online=False)
 
 
 def _transmittance_step(scene) -> Step:
@@ -273,39 +278,18 @@ def _map_steps(sc, ss: SceneSectors, root) -> tuple[str, list[Step]]:
         f"symmetric half) and {2 * t['terms'] + 1} re/α Fourier terms × {t['shading_pixels']} pixel bins; keyed by "
         f"the groom's geometry {recipe['geometry']['sha256'][:12]}…"
     )
-    path, hit = _cached("scene_maps", recipe, root)
-    details = {"sectors": n, "live": live, **t}
-    if hit:
-        steps.append(
-            Step(
-                "scene_maps",
-                "reuse",
-                "recipe hash matches the cache; " + words,
-                "scene_maps",
-                recipe,
-                str(path),
-                path.stat().st_size,
-                0.0,
-                details,
-                {"scene": sc},
-            )
+    steps.append(
+        _asset_step(
+            "scene_maps",
+            recipe,
+            root,
+            words,
+            "the scene map method reads it: " + words,
+            lambda: registry.get("scene_maps").estimate(recipe, n, live),
+            details={"sectors": n, "live": live, **t},
+            inputs={"scene": sc},
         )
-    else:
-        nbytes, seconds = registry.get("scene_maps").estimate(recipe, n, live)
-        steps.append(
-            Step(
-                "scene_maps",
-                "bake",
-                "the scene map method reads it: " + words,
-                "scene_maps",
-                recipe,
-                str(path),
-                nbytes,
-                seconds,
-                details,
-                {"scene": sc},
-            )
-        )
+    )
     return method, steps
 
 
