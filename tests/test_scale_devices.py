@@ -49,8 +49,8 @@ from hairlut.bake.devices import initialize
 from tests.test_distributed_bake import split_cases
 
 kind, out, port, k = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
+proc = initialize(f"127.0.0.1:{port}", 2, k)  # first, as the CLI does: the scene recipe's grid choice runs JAX
 recipe, options, _ = split_cases()[kind]
-proc = initialize(f"127.0.0.1:{port}", 2, k)
 rep = registry.bake(kind, recipe, out, options=options, distributed=proc)
 print("RANGE", *rep["unit_range"])
 """

@@ -72,7 +72,11 @@ def initialize(coordinator=None, num_processes=None, process_id=None, timeout_s:
 
     ``timeout_s``: how long to wait for a peer that has not come or has stopped answering.  ``on_fatal(message)``
     (the command line's): called instead of JAX's abort with the one line to show (None: the bake had finished),
-    and must not return; see :mod:`hairlut.bake.coordination`."""
+    and must not return; see :mod:`hairlut.bake.coordination`.
+
+    Call it before anything that runs JAX, as ``hairlut bake --distributed`` does: JAX joins only before its
+    backend starts, and building a scene's recipe already runs it (the planner fits the clusters to choose the
+    sector grid, :func:`hairlut.planner.scene_maps_recipe`)."""
     check_args(coordinator, num_processes, process_id)
     join(coordinator, num_processes, process_id, timeout_s, on_fatal)
     return current()
