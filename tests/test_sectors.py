@@ -88,6 +88,31 @@ def test_crossings_keep_the_nearest_in_shell_point():
     np.testing.assert_allclose(tab.crossing_point[second][:, 2], [0.0, 2.0, 4.0][: int(second.sum())], atol=1e-12)
 
 
+def test_an_outlier_beyond_the_outer_layer_is_kept_at_the_rim_at_its_own_phase():
+    """A strand of the cluster that crosses a section only beyond the outer layer (the fit's ellipse holds 95 % of the
+    crossings) is counted, not lost: kept at the middle of the outermost track, at its own phase; its splat's mass lies
+    in the shells.  A crossing inside the shells still wins over an outlier's, and the core still holds none."""
+    from hairlut.geometry.sectors import RIM
+
+    geom = cylinder()
+    bounds = geom.track_bounds[0]
+    rim = bounds[-2] + RIM * (bounds[-1] - bounds[-2])
+    out_x, out_y = 2 * 1.5 * np.cos(2.0), 1.5 * np.sin(2.0)  # v = 1.5 at polar angle 2
+    outlier = [[out_x, out_y, -1], [out_x, out_y, 5]]
+    core = [[0.1, 0.1, -1], [0.1, 0.1, 5]]
+    x, y = 2 * 0.6 * np.cos(1.0), 0.6 * np.sin(1.0)
+    both = [[x, y, -1], [x, y, 2.5], [out_x, out_y, 2.5], [out_x, out_y, -1]]  # t = 0, 0.5: in the shells and beyond
+    tab = build_sectors(geom, polylines(outlier, core, both), np.zeros(3, int), radius=0.01)
+    out = tab.crossing_strand == 0
+    assert sorted(tab.t_index[tab.crossing_sector[out]]) == [0, 1, 2]
+    np.testing.assert_allclose(tab.crossing_vu[out], [[rim, 2.0 - 0.3]] * 3, atol=1e-12)
+    np.testing.assert_allclose(tab.crossing_xy[out], [[2 * rim * np.cos(2.0), rim * np.sin(2.0)]] * 3, atol=1e-12)
+    assert (tab.track[tab.crossing_sector[out]] == len(bounds) - 2).all()
+    assert not (tab.crossing_strand == 1).any()
+    np.testing.assert_allclose(tab.crossing_vu[tab.crossing_strand == 2], [[0.6, 0.7]] * 2, atol=1e-12)
+    assert set(np.flatnonzero(out)) <= set(tab.splat_crossing)  # the outlier's crossings splat into the shells
+
+
 @pytest.mark.parametrize("tilt_deg", [0.0, 30.0, 60.0, 85.0])
 def test_a_tilted_strand_keeps_its_hair_per_unit_length(tilt_deg):
     """A straight strand at angle γ to the cluster's axis holds π r² / cos γ of hair per unit length of the axis:

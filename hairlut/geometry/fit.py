@@ -24,7 +24,8 @@ lies inside the fitted clusters (99.8 % with ``coverage`` 1; 62.8 % and 64.6 % w
 mean trajectory, 12 sections, core 0.25; tests/test_fit.py).  ``coverage`` 0.95 rather than 1: the
 outliers' few crossings would widen every section's ellipse, and the layered render of both grooms
 came out closer to the strand render with 0.95 (mean α −11.2 % against −13.6 % on Sintel, −18.9 %
-against −21.5 % on Ratboy; 128², direct maps, strand render level 0).
+against −21.5 % on Ratboy; 128², direct maps, strand render level 0).  The outliers' hair is not lost for that:
+the sectors keep a crossing beyond the outer layer at the rim (:mod:`hairlut.geometry.sectors`).
 
 A group whose mean strand has no length (the grooms hold a few near-zero strands) is
 dropped and its strands are labelled −1.
