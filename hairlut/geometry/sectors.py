@@ -14,10 +14,11 @@ the fit's ellipse, sized to hold 95 % of the crossings, leaves out: :func:`hairl
 too, pulled in along its own phase to the middle of the outermost track (:data:`RIM`), so that every strand's hair
 is counted once.  Dropped, the outliers' α was lost: the long grooms' layered α was 2–6 % below the strand render's
 (Sintel from the back −3.7 %, the parted groom −4.5 % and −6.1 %); pulled in, −0.5 %, −2.2 % and −2.3 %, and the mean
-|bias| over the picture benchmark's 15 scenes went from 2.8 % to 2.2 % (benchmarks/records.md, 2026-12-05).  Its sector, its parametric (s, r) in that sector
-(s along the phase, r along the radius, both in [0, 1]), its metric (x, y) in the
-normal plane (x along the frame reference r, y along the binormal; eq 1 has
-x = A v cos(q + u), y = B v sin(q + u)) and its 3-D point are recorded.
+|bias| over the picture benchmark's 15 scenes went from 2.8 % to 2.2 % (benchmarks/records.md, 2026-12-05).
+
+Of each kept crossing, its sector, its parametric (s, r) in that sector (s along the phase, r along the radius,
+both in [0, 1]), its metric (x, y) in the normal plane (x along the frame reference r, y along the binormal; eq 1
+has x = A v cos(q + u), y = B v sin(q + u)) and its 3-D point (an outlier's own, where the strand is) are recorded.
 
 Its radius is the strand's widened for its tilt: a strand at angle γ to the plane's normal is
 cut in an ellipse of area π r² / cos γ, and it holds that much hair per unit length of the
