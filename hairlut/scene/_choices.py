@@ -77,8 +77,8 @@ VIEWS_PER_CELL, VIEW_STEP, VIEWS_MIN, BINS_PER_CELL = 4 / 3, 32, 64, 1 / 4
 #: render converged to 0.02; 2026-12-04 and 2026-12-05, benchmarks/records.md), the figures each choice's ``predicted``
 #: quotes.
 MEASURED = {
-    "clusters": "Sintel: 9 clusters FLIP 0.165, 18 clusters 0.136, 36 clusters 0.120 with mean α −8.0 % "
-    "(track reads, light-oriented shadows)",
+    "clusters": "Sintel from the front: 9 clusters FLIP 0.154 (mean α +1.4 %), 18 clusters 0.134 (−1.9 %), 36 clusters "
+    "0.117 (−5.6 %) (hairlut bench --only picture, docs/bench/picture)",
     "layers": "FLIP against the strand render with 2 / 3 / 4 shells: Sintel front 0.132 / 0.131 / 0.127, back "
     "0.108 / 0.106 / 0.103; the crop front 0.084 / 0.081 / 0.079, side 0.102 / 0.094 (2 / 3); mean α within 4 points",
     "light_oriented": "colour per unit α 0.82–1.20× the strand render's on 10 untuned scenes (Sintel front 0.99×; "
